@@ -1,0 +1,181 @@
+"""GPU resources that a :class:`~pycinder.Detector` creates once and reuses every frame.
+
+* :class:`SceneBuffers` holds a packed scene. Buffers grow (to the next power of two) when a larger
+  scene arrives and are otherwise reused; a new topology re-uploads faces and edges, and an
+  animation frame re-uploads only the vertex ranges of bodies whose vertices changed.
+* :class:`Targets` holds the render targets of one resolution.
+* :class:`Readback` is a mappable staging buffer.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import wgpu
+
+from ..scene import PackedScene
+
+STORAGE = wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_DST
+RECORD_FORMAT = "rgba32uint"
+
+
+def _capacity(nbytes: int) -> int:
+    return max(256, 1 << (max(int(nbytes), 1) - 1).bit_length())
+
+
+class GrowableBuffer:
+    """A GPU buffer that is replaced by a larger one only when the data outgrows it."""
+
+    def __init__(self, device: wgpu.GPUDevice, label: str, usage: int) -> None:
+        self.device, self.label, self.usage = device, label, usage
+        self.buffer: wgpu.GPUBuffer | None = None
+        self.generation = 0
+
+    def ensure(self, nbytes: int) -> bool:
+        """Make room for ``nbytes``; True when the buffer was (re)created."""
+        if self.buffer is not None and self.buffer.size >= nbytes:
+            return False
+        self.buffer = self.device.create_buffer(label=self.label, size=_capacity(nbytes),
+                                                usage=self.usage)
+        self.generation += 1
+        return True
+
+    def write(self, data: np.ndarray, offset: int = 0) -> None:
+        data = np.ascontiguousarray(data)
+        if data.nbytes:
+            self.device.queue.write_buffer(self.buffer, offset, data)
+
+
+class SceneBuffers:
+    """The packed scene on the GPU (bindings 1-7 of ``raycast.wgsl``)."""
+
+    NAMES = ("positions", "vertex_body", "clip_from_body", "edges", "vertex_normals",
+             "edge_normals", "world_from_body")
+
+    def __init__(self, device: wgpu.GPUDevice) -> None:
+        self.device = device
+        self.frame = device.create_buffer(label="frame", size=16,
+                                          usage=wgpu.BufferUsage.UNIFORM | wgpu.BufferUsage.COPY_DST)
+        self.storage = {n: GrowableBuffer(device, n, STORAGE) for n in self.NAMES}
+        self.index = GrowableBuffer(device, "indices",
+                                    wgpu.BufferUsage.INDEX | wgpu.BufferUsage.COPY_DST)
+        self.scene: PackedScene | None = None
+        self._uploaded_positions: np.ndarray | None = None
+        self.uploaded_vertex_bytes = 0
+        """Bytes of vertex data uploaded by the last :meth:`upload` (for stats and tests)."""
+
+    @property
+    def generation(self) -> tuple[int, ...]:
+        """Changes whenever a buffer is recreated, so that bind groups and bundles are rebuilt."""
+        return tuple(b.generation for b in self.storage.values()) + (self.index.generation,)
+
+    def upload(self, scene: PackedScene) -> None:
+        """Upload ``scene``, skipping what the GPU already holds.
+
+        The topology (indices, edges, normals) is uploaded when it differs from the last scene;
+        vertex positions only for bodies whose vertices changed.
+        """
+        same_topology = self.scene is not None and self.scene.topology_ids == scene.topology_ids \
+            and np.array_equal(self.scene.vertex_start, scene.vertex_start)
+        s = self.storage
+        if not same_topology:
+            s["positions"].ensure(scene.positions.nbytes)
+            s["vertex_body"].ensure(scene.vertex_body.nbytes)
+            s["edges"].ensure(scene.edges.nbytes)
+            s["vertex_normals"].ensure(scene.vertex_normals.nbytes)
+            s["edge_normals"].ensure(scene.edge_normals.nbytes)
+            self.index.ensure(scene.indices.nbytes)
+            s["positions"].write(scene.positions)
+            s["vertex_body"].write(scene.vertex_body)
+            s["edges"].write(scene.edges)
+            s["vertex_normals"].write(scene.vertex_normals)
+            s["edge_normals"].write(scene.edge_normals)
+            self.index.write(scene.indices)
+            self.uploaded_vertex_bytes = scene.positions.nbytes
+        else:
+            self.uploaded_vertex_bytes = self._upload_changed_vertices(scene)
+        self._uploaded_positions = scene.positions.copy()
+        self.scene = scene
+
+    def _upload_changed_vertices(self, scene: PackedScene) -> int:
+        old = self._uploaded_positions
+        changed = (old != scene.positions).any(axis=1)
+        if not changed.any():
+            return 0
+        starts = scene.vertex_start
+        bodies = np.unique(np.searchsorted(starts, np.flatnonzero(changed), side="right") - 1)
+        total = 0
+        for b in bodies:
+            lo, hi = int(starts[b]), int(starts[b + 1])
+            self.storage["positions"].write(scene.positions[lo:hi], offset=lo * 12)
+            total += (hi - lo) * 12
+        return total
+
+    def upload_transforms(self, clip_from_body: np.ndarray, world_from_body: np.ndarray) -> None:
+        """clip_from_body, world_from_body : (N, 4, 4) float, row-major as NumPy holds them."""
+        for name, m in (("clip_from_body", clip_from_body), ("world_from_body", world_from_body)):
+            # WGSL matrices are column-major: upload the transpose.
+            data = np.ascontiguousarray(np.transpose(m, (0, 2, 1)), dtype=np.float32)
+            self.storage[name].ensure(data.nbytes)
+            self.storage[name].write(data)
+
+    def write_frame(self, edge_offset: float, payload_mode: int) -> None:
+        data = np.zeros(4, dtype=np.uint32)
+        data[0] = np.float32(edge_offset).view(np.uint32)
+        data[1] = payload_mode
+        self.device.queue.write_buffer(self.frame, 0, data)
+
+
+class Targets:
+    """Render targets of one resolution.
+
+    records : rgba32uint colour target (see ``result.py`` for the channels)
+    depth_stencil : the depth buffer of pass 1 and the stencil counts of passes 2-7
+    edge_owner : copy of ``records`` after pass 1, read by the prevent mode
+    """
+
+    def __init__(self, device: wgpu.GPUDevice, width: int, height: int, depth_format: str) -> None:
+        self.width, self.height = width, height
+        tex = wgpu.TextureUsage
+        size = (width, height, 1)
+        self.records = device.create_texture(
+            label="records", size=size, format=RECORD_FORMAT,
+            usage=tex.RENDER_ATTACHMENT | tex.TEXTURE_BINDING | tex.COPY_SRC)
+        self.depth_stencil = device.create_texture(
+            label="depth-stencil", size=size, format=depth_format,
+            usage=tex.RENDER_ATTACHMENT | tex.TEXTURE_BINDING)
+        self.edge_owner = device.create_texture(
+            label="edge owner", size=size, format=RECORD_FORMAT,
+            usage=tex.TEXTURE_BINDING | tex.COPY_DST)
+        self.records_view = self.records.create_view()
+        self.depth_stencil_view = self.depth_stencil.create_view()
+        depth_only = "depth32float" if depth_format.startswith("depth32float") else "depth24plus"
+        self.depth_view = self.depth_stencil.create_view(aspect="depth-only", format=depth_only)
+        self.stencil_view = self.depth_stencil.create_view(aspect="stencil-only", format="stencil8")
+        self.edge_owner_view = self.edge_owner.create_view()
+
+    @property
+    def pixels(self) -> int:
+        return self.width * self.height
+
+
+class Readback:
+    """A MAP_READ staging buffer, grown on demand and reused."""
+
+    def __init__(self, device: wgpu.GPUDevice, label: str) -> None:
+        self.buf = GrowableBuffer(device, label, wgpu.BufferUsage.MAP_READ | wgpu.BufferUsage.COPY_DST)
+
+    def ensure(self, nbytes: int) -> wgpu.GPUBuffer:
+        self.buf.ensure(nbytes)
+        return self.buf.buffer
+
+    def read(self, nbytes: int, dtype: np.dtype = np.uint32) -> np.ndarray:
+        """Map, copy out the first ``nbytes``, unmap."""
+        if nbytes == 0:
+            return np.zeros(0, dtype=dtype)
+        b = self.buf.buffer
+        b.map_sync(wgpu.MapMode.READ, 0, nbytes)
+        try:
+            data = np.frombuffer(b.read_mapped(0, nbytes), dtype=dtype).copy()
+        finally:
+            b.unmap()
+        return data
