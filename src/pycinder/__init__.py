@@ -8,7 +8,7 @@
 array([[0, 1]])
 """
 
-from .detector import Detector, find_collisions
+from .detector import ClippedBodyWarning, Detector, find_collisions
 from .gpu.device import NoAdapterError
 from .manager import CollisionManager
 from .result import RECORD_DTYPE, CollisionResult, Stats
@@ -18,6 +18,6 @@ from .view import View
 __version__ = "0.1.0"
 
 __all__ = [
-    "MAX_BODIES", "RECORD_DTYPE", "CollisionManager", "CollisionResult", "DegenerateFaceWarning",
+    "MAX_BODIES", "RECORD_DTYPE", "ClippedBodyWarning", "CollisionManager", "CollisionResult", "DegenerateFaceWarning",
     "Detector", "NoAdapterError", "OpenMeshWarning", "Stats", "View", "find_collisions",
 ]

@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -21,6 +22,12 @@ from .passes.selfint import COUNTERS_BYTES, RECORD_BYTES, FilterPass
 from .result import RECORD_DTYPE, CollisionResult, Stats, decode_compact, decode_image, unique_pairs
 from .scene import PackedScene, TopologyCache, pack, prepare_bodies
 from .view import View, world_corners
+
+
+
+class ClippedBodyWarning(UserWarning):
+    """A user view's near or far plane cuts a body."""
+
 
 SELF_INTERFERENCE_MODES = ("filter", "prevent", "offset")
 READBACK_MODES = ("full", "compact")
@@ -123,7 +130,8 @@ class Detector:
         stats.records = len(records)
         stats.wall_ms["total"] = (time.perf_counter() - t0) * 1e3
         stats.wall_ms["decode"] = stats.wall_ms.get("decode", 0.0) + (time.perf_counter() - t3) * 1e3
-        return CollisionResult(pairs, records, views, stats.resolution, stats)
+        return CollisionResult(pairs, records, views, stats.resolution, stats,
+                               (scene.edges, scene.edge_start, scene.vertex_start))
 
     def prepare(self, bodies: Sequence[Any], transforms: Any = None, *,
                 view: View | Sequence[View] | None = None,
@@ -164,16 +172,34 @@ class Detector:
 
     def _views(self, view: View | Sequence[View] | None, bodies: list,
                transforms: np.ndarray) -> list[View]:
+        lo = np.stack([b.vertices.min(axis=0) for b in bodies]).astype(np.float64)
+        hi = np.stack([b.vertices.max(axis=0) for b in bodies]).astype(np.float64)
         if view is None:
-            lo = np.stack([b.vertices.min(axis=0) for b in bodies]).astype(np.float64)
-            hi = np.stack([b.vertices.max(axis=0) for b in bodies]).astype(np.float64)
             return [View.fit(world_corners(lo, hi, transforms), resolution=self.resolution)]
-        if isinstance(view, View):
-            return [view]
-        views = list(view)
+        views = [view] if isinstance(view, View) else list(view)
         if not views or not all(isinstance(v, View) for v in views):
             raise TypeError("view must be a View, a non-empty sequence of Views, or None")
+        for k, v in enumerate(views):
+            self._check_depth_range(k, v, bodies, lo, hi, transforms)
         return views
+
+    def _check_depth_range(self, k: int, view: View, bodies: list, lo: np.ndarray,
+                           hi: np.ndarray, transforms: np.ndarray) -> None:
+        """Warn (raise when strict) when the near or far plane cuts a body: the ray count through
+        a cut solid is wrong. Bounding boxes first; exact vertices only for suspects."""
+        zmin, zmax = view.depth_range(lo, hi, transforms)
+        for i in np.flatnonzero((zmin < 0) | (zmax > 1)):
+            b = bodies[i]
+            z = view.project(b.vertices @ b.transform[:3, :3].T + b.transform[:3, 3], 1, 1)[:, 2]
+            if z.min() >= 0 and z.max() <= 1:
+                continue
+            plane = "near" if z.min() < 0 else "far"
+            message = (f"{b.label} is cut by the {plane} plane of view {k}; the ray count through "
+                       "a cut solid is wrong, so its collisions may be missed or invented. Use "
+                       "View.fit_bodies or move the planes.")
+            if self.strict:
+                raise ValueError(message)
+            warnings.warn(message, ClippedBodyWarning, stacklevel=4)
 
     def _edge_offset(self, view: View) -> float:
         if self.self_interference != "offset":

@@ -91,6 +91,8 @@ class CollisionResult:
     views: list[View]
     resolution: tuple[int, int]
     stats: Stats
+    edge_table: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+    """The scene's (edges (E, 2), edge_start (N+1,), vertex_start (N+1,)), for :meth:`edges`."""
 
     @property
     def is_collision(self) -> bool:
@@ -109,6 +111,15 @@ class CollisionResult:
                 r = self.records[sel]
                 out[sel] = view.unproject(r["x"], r["y"], r["depth"], w, h)
         return out
+
+    def edge_vertices(self) -> np.ndarray:
+        """Each record's penetrating edge as (len(records), 2) int64 vertex indices of the
+        penetrating body (indices into that body's own vertex array)."""
+        if self.edge_table is None or (self.records["edge"] < 0).any():
+            raise ValueError("edge indices are not encoded (encode='normal')")
+        edges, edge_start, vertex_start = self.edge_table
+        pen = self.records["penetrating"].astype(np.int64)
+        return edges[edge_start[pen] + self.records["edge"]].astype(np.int64) - vertex_start[pen, None]
 
     def pair_names(self, names: Sequence[str]) -> set[tuple[str, str]]:
         """The pairs as a set of name tuples, as trimesh's ``return_names`` gives them."""

@@ -107,6 +107,28 @@ class View:
         pixel = 2.0 * half / resolution if resolution else None
         return cls(view, orthographic(half, half, near, far), pixel)
 
+    @classmethod
+    def fit_bodies(cls, bodies: Sequence, transforms: np.ndarray | Sequence | None = None,
+                   **kwargs) -> View:
+        """:meth:`fit` around bodies (trimesh meshes or (vertices, faces) pairs).
+
+        transforms : None or (N, 4, 4) world-from-body matrices; keywords go to :meth:`fit`
+        """
+        verts = [np.asarray(b.vertices if hasattr(b, "vertices") else b[0], dtype=np.float64)
+                 for b in bodies]
+        t = np.broadcast_to(np.eye(4), (len(verts), 4, 4)) if transforms is None \
+            else np.asarray(transforms, dtype=np.float64)
+        lo = np.stack([v.min(axis=0) for v in verts])
+        hi = np.stack([v.max(axis=0) for v in verts])
+        return cls.fit(world_corners(lo, hi, t), **kwargs)
+
+    def depth_range(self, local_min: np.ndarray, local_max: np.ndarray, transforms: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """Per body, the (min, max) depth of its bounding-box corners in this view: (N,), (N,)."""
+        corners = world_corners(local_min, local_max, transforms)
+        z = self.project(corners, 1, 1)[:, 2].reshape(len(local_min), 8)
+        return z.min(axis=1), z.max(axis=1)
+
     def project(self, points: np.ndarray, width: int, height: int) -> np.ndarray:
         """World points (n, 3) to pixel coordinates and depth (n, 3): x right, y down."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)

@@ -1,0 +1,32 @@
+# Set-up and everyday commands. `make demo` and `make test` work on a fresh Debian machine with
+# Python 3.11+: each creates .venv, installs what it needs, and makes sure wgpu finds an adapter.
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+export XDG_RUNTIME_DIR ?= /tmp
+export PYTHONUNBUFFERED := 1
+
+.PHONY: demo test venv lint bench clean
+
+$(PY):
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+
+$(VENV)/.deps-%: pyproject.toml | $(PY)
+	$(PY) -m pip install -q -e ".[$*]"
+	./scripts/ensure-adapter.sh $(PY)
+	touch $@
+
+venv: $(VENV)/.deps-all
+
+demo: $(VENV)/.deps-demo
+	$(VENV)/bin/pycinder example --out out/buffers
+
+test: $(VENV)/.deps-test
+	$(PY) -m pytest -q
+
+bench: $(VENV)/.deps-bench
+	$(VENV)/bin/pycinder bench --out benchmarks/results
+
+clean:
+	rm -rf $(VENV) out .pytest_cache .hypothesis

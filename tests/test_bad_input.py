@@ -1,0 +1,151 @@
+"""Bad input gets a clear error naming the body and the problem."""
+
+import warnings
+
+import numpy as np
+import pytest
+import trimesh
+import wgpu
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import pycinder
+from pycinder.gpu import device as gpu_device
+
+
+@pytest.fixture(scope="module")
+def det() -> pycinder.Detector:
+    return pycinder.Detector(128)
+
+
+def box_arrays():
+    b = trimesh.creation.box((1, 1, 1))
+    return np.array(b.vertices), np.array(b.faces)
+
+
+@settings(max_examples=25, deadline=None)
+@given(vertex=st.integers(0, 7), axis=st.integers(0, 2),
+       value=st.sampled_from([np.nan, np.inf, -np.inf]), body=st.integers(0, 2))
+def test_nan_or_inf_vertices_name_the_body(det, vertex, axis, value, body):
+    bodies = [box_arrays() for _ in range(3)]
+    v, f = bodies[body]
+    v[vertex, axis] = value
+    with pytest.raises(ValueError, match=rf"body {body}\b.*NaN or infinite.*vertex {vertex}"):
+        det.find_collisions(bodies)
+
+
+@settings(max_examples=25, deadline=None)
+@given(i=st.integers(0, 3), j=st.integers(0, 3), value=st.sampled_from([np.nan, np.inf]),
+       body=st.integers(0, 1))
+def test_nan_transform_names_the_body(det, i, j, value, body):
+    t = [np.eye(4), np.eye(4)]
+    t[body][i, j] = value
+    with pytest.raises(ValueError, match=rf"body {body}\b.*transform.*NaN"):
+        det.find_collisions([box_arrays(), box_arrays()], t)
+
+
+@settings(max_examples=25, deadline=None)
+@given(bad=st.one_of(st.integers(8, 10_000), st.integers(-10_000, -1)), face=st.integers(0, 11),
+       corner=st.integers(0, 2))
+def test_face_index_out_of_range(det, bad, face, corner):
+    v, f = box_arrays()
+    f[face, corner] = bad
+    with pytest.raises(ValueError, match=r"body 1\b.*out of range.*8 vertices"):
+        det.find_collisions([box_arrays(), (v, f)])
+
+
+def test_degenerate_face_repeating_a_vertex(det):
+    v, f = box_arrays()
+    f[4] = [f[4, 0], f[4, 0], f[4, 1]]
+    with pytest.raises(ValueError, match=r"body 0\b.*degenerate face.*face 4"):
+        det.find_collisions([(v, f)])
+
+
+def test_zero_area_face_warns_and_strict_raises():
+    # A closed tetrahedron-like surface with a vertex collapsed onto an edge midpoint.
+    v = np.array([[0, 0, 0], [1, 0, 0], [0.5, 0, 0], [0, 0, 1.0]])
+    f = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]])
+    with pytest.warns(pycinder.DegenerateFaceWarning, match="body 0.*zero area"):
+        pycinder.Detector(64).find_collisions([(v, f)])
+    with pytest.raises(ValueError, match="body 0.*zero area"):
+        pycinder.Detector(64, strict=True).find_collisions([(v, f)])
+
+
+@pytest.mark.parametrize("mesh", [(np.zeros((0, 3)), np.zeros((0, 3), int)),
+                                  (np.zeros((3, 3)), np.zeros((0, 3), int))])
+def test_empty_mesh(det, mesh):
+    with pytest.raises(ValueError, match=r"body 1\b.*empty"):
+        det.find_collisions([box_arrays(), mesh])
+
+
+def test_open_mesh_warns_and_strict_raises():
+    box = trimesh.creation.box((1, 1, 1))
+    open_box = trimesh.Trimesh(box.vertices, box.faces[:-2], process=False)
+    with pytest.warns(pycinder.OpenMeshWarning, match=r"body 1 \('lid'\).*2 boundary edges|body 1 \('lid'\).*boundary edges"):
+        pycinder.Detector(64).find_collisions([box, open_box], names=["box", "lid"])
+    with pytest.raises(ValueError, match=r"body 1 \('lid'\).*not a closed"):
+        pycinder.Detector(64, strict=True).find_collisions([box, open_box], names=["box", "lid"])
+
+
+def test_inconsistent_winding_is_reported():
+    box = trimesh.creation.box((1, 1, 1))
+    faces = np.array(box.faces)
+    faces[0] = faces[0, ::-1]
+    with pytest.warns(pycinder.OpenMeshWarning, match="inconsistently wound"):
+        pycinder.Detector(64).find_collisions([(box.vertices, faces)])
+
+
+def test_too_many_bodies(det):
+    box = box_arrays()
+    with pytest.raises(ValueError, match=r"65536 bodies.*65535"):
+        det.find_collisions([box] * 65536)
+
+
+def test_resolution_over_device_limit():
+    limit = gpu_device.get_gpu().max_resolution
+    with pytest.raises(ValueError, match=rf"{limit + 1}.*over this device's texture limit of {limit}"):
+        pycinder.Detector(limit + 1)
+
+
+@pytest.mark.parametrize("bad", [0, -5, 1.5, True, "512"])
+def test_resolution_must_be_a_positive_integer(bad):
+    with pytest.raises(ValueError, match="resolution"):
+        pycinder.Detector(bad)
+
+
+def test_no_adapter(monkeypatch):
+    monkeypatch.setattr(wgpu.gpu, "request_adapter_sync", lambda **kw: None)
+    with pytest.raises(pycinder.NoAdapterError, match="mesa-vulkan-drivers"):
+        gpu_device._request_adapter()
+    assert issubclass(pycinder.NoAdapterError, RuntimeError)
+
+
+def test_no_adapter_when_backend_raises(monkeypatch):
+    def fail(**kw):
+        raise RuntimeError("Request adapter failed")
+    monkeypatch.setattr(wgpu.gpu, "request_adapter_sync", fail)
+    with pytest.raises(pycinder.NoAdapterError, match="no WebGPU adapter"):
+        gpu_device._request_adapter()
+
+
+def test_wrong_shapes_and_types(det):
+    with pytest.raises(ValueError, match=r"transforms must have shape \(2, 4, 4\)"):
+        det.find_collisions([box_arrays(), box_arrays()], [np.eye(4)])
+    with pytest.raises(TypeError, match=r"body 0\b.*expected a trimesh"):
+        det.find_collisions([42])
+    with pytest.raises(ValueError, match=r"body 0\b.*vertices must have shape"):
+        det.find_collisions([(np.zeros((4, 2)), np.zeros((1, 3), int))])
+    with pytest.raises(ValueError, match="not affine"):
+        t = np.eye(4)
+        t[3, 0] = 1
+        det.find_collisions([box_arrays()], [t])
+    with pytest.raises(ValueError, match="self_interference must be one of"):
+        pycinder.Detector(64, self_interference="ignore")
+
+
+def test_valid_input_still_works_after_errors(det):
+    with pytest.raises(ValueError):
+        det.find_collisions([(np.full((8, 3), np.nan), box_arrays()[1])])
+    a, b = box_arrays(), box_arrays()
+    t = [np.eye(4), trimesh.transformations.translation_matrix((0.5, 0.1, 0.2))]
+    assert det.find_collisions([a, b], t).pairs.tolist() == [[0, 1]]

@@ -1,0 +1,83 @@
+"""The pycinder command: exit codes, output, and the debug buffers of the paper's scene."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+
+from pycinder.cli import main
+from pycinder.debug import BufferCapture, three_boxes
+from pycinder import Detector
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("meshes")
+    trimesh.creation.box((1, 1, 1)).export(d / "box.stl")
+    ball = trimesh.creation.icosphere(radius=0.4)
+    ball.apply_translation((0.6, 0, 0))
+    ball.export(d / "ball.obj")
+    far = trimesh.creation.icosphere(radius=0.4)
+    far.apply_translation((3, 0, 0))
+    far.export(d / "far.ply")
+    return d
+
+
+def test_check_exit_codes(files, capsys):
+    assert main(["check", str(files / "box.stl"), str(files / "ball.obj"), str(files / "far.ply")]) == 1
+    assert "box.stl  <->  ball.obj" in capsys.readouterr().out
+    assert main(["check", str(files / "box.stl"), str(files / "far.ply")]) == 0
+    assert "no collisions" in capsys.readouterr().out
+    assert main(["check", str(files / "missing.stl")]) == 2
+    assert "missing.stl" in capsys.readouterr().err
+
+
+def test_check_json(files, capsys):
+    code = main(["check", "--json", "--resolution", "512", str(files / "box.stl"),
+                 str(files / "ball.obj")])
+    data = json.loads(capsys.readouterr().out)
+    assert code == 1 and data["collision"] is True
+    assert [(p["a"], p["b"]) for p in data["pairs"]] == [("box.stl", "ball.obj")]
+    assert data["pairs"][0]["pixels"] > 0
+
+
+def test_check_bad_file_is_exit_2(tmp_path, capsys):
+    bad = tmp_path / "bad.stl"
+    bad.write_text("solid nothing\nendsolid\n")
+    assert main(["check", str(bad)]) == 2
+
+
+def test_console_script_runs(files):
+    out = subprocess.run([sys.executable, "-m", "pycinder.cli", "check", str(files / "box.stl"),
+                          str(files / "ball.obj")], capture_output=True, text=True)
+    assert out.returncode == 1, out.stderr
+
+
+def test_debug_buffers_writes_the_papers_figures(tmp_path):
+    assert main(["debug-buffers", "--out", str(tmp_path), "--resolution", "128"]) == 0
+    names = sorted(p.name for p in tmp_path.glob("*.png"))
+    assert names == ["01_pass1_depth.png", "02_pass2_stencil.png", "03_pass3_stencil.png",
+                     "04_pass4_colour.png", "05_pass7_colour.png", "06_filtered_colour.png"]
+    for p in tmp_path.glob("*.png"):
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_captured_buffers_follow_the_algorithm():
+    """Hand-checked facts of Figures 9-13 on the three boxes."""
+    boxes, _, view = three_boxes()
+    buf = BufferCapture(Detector(256)).capture(boxes, view=view)
+    depth = buf["pass1_depth"]
+    edge = depth > 0
+    assert 0.02 < edge.mean() < 0.5                       # only edges are drawn (Figure 9b)
+    assert (buf["pass2_stencil"][~edge] == 0).all()       # counting only where edges are (10)
+    assert (buf["pass3_stencil"][~edge] == 0).all()
+    colour4 = buf["pass4_colour"]
+    assert ((colour4[..., 0] != 0) <= (buf["pass3_stencil"] != 0)).all()  # Figure 12
+    assert (colour4[..., 1] == 0).all()
+    filtered = buf["filtered_colour"]
+    ids = {tuple(sorted(p)) for p in filtered[..., :2].reshape(-1, 2).tolist() if p[0]}
+    assert ids == {(1, 2), (2, 3)}                        # red-green, green-blue (Figure 13)
+    assert (filtered[..., 0] != filtered[..., 1])[filtered[..., 0] > 0].all()
