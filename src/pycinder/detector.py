@@ -18,6 +18,7 @@ import wgpu
 from .gpu.buffers import Readback, SceneBuffers, Targets
 from .gpu.device import check_resolution, get_gpu
 from .passes.raycast import RaycastPasses
+from .passes.reduce import MipReduce
 from .passes.selfint import COUNTERS_BYTES, RECORD_BYTES, FilterPass
 from .result import RECORD_DTYPE, CollisionResult, Stats, decode_compact, decode_image, unique_pairs
 from .scene import PackedScene, TopologyCache, pack, prepare_bodies
@@ -30,7 +31,8 @@ class ClippedBodyWarning(UserWarning):
 
 
 SELF_INTERFERENCE_MODES = ("filter", "prevent", "offset")
-READBACK_MODES = ("full", "compact")
+READBACK_MODES = ("full", "compact", "mipmap", "adaptive")
+FILTER_OUTPUT = {"full": "full", "compact": "compact", "mipmap": "packed", "adaptive": "packed"}
 ENCODINGS = ("edge", "normal")
 
 
@@ -45,8 +47,15 @@ class Detector:
     self_interference : {"filter", "prevent", "offset"}
         How z-fighting between a body's edges and its own faces is handled (paper 4.3.1):
         blank such pixels before readback, never register them, or move edges outward.
-    readback : {"full", "compact"}
-        Read the whole filtered image back, or only the surviving records (lossless).
+    readback : {"full", "compact", "mipmap", "adaptive"}
+        What is read back (paper 4.3.2). ``"full"``: the whole filtered image. ``"compact"``: only
+        the surviving records, appended on the GPU through an atomic counter (lossless).
+        ``"mipmap"``: the image reduced ``mipmap_levels`` times by keeping one record per 2x2
+        block (lossy; ``stats.possibly_lost`` counts blocks where different pairs met).
+        ``"adaptive"``: reduced for as long as no pair is lost. Every mode reads back only a
+        16-byte counter when nothing collides.
+    mipmap_levels : int
+        Reductions for ``readback="mipmap"``.
     encode : {"edge", "normal"}
         What the payload channel of each record holds: the penetrating edge's index, or its
         world-space normal (paper 5.3).
@@ -60,8 +69,9 @@ class Detector:
     """
 
     def __init__(self, resolution: int = 512, *, self_interference: str = "filter",
-                 readback: str = "full", encode: str = "edge", edge_offset: float | None = None,
-                 strict: bool = False, profile: bool = False) -> None:
+                 readback: str = "full", mipmap_levels: int = 2, encode: str = "edge",
+                 edge_offset: float | None = None, strict: bool = False,
+                 profile: bool = False) -> None:
         for value, allowed, name in ((self_interference, SELF_INTERFERENCE_MODES, "self_interference"),
                                      (readback, READBACK_MODES, "readback"),
                                      (encode, ENCODINGS, "encode")):
@@ -80,7 +90,15 @@ class Detector:
         device = self.gpu.device
         self.targets = Targets(device, self.resolution, self.resolution, self.gpu.depth_format)
         self.raycast = RaycastPasses(self.gpu, prevent=self_interference == "prevent")
-        self.filter = FilterPass(self.gpu, readback)
+        self.filter = FilterPass(self.gpu, FILTER_OUTPUT[readback])
+        self.reduce: MipReduce | None = None
+        if readback in ("mipmap", "adaptive"):
+            levels = mipmap_levels if readback == "mipmap" else \
+                max(1, int(np.log2(self.resolution)) - 1)
+            if not isinstance(levels, (int, np.integer)) or not 1 <= levels <= 14:
+                raise ValueError(f"mipmap_levels must be an integer from 1 to 14, got {levels!r}")
+            self.reduce = MipReduce(self.gpu, self.resolution, self.resolution, int(levels))
+        self.mipmap_levels = mipmap_levels
         self.buffers = SceneBuffers(device)
         self._topologies = TopologyCache()
         self._counters_readback = Readback(device, "counters readback")
@@ -214,6 +232,26 @@ class Detector:
         return {"query_set": self._queries, "beginning_of_pass_write_index": 2 * i,
                 "end_of_pass_write_index": 2 * i + 1}
 
+    def _readback_source(self, counters: np.ndarray, survivors: int, stats: Stats
+                         ) -> tuple[wgpu.GPUBuffer, int, bool]:
+        """The buffer to read records from, its byte count, and whether it is a packed image."""
+        if self.readback == "compact":
+            return self.filter.out.buffer, survivors * RECORD_BYTES, False
+        if self.readback == "full":
+            return self.filter.out.buffer, self.targets.pixels * RECORD_BYTES, False
+        lost = counters[COUNTERS_BYTES // 4:COUNTERS_BYTES // 4 + self.reduce.levels + 1]
+        cumulative = np.cumsum(lost.astype(np.int64))
+        if self.readback == "mipmap":
+            level = self.reduce.levels
+            stats.possibly_lost = int(cumulative[level])
+        else:
+            # Adaptive: the deepest level at which no block has merged two pairs.
+            level = int(np.flatnonzero(cumulative == 0).max())
+        stats.mip_level = level
+        if level == 0:
+            return self.filter.out.buffer, self.targets.pixels * RECORD_BYTES, True
+        return self.reduce.level_buffer(level), self.reduce.level_bytes(level), True
+
     def _run_view(self, k: int, view: View, transforms: np.ndarray, scene: PackedScene
                   ) -> tuple[np.ndarray, Stats]:
         stats = Stats()
@@ -225,18 +263,23 @@ class Detector:
         self.raycast.encode(encoder, self.buffers, self.targets,
                             [self._timestamps(i) for i in range(steps)] if self._profile else None)
         self.filter.encode(encoder, self.targets, timestamp_writes=self._timestamps(steps))
-        encoder.copy_buffer_to_buffer(self.filter.counters, 0,
-                                      self._counters_readback.ensure(COUNTERS_BYTES), 0,
-                                      COUNTERS_BYTES)
+        header = COUNTERS_BYTES
+        staging = self._counters_readback.ensure(COUNTERS_BYTES + 64)
+        encoder.copy_buffer_to_buffer(self.filter.counters, 0, staging, 0, COUNTERS_BYTES)
+        if self.reduce is not None:
+            self.reduce.encode(encoder, self.filter.out.buffer)
+            lost_bytes = 4 * (self.reduce.levels + 1)
+            encoder.copy_buffer_to_buffer(self.reduce.lost, 0, staging, COUNTERS_BYTES, lost_bytes)
+            header += -(-lost_bytes // 8) * 8
         if self._profile:
             nq = self._n_queries
             encoder.resolve_query_set(self._queries, 0, nq, self._query_buf, 0)
             encoder.copy_buffer_to_buffer(self._query_buf, 0, self._query_readback.ensure(8 * nq),
                                           0, 8 * nq)
         device.queue.submit([encoder.finish()])
-        counters = self._counters_readback.read(COUNTERS_BYTES)
+        counters = self._counters_readback.read(header)
         t1 = time.perf_counter()
-        stats.bytes_read = COUNTERS_BYTES
+        stats.bytes_read = header
         survivors, stats.self_interference_pixels, stats.unidentified_pixels = map(int, counters[:3])
         if self._profile:
             ts = self._query_readback.read(8 * self._n_queries, np.uint64).astype(np.float64)
@@ -247,17 +290,21 @@ class Detector:
             # The early-out of paper 4.3.2.3: nothing survived, so nothing else is read back.
             records = np.zeros(0, RECORD_DTYPE)
         else:
-            nbytes = (survivors * RECORD_BYTES if self.readback == "compact"
-                      else self.targets.pixels * RECORD_BYTES)
+            source, nbytes, packed = self._readback_source(counters, survivors, stats)
             encoder = device.create_command_encoder()
-            encoder.copy_buffer_to_buffer(self.filter.out.buffer, 0,
-                                          self._records_readback.ensure(nbytes), 0, nbytes)
+            encoder.copy_buffer_to_buffer(source, 0, self._records_readback.ensure(nbytes), 0,
+                                          nbytes)
             device.queue.submit([encoder.finish()])
             data = self._records_readback.read(nbytes)
             stats.bytes_read += nbytes
-            decode = decode_compact if self.readback == "compact" else decode_image
             t_dec = time.perf_counter()
-            records = decode(data, width, k, self.encode, scene.edge_start)
+            if self.readback == "full":
+                records = decode_image(data, width, k, self.encode, scene.edge_start)
+            else:
+                if packed:
+                    rows = data.reshape(-1, 4)
+                    data = rows[rows[:, 1] != 0]
+                records = decode_compact(data, width, k, self.encode, scene.edge_start)
             stats.wall_ms["decode"] = (time.perf_counter() - t_dec) * 1e3
         t2 = time.perf_counter()
         stats.wall_ms["gpu"] = (t1 - t0) * 1e3

@@ -63,6 +63,8 @@ class Stats:
     """Pixels with a non-zero count that no single body claimed (blanked)."""
     possibly_lost: int = 0
     """Lossy modes: how many blocks merged two different records (0 means nothing was dropped)."""
+    mip_level: int = 0
+    """Mip-map level read back (mipmap and adaptive modes)."""
     uploaded_vertex_bytes: int = 0
     wall_ms: dict[str, float] = field(default_factory=dict)
     gpu_ms: dict[str, float] = field(default_factory=dict)
@@ -72,6 +74,7 @@ class Stats:
         for name in ("bytes_read", "records", "self_interference_pixels", "unidentified_pixels",
                      "possibly_lost", "uploaded_vertex_bytes"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
+        self.mip_level = max(self.mip_level, other.mip_level)
         for d, o in ((self.wall_ms, other.wall_ms), (self.gpu_ms, other.gpu_ms)):
             for k, v in o.items():
                 d[k] = d.get(k, 0.0) + v

@@ -1,7 +1,12 @@
 """The self-interference filter (paper 4.3.1.2) as a compute pass, with its two outputs.
 
 ``full`` writes the filtered image; ``compact`` appends the surviving records to a buffer through
-an atomic counter, so that only the records are read back. Both count what they blank.
+an atomic counter, so that only the records are read back; ``packed`` writes the image in the
+compact record layout, as level 0 of the mip-map reduction. All count what they blank.
+
+WebGPU's occlusion queries count the samples of render passes; this filter is a compute pass, so
+its atomic survivor counter plays the part of the paper's occlusion query (4.3.2.3): when it is 0,
+nothing else is read back.
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ class FilterPass:
     out : the filtered image ((H*W, 4) uint32) or the compact records ((K, 4) uint32)
     """
 
-    ENTRY = {"full": "filter_full", "compact": "filter_compact"}
+    ENTRY = {"full": "filter_full", "compact": "filter_compact", "packed": "filter_packed"}
 
     def __init__(self, gpu: Gpu, output: str) -> None:
         if output not in self.ENTRY:

@@ -8,10 +8,12 @@
 // counters[0] survivors, [1] self-interference pixels blanked, [2] unidentified pixels blanked,
 // [3] survivors that did not fit the compact buffer (never non-zero: it holds every pixel).
 //
-// Two outputs, one per entry point:
+// Three outputs, one per entry point:
 //   filter_full     writes the filtered image, one vec4u per pixel (readback "full")
 //   filter_compact  appends each survivor as (pixel index, r << 16 | g, depth bits, payload)
 //                   through an atomic counter (readback "compact", paper 4.3.2.4 made real)
+//   filter_packed   writes the image with each pixel in the compact layout, zero where blanked,
+//                   as level 0 of the mip-map reduction (readback "mipmap" and "adaptive")
 
 struct Params {
     width: u32,
@@ -69,4 +71,19 @@ fn filter_compact(@builtin(global_invocation_id) gid: vec3u) {
         return;
     }
     out_records[slot] = vec4u(gid.y * params.width + gid.x, (rec.r << 16u) | rec.g, rec.b, rec.a);
+}
+
+@compute @workgroup_size(8, 8)
+fn filter_packed(@builtin(global_invocation_id) gid: vec3u) {
+    if (gid.x >= params.width || gid.y >= params.height) {
+        return;
+    }
+    let rec = filtered(gid.xy);
+    let i = gid.y * params.width + gid.x;
+    if (rec.r == 0u) {
+        out_records[i] = vec4u(0u);
+        return;
+    }
+    atomicAdd(&counters[0], 1u);
+    out_records[i] = vec4u(i, (rec.r << 16u) | rec.g, rec.b, rec.a);
 }
