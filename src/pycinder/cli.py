@@ -2,6 +2,7 @@
 
     pycinder check FILE... [--resolution N] [--json]        exit 0: no collision, 1: collisions, 2: error
     pycinder debug-buffers [FILE...] --out DIR              PNGs of the buffers after each pass
+    pycinder bench [SCENE...] [--repeat N] [--out DIR]      timings against python-fcl, coal, trimesh
     pycinder example [--out DIR]                            check the built-in scene, write its buffers
 """
 
@@ -100,6 +101,28 @@ def cmd_example(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench(args: argparse.Namespace) -> int:
+    from .benchmarks import report, runner
+
+    scenes = args.scenes or runner.DEFAULT_SCENES
+    try:
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    except ImportError:  # pragma: no cover
+        Progress = None
+    if Progress is not None:
+        with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn()) as bar:
+            task = bar.add_task("benchmarks", total=None)
+            results = runner.run(scenes, repeat=args.repeat, resolution=args.resolution,
+                                 peers=args.peers,
+                                 progress=lambda msg: bar.update(task, description=msg, advance=1))
+    else:
+        results = runner.run(scenes, repeat=args.repeat, resolution=args.resolution,
+                             peers=args.peers, progress=lambda msg: print(msg, flush=True))
+    for p in report.write(results, args.out, stem=args.stem):
+        print(f"wrote {p}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="pycinder", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -119,6 +142,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resolution", type=int, default=512)
     p.add_argument("--self-interference", default="filter", choices=["filter", "prevent", "offset"])
     p.set_defaults(func=cmd_debug_buffers)
+
+    p = sub.add_parser("bench", help="time pycinder against python-fcl, coal and trimesh")
+    p.add_argument("scenes", nargs="*", metavar="SCENE",
+                   help="stairs, deforming, many, narrow, sweep-triangles, sweep-bodies, "
+                        "sweep-resolution, modes (default: all)")
+    p.add_argument("--repeat", type=int, default=5, help="frames timed per scene")
+    p.add_argument("--resolution", type=int, default=1024)
+    p.add_argument("--peers", nargs="*", default=["python-fcl", "coal", "trimesh"])
+    p.add_argument("--out", default="benchmarks/results", metavar="DIR")
+    p.add_argument("--stem", default="results", help="file name stem of the JSON and Markdown")
+    p.set_defaults(func=cmd_bench)
 
     p = sub.add_parser("example", help="check the built-in three-box scene and write its buffers")
     p.add_argument("--out", default="out/buffers", metavar="DIR")
