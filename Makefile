@@ -20,7 +20,7 @@ $(VENV)/.deps-%: pyproject.toml | $(PY)
 venv: $(VENV)/.deps-all
 
 demo: $(VENV)/.deps-demo
-	$(VENV)/bin/pycinder example --out out/buffers
+	$(VENV)/bin/pycinder demo stairs --frames 120 --out out/stairs.mp4
 
 test: $(VENV)/.deps-test
 	$(PY) -m pytest -q

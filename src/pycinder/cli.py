@@ -2,6 +2,7 @@
 
     pycinder check FILE... [--resolution N] [--json]        exit 0: no collision, 1: collisions, 2: error
     pycinder debug-buffers [FILE...] --out DIR              PNGs of the buffers after each pass
+    pycinder demo {stairs,snow-bunny,normals} [--frames N] [--out FILE.mp4|FILE.gif|DIR] [--window]
     pycinder bench [SCENE...] [--repeat N] [--out DIR]      timings against python-fcl, coal, trimesh
     pycinder example [--out DIR]                            check the built-in scene, write its buffers
 """
@@ -123,6 +124,29 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_demo(args: argparse.Namespace) -> int:
+    from .demos.run import run
+
+    bar = None
+    try:
+        from rich.progress import Progress
+        bar = Progress(transient=True)
+    except ImportError:  # pragma: no cover
+        pass
+    if bar is not None and not args.window:
+        with bar:
+            task = bar.add_task(args.name, total=args.frames)
+            run(args.name, frames=args.frames, out=args.out, window=args.window,
+                resolution=args.resolution, seed=args.seed, spheres=args.spheres, scan=args.scan,
+                close_holes=args.close_holes,
+                progress=lambda k, n: bar.update(task, completed=k))
+    else:
+        run(args.name, frames=args.frames, out=args.out, window=args.window,
+            resolution=args.resolution, seed=args.seed, spheres=args.spheres, scan=args.scan,
+            close_holes=args.close_holes)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="pycinder", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -142,6 +166,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resolution", type=int, default=512)
     p.add_argument("--self-interference", default="filter", choices=["filter", "prevent", "offset"])
     p.set_defaults(func=cmd_debug_buffers)
+
+    p = sub.add_parser("demo", help="the paper's demos: stairs, snow-bunny, normals")
+    p.add_argument("name", choices=["stairs", "snow-bunny", "normals"])
+    p.add_argument("--frames", type=int, default=120)
+    p.add_argument("--out", metavar="FILE.mp4|FILE.gif|DIR", help="write the frames here")
+    p.add_argument("--window", action="store_true", help="open an interactive window")
+    p.add_argument("--resolution", type=int, default=None,
+                   help="CInDeR resolution (default: 1024 for stairs, 512 for the others)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--spheres", type=int, help="spheres (stairs, normals) or flakes (snow-bunny)")
+    p.add_argument("--scan", action="store_true",
+                   help="snow-bunny: use the scanned bunny, which is open at the bottom")
+    p.add_argument("--close-holes", action="store_true",
+                   help="snow-bunny with --scan: repair the holes first")
+    p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("bench", help="time pycinder against python-fcl, coal and trimesh")
     p.add_argument("scenes", nargs="*", metavar="SCENE",

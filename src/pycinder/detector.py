@@ -21,7 +21,7 @@ from .passes.raycast import RaycastPasses
 from .passes.reduce import MipReduce
 from .passes.selfint import COUNTERS_BYTES, RECORD_BYTES, FilterPass
 from .result import RECORD_DTYPE, CollisionResult, Stats, decode_compact, decode_image, unique_pairs
-from .scene import PackedScene, TopologyCache, pack, prepare_bodies
+from .scene import PackedScene, TopologyCache, prepare_bodies, repack
 from .view import View, world_corners
 
 
@@ -46,10 +46,12 @@ class Detector:
         can be missed.
     self_interference : {"filter", "prevent", "offset"}
         How z-fighting between a body's edges and its own faces is handled (paper 4.3.1):
-        blank such pixels before readback, never register them, or move edges outward.
+        ``"filter"`` blanks such pixels before readback; ``"prevent"`` (default) never registers
+        them, so they cannot overwrite real collisions; ``"offset"`` moves edges outward.
     readback : {"full", "compact", "mipmap", "adaptive"}
-        What is read back (paper 4.3.2). ``"full"``: the whole filtered image. ``"compact"``: only
-        the surviving records, appended on the GPU through an atomic counter (lossless).
+        What is read back (paper 4.3.2). ``"full"``: the whole filtered image. ``"compact"``
+        (default): only the surviving records, appended on the GPU through an atomic counter
+        (lossless).
         ``"mipmap"``: the image reduced ``mipmap_levels`` times by keeping one record per 2x2
         block (lossy; ``stats.possibly_lost`` counts blocks where different pairs met).
         ``"adaptive"``: reduced for as long as no pair is lost. Every mode reads back only a
@@ -68,8 +70,8 @@ class Detector:
         Measure each GPU stage with timestamp queries where the adapter supports them.
     """
 
-    def __init__(self, resolution: int = 512, *, self_interference: str = "filter",
-                 readback: str = "full", mipmap_levels: int = 2, encode: str = "edge",
+    def __init__(self, resolution: int = 512, *, self_interference: str = "prevent",
+                 readback: str = "compact", mipmap_levels: int = 2, encode: str = "edge",
                  edge_offset: float | None = None, strict: bool = False,
                  profile: bool = False) -> None:
         for value, allowed, name in ((self_interference, SELF_INTERFERENCE_MODES, "self_interference"),
@@ -163,7 +165,7 @@ class Detector:
                                             cache=self._topologies)
         if not body_list:
             return None
-        scene = self._pack(body_list, normals)
+        scene = repack(self.buffers.scene, body_list, normals)
         self.buffers.upload(scene)
         transforms_arr = np.stack([b.transform for b in body_list])
         return scene, transforms_arr, self._views(view, body_list, transforms_arr)
@@ -175,18 +177,6 @@ class Detector:
         self.buffers.write_frame(self._edge_offset(view), 1 if self.encode == "normal" else 0)
 
     # -- stages -------------------------------------------------------------------------------
-
-    def _pack(self, bodies: list, normals: list) -> PackedScene:
-        last = self.buffers.scene
-        ids = tuple(id(b.topology) for b in bodies)
-        if last is not None and last.topology_ids == ids:
-            # Same topology as the last frame: only the positions are new.
-            positions = np.concatenate([b.vertices for b in bodies])
-            if len(positions) == len(last.positions):
-                return PackedScene(positions, last.vertex_body, last.indices, last.edges,
-                                   last.vertex_normals, last.edge_normals, last.vertex_start,
-                                   last.face_start, last.edge_start, ids)
-        return pack(bodies, normals)
 
     def _views(self, view: View | Sequence[View] | None, bodies: list,
                transforms: np.ndarray) -> list[View]:

@@ -346,3 +346,17 @@ def pack(bodies: Sequence[Body], normals: Sequence[tuple[np.ndarray, np.ndarray]
         edge_start=es,
         topology_ids=tuple(id(b.topology) for b in bodies),
     )
+
+
+def repack(last: PackedScene | None, bodies: Sequence[Body],
+           normals: Sequence[tuple[np.ndarray, np.ndarray]]) -> PackedScene:
+    """:func:`pack`, reusing ``last``'s topology arrays when the bodies' topology is unchanged
+    (an animation frame): only the positions are concatenated anew."""
+    ids = tuple(id(b.topology) for b in bodies)
+    if last is not None and last.topology_ids == ids:
+        positions = np.concatenate([b.vertices for b in bodies])
+        if len(positions) == len(last.positions):
+            return PackedScene(positions, last.vertex_body, last.indices, last.edges,
+                               last.vertex_normals, last.edge_normals, last.vertex_start,
+                               last.face_start, last.edge_start, ids)
+    return pack(bodies, normals)

@@ -153,8 +153,10 @@ class Coal(System):
         verts, transforms = scene.frame(k)
         if scene.deforming:
             for g, v in zip(self.geoms, verts):
+                points = coal.StdVec_Vec3s()
+                points.extend(list(np.asarray(v, np.float64)))
                 g.beginReplaceModel()
-                g.replaceSubModel(np.asarray(v, np.float64))
+                g.replaceSubModel(points)
                 g.endReplaceModel(True, True)  # refit, bottom-up
         for o, t in zip(self.objs, transforms):
             o.setTransform(coal.Transform3s(t[:3, :3], t[:3, 3]))

@@ -1,0 +1,162 @@
+"""Snow Bunny (paper 5.2): snowflakes of 6 triangles fall on the Stanford bunny and a floor.
+
+A flake that hits freezes, is enlarged, and moves to a list that detection no longer checks; flakes
+frozen on the bunny turn with it. ``scan=True`` uses pymeshlab's scanned 10k bunny, which is open at
+the bottom (the paper's hole problem): pycinder warns, and ``close_holes=True`` repairs it first.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from ..detector import Detector
+from ..scene import OpenMeshWarning
+from ..testing import bunny, sample_mesh_path
+from ..view import View
+
+FLAKE_SIZE = 0.025
+FLOOR = (2.4, 0.1, 2.4)
+DT = 1.0 / 30.0
+
+
+def flake_mesh(size: float = FLAKE_SIZE) -> trimesh.Trimesh:
+    """A closed snowflake of 6 triangles: a flat triangular bipyramid."""
+    ang = np.radians([90, 210, 330])
+    ring = np.c_[np.cos(ang), np.zeros(3), np.sin(ang)] * size
+    v = np.vstack([ring, [[0, 0.35 * size, 0], [0, -0.35 * size, 0]]])
+    f = np.array([[0, 3, 1], [1, 3, 2], [2, 3, 0], [0, 1, 4], [1, 2, 4], [2, 0, 4]])
+    mesh = trimesh.Trimesh(v, f, process=False)
+    if mesh.volume < 0:
+        mesh.invert()
+    return mesh
+
+
+def load_bunny(scan: bool = False, close_holes: bool = False, target_vertices: int = 8000
+               ) -> tuple[trimesh.Trimesh, str]:
+    """The demo's bunny, scaled to about 0.6 across with its feet at y = 0, and a note on it."""
+    if scan:
+        mesh = trimesh.load(sample_mesh_path("bunny10k_textured.obj"), force="mesh", process=True)
+        note = "scanned bunny (open at the bottom)"
+        if close_holes:
+            import pymeshlab
+
+            ms = pymeshlab.MeshSet()
+            ms.add_mesh(pymeshlab.Mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces)))
+            ms.meshing_remove_duplicate_vertices()
+            ms.meshing_repair_non_manifold_edges()
+            ms.meshing_close_holes(maxholesize=2000)
+            m = ms.current_mesh()
+            mesh = trimesh.Trimesh(m.vertex_matrix(), m.face_matrix(), process=True)
+            trimesh.repair.fix_normals(mesh)
+            note = f"scanned bunny, holes closed (watertight: {mesh.is_watertight})"
+    else:
+        mesh = bunny(decimate_to=target_vertices)
+        note = f"Stanford bunny decimated to {len(mesh.vertices)} vertices"
+    mesh = mesh.copy()
+    mesh.apply_translation(-mesh.bounds.mean(axis=0))
+    mesh.apply_scale(0.6 / mesh.extents.max())
+    mesh.apply_translation((0, -mesh.bounds[0, 1] - 0.01, 0))  # feet just into the floor
+    return mesh, note
+
+
+@dataclass
+class Frozen:
+    transform: np.ndarray  # world from flake when frozen on the floor, bunny-local on the bunny
+    on_bunny: bool
+
+
+class SnowSim:
+    def __init__(self, flakes: int = 150, seed: int = 0, resolution: int = 512, scan: bool = False,
+                 close_holes: bool = False, spin: float = 0.6) -> None:
+        self.rng = np.random.default_rng(seed)
+        self.bunny, self.note = load_bunny(scan, close_holes)
+        self.floor = trimesh.creation.box(FLOOR)
+        self.floor_t = trimesh.transformations.translation_matrix((0, -FLOOR[1] / 2, 0))
+        self.flake = flake_mesh()
+        self.big_flake = flake_mesh(FLAKE_SIZE * 1.8)
+        self.capacity = flakes
+        self.position = np.zeros((0, 3))
+        self.velocity = np.zeros((0, 3))
+        self.frozen: list[Frozen] = []
+        self.spin = spin
+        self.angle = 0.0
+        self.detector = Detector(resolution, readback="compact", self_interference="prevent")
+        top = 1.3
+        corners = np.array([[x, y, z] for x in (-1.25, 1.25) for y in (-0.15, top) for z in (-1.25, 1.25)])
+        self.view = View.fit(corners, direction=(-0.2, -0.9, -0.35), resolution=resolution)
+        self.warnings: list[str] = []
+
+    def bunny_transform(self) -> np.ndarray:
+        return trimesh.transformations.rotation_matrix(self.angle, (0, 1, 0))
+
+    def _spawn(self) -> None:
+        n = min(4, self.capacity - len(self.position) - len(self.frozen))
+        if n <= 0:
+            return
+        p = np.c_[self.rng.uniform(-0.45, 0.45, n), self.rng.uniform(1.0, 1.2, n),
+                  self.rng.uniform(-0.45, 0.45, n)]
+        v = np.c_[self.rng.normal(0, 0.05, n), self.rng.uniform(-0.7, -0.5, n),
+                  self.rng.normal(0, 0.05, n)]
+        self.position = np.vstack([self.position, p])
+        self.velocity = np.vstack([self.velocity, v])
+
+    def step(self) -> dict:
+        self._spawn()
+        self.angle += self.spin * DT
+        self.position += self.velocity * DT
+        bt = self.bunny_transform()
+        flakes = np.tile(np.eye(4), (len(self.position), 1, 1))
+        flakes[:, :3, 3] = self.position
+        bodies = [self.bunny, self.floor] + [self.flake] * len(self.position)
+        transforms = np.concatenate([bt[None], self.floor_t[None], flakes])
+        t0 = time.perf_counter()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", OpenMeshWarning)
+            result = self.detector.find_collisions(bodies, transforms, view=self.view)
+        self.warnings += [str(w.message) for w in caught if issubclass(w.category, OpenMeshWarning)]
+        ms = (time.perf_counter() - t0) * 1e3
+        pairs = result.pairs
+        hits = pairs[(pairs[:, 0] < 2) & (pairs[:, 1] >= 2)]
+        stuck = {}
+        for target, flake in hits.tolist():
+            stuck.setdefault(flake - 2, target)
+        for k, target in stuck.items():
+            t = flakes[k].copy()
+            if target == 0:
+                self.frozen.append(Frozen(np.linalg.inv(bt) @ t, True))
+            else:
+                self.frozen.append(Frozen(t, False))
+        keep = np.ones(len(self.position), bool)
+        keep[list(stuck)] = False
+        keep &= self.position[:, 1] > -0.5
+        self.position, self.velocity = self.position[keep], self.velocity[keep]
+        rec = result.records
+        flake_px = (rec["penetrating"] >= 2) | (rec["penetrated"] >= 2)
+        return {"result": result, "ms": ms, "pairs": len(hits), "frozen_now": len(stuck),
+                "marks": result.points()[flake_px], "frozen_at": [flakes[k] for k in stuck]}
+
+    def frozen_world(self) -> np.ndarray:
+        bt = self.bunny_transform()
+        return np.array([bt @ f.transform if f.on_bunny else f.transform for f in self.frozen]
+                        ).reshape(-1, 4, 4)
+
+    def scene_for_display(self) -> tuple[list, np.ndarray, np.ndarray]:
+        flakes = np.tile(np.eye(4), (len(self.position), 1, 1))
+        flakes[:, :3, 3] = self.position
+        frozen = self.frozen_world()
+        bodies = [self.bunny, self.floor] + [self.flake] * len(flakes) + [self.big_flake] * len(frozen)
+        transforms = np.concatenate([self.bunny_transform()[None], self.floor_t[None], flakes, frozen])
+        colours = np.ones((len(bodies), 3))
+        colours[0] = [0.8, 0.7, 0.6]
+        colours[1] = [0.45, 0.55, 0.5]
+        colours[2 + len(flakes):] = [0.75, 0.85, 1.0]
+        return bodies, transforms, colours
+
+
+def display_view() -> View:
+    return View.look_at(eye=(0.9, 1.0, 1.6), target=(0, 0.25, 0), fov_y=45.0, near=0.3, far=10.0)
