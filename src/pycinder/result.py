@@ -184,5 +184,6 @@ def unique_pairs(records: np.ndarray) -> np.ndarray:
         return np.zeros((0, 2), dtype=np.int64)
     a = records["penetrating"].astype(np.int64)
     b = records["penetrated"].astype(np.int64)
-    pairs = np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
-    return np.unique(pairs, axis=0)
+    # One int64 key per pair: a 1-D unique is far faster than np.unique(axis=0).
+    key = np.unique(np.minimum(a, b) << 16 | np.maximum(a, b))
+    return np.stack([key >> 16, key & 0xFFFF], axis=1)

@@ -96,7 +96,19 @@ class DeformingBunnies(Scene):
         return verts, self.transforms
 
 
-class ManyBodies(Scene):
+class Drifting(Scene):
+    """Rigid bodies at ``self.base`` (N, 4, 4) drifting at ``self.drift`` (N, 3) per second."""
+
+    base: np.ndarray
+    drift: np.ndarray
+
+    def frame(self, k: int) -> tuple[list[np.ndarray], np.ndarray]:
+        t = self.base.copy()
+        t[:, :3, 3] += self.drift * (k / 60.0)
+        return self.rest, t
+
+
+class ManyBodies(Drifting):
     """Many small rigid bodies in a box, moving a little every frame."""
 
     def __init__(self, count: int = 1000, frames: int = 5, seed: int = 1) -> None:
@@ -114,11 +126,6 @@ class ManyBodies(Scene):
         self.base[:, :3, 3] = rng.uniform(-side / 2, side / 2, (count, 3))
         self.drift = rng.normal(scale=0.05, size=(count, 3))
 
-    def frame(self, k: int) -> tuple[list[np.ndarray], np.ndarray]:
-        t = self.base.copy()
-        t[:, :3, 3] += self.drift * (k / 60.0)
-        return self.rest, t
-
 
 class NarrowPhase(Scene):
     """Two bunnies, frame by frame from deep penetration to a near miss."""
@@ -135,7 +142,7 @@ class NarrowPhase(Scene):
         return self.rest, t
 
 
-class SphereField(Scene):
+class SphereField(Drifting):
     """Sweeps: ``count`` icospheres of ``subdivisions`` in a cube, rigid, moving slightly."""
 
     def __init__(self, count: int, subdivisions: int, frames: int = 5, seed: int = 2) -> None:
@@ -149,11 +156,6 @@ class SphereField(Scene):
         self.base = np.tile(np.eye(4), (count, 1, 1))
         self.base[:, :3, 3] = rng.uniform(-side / 2, side / 2, (count, 3))
         self.drift = rng.normal(scale=0.2, size=(count, 3))
-
-    def frame(self, k: int) -> tuple[list[np.ndarray], np.ndarray]:
-        t = self.base.copy()
-        t[:, :3, 3] += self.drift * (k / 60.0)
-        return self.rest, t
 
 
 def sweep_scenes(frames: int) -> dict[str, list[Scene]]:
