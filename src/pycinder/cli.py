@@ -205,7 +205,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     np.set_printoptions(suppress=True)
     try:
         return args.func(args)
-    except (ValueError, RuntimeError, FileNotFoundError, TypeError) as exc:
+    except (ValueError, RuntimeError, FileNotFoundError, TypeError, ImportError) as exc:
         print(f"pycinder: error: {exc}", file=sys.stderr)
         return 2
 

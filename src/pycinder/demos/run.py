@@ -52,8 +52,8 @@ def run(name: str, *, frames: int = 120, out: str | None = None, window: bool = 
         if not display_available():
             raise RuntimeError("--window needs a display (no DISPLAY or WAYLAND_DISPLAY is set); "
                                "run headless with --out FILE.mp4 instead")
-        return run_window(name, resolution=resolution, seed=seed, spheres=spheres, scan=scan,
-                          close_holes=close_holes)
+        return run_window(name, frames=frames, resolution=resolution, seed=seed, spheres=spheres,
+                          scan=scan, close_holes=close_holes)
     sim, view, title = make_sim(name, seed=seed, resolution=resolution, spheres=spheres, scan=scan,
                                 close_holes=close_holes)
     renderer = Renderer(sim.detector, *size) if out else None
@@ -91,8 +91,9 @@ def run(name: str, *, frames: int = 120, out: str | None = None, window: bool = 
     return {"sim": sim, "counts": counts, "ms": times, "summary": text}
 
 
-def run_window(name: str, **kwargs: Any) -> dict[str, Any]:  # pragma: no cover - needs a display
-    """An interactive window through rendercanvas: arrow keys or dragging turn the display."""
+def run_window(name: str, frames: int | None = None, **kwargs: Any) -> dict[str, Any]:
+    """An interactive window through rendercanvas: the arrow keys turn the display camera, and in
+    the snow-bunny demo the a and d keys turn the bunny. Closes after ``frames`` frames if given."""
     from rendercanvas.auto import RenderCanvas, loop
 
     sim, view, title = make_sim(name, **kwargs)
@@ -113,6 +114,9 @@ def run_window(name: str, **kwargs: Any) -> dict[str, Any]:  # pragma: no cover 
 
     @canvas.request_draw
     def draw() -> None:
+        if frames is not None and len(state["counts"]) >= frames:
+            canvas.close()
+            return
         info = sim.step()
         state["counts"].append(info["pairs"])
         state["ms"].append(info["ms"])
