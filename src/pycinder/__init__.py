@@ -8,16 +8,20 @@
 array([[0, 1]])
 """
 
-from .detector import ClippedBodyWarning, Detector, find_collisions
+from .detector import Detector, find_collisions
+from .errors import ClippedBodyWarning, DegenerateFaceWarning, LossWarning, OpenMeshWarning
 from .gpu.device import NoAdapterError
 from .manager import CollisionManager
-from .result import RECORD_DTYPE, CollisionResult, Stats
-from .scene import MAX_BODIES, DegenerateFaceWarning, OpenMeshWarning
+from .records import RECORD_DTYPE
+from .request import DEFAULT_RELATIVE_TOLERANCE, MAX_BODIES, CollisionRequest
+from .result import CollisionResult, Stats
 from .view import View
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 __all__ = [
-    "MAX_BODIES", "RECORD_DTYPE", "ClippedBodyWarning", "CollisionManager", "CollisionResult", "DegenerateFaceWarning",
-    "Detector", "NoAdapterError", "OpenMeshWarning", "Stats", "View", "find_collisions",
+    "DEFAULT_RELATIVE_TOLERANCE", "MAX_BODIES", "RECORD_DTYPE", "ClippedBodyWarning",
+    "CollisionManager", "CollisionRequest", "CollisionResult", "DegenerateFaceWarning",
+    "Detector", "LossWarning", "NoAdapterError", "OpenMeshWarning", "Stats", "View",
+    "find_collisions",
 ]

@@ -44,12 +44,11 @@ class ContactData:
 class CollisionManager:
     """Collision checks among named meshes, with trimesh's method names.
 
-    resolution, and any other keyword, configure the :class:`Detector` it owns.
+    Keywords (``tolerance``, ``strategy``, ...) configure the :class:`Detector` it owns.
     """
 
-    def __init__(self, resolution: int = 1024, *, view: View | list[View] | None = None,
-                 **detector_options: Any) -> None:
-        self._detector = Detector(resolution, **detector_options)
+    def __init__(self, *, view: View | list[View] | None = None, **detector_options: Any) -> None:
+        self._detector = Detector(**detector_options)
         self._view = view
         self._objs: dict[str, dict[str, Any]] = {}
 

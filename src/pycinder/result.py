@@ -1,101 +1,104 @@
-"""Decoding what the GPU wrote: pixel records, unique pairs, world points, stats.
-
-The colour target is ``rgba32uint``; after passes 4 and 7 a pixel holds
-
-=======  =====================================================================
-channel  meaning
-=======  =====================================================================
-r        penetrating body id (body index + 1, 1..65535; 0: no collision)
-g        penetrated body id (body index + 1)
-b        depth of the penetrating edge's fragment, as the bits of a float32
-a        payload of that edge: its global edge index + 1 (``encode="edge"``)
-         or its world-space normal packed 10:10:10 (``encode="normal"``)
-=======  =====================================================================
-
-This keeps the paper's two 16-bit ids per pixel (its RG and BA) in the first two 32-bit channels
-and uses the other two for data the paper could only dream of encoding.
-"""
+"""What a query returns: the colliding pairs, the per-sample records, and what it cost."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .view import View
+from .records import RECORD_DTYPE
 
-RECORD_DTYPE = np.dtype([
-    ("x", np.int32),
-    ("y", np.int32),
-    ("depth", np.float32),
-    ("penetrating", np.int32),
-    ("penetrated", np.int32),
-    ("edge", np.int32),
-    ("normal", np.float32, (3,)),
-    ("view", np.int16),
-])
-"""One row per collision pixel.
-
-x, y : pixel column and row (row 0 at the top of the image)
-depth : depth of the penetrating edge's fragment, 0 at the near plane, 1 at the far plane
-penetrating : index of the body whose edge lies inside the other
-penetrated : index of the body the edge lies in
-edge : index of that edge among the penetrating body's unique edges (-1 when normals are encoded)
-normal : world-space normal of the edge (mean of its two faces) when ``encode="normal"``, else NaN
-view : index of the view the pixel belongs to
-"""
+if TYPE_CHECKING:
+    from .scene import Scene
+    from .tiles import TilePlan
+    from .view import View
 
 
 @dataclass
 class Stats:
-    """What a query did and what it cost."""
+    """What a query did and what it cost.
 
-    readback: str = "full"
-    self_interference: str = "filter"
+    Counts are for the whole query; ``wall_ms`` has the wall time of each stage and ``gpu_ms`` the
+    GPU time of each pass when the request asked for profiling.
+    """
+
+    strategy: str = "focused"
+    adapter: str = ""
+    bodies: int = 0
+    # focused strategy
+    tolerance: tuple[float, float] = (0.0, 0.0)
+    """Smallest and largest tolerance over the candidate pairs (they differ when it is relative)."""
+    candidates: int = 0
+    """Pairs whose world boxes overlap (the broad phase's answer)."""
+    separated: int = 0
+    """Candidates dropped because their oriented boxes are apart along some axis."""
+    tiles: int = 0
+    pixels: int = 0
+    """Pixels of all tiles."""
+    atlas_pixels: int = 0
+    rounds: int = 0
+    triangles: int = 0
+    """Clipped triangles rasterised."""
+    samples: int = 0
+    """Edge samples tested."""
+    undecided: int = 0
+    """Samples whose pixel held more crossings than its list (retried with thinner boxes)."""
+    retries: int = 0
+    possibly_lost: int = 0
+    """Pairs that may have been dropped (undecided after retries, or a lossy readback): 0 means
+    nothing was lost."""
+    # scene strategy
     resolution: tuple[int, int] = (0, 0)
-    views: int = 1
-    bytes_read: int = 0
-    records: int = 0
+    readback: str = ""
+    self_interference: str = ""
+    views: int = 0
     self_interference_pixels: int = 0
     """Pixels blanked by the filter because a body's edge was counted inside itself."""
     unidentified_pixels: int = 0
     """Pixels with a non-zero count that no single body claimed (blanked)."""
-    possibly_lost: int = 0
-    """Lossy modes: how many blocks merged two different records (0 means nothing was dropped)."""
     mip_level: int = 0
-    """Mip-map level read back (mipmap and adaptive modes)."""
+    # both
+    records: int = 0
+    bytes_read: int = 0
     uploaded_vertex_bytes: int = 0
+    reruns: int = 0
+    """Frames run again because a buffer had to grow."""
     wall_ms: dict[str, float] = field(default_factory=dict)
     gpu_ms: dict[str, float] = field(default_factory=dict)
-    adapter: str = ""
 
-    def merge(self, other: Stats) -> None:
-        for name in ("bytes_read", "records", "self_interference_pixels", "unidentified_pixels",
-                     "possibly_lost", "uploaded_vertex_bytes"):
-            setattr(self, name, getattr(self, name) + getattr(other, name))
-        self.mip_level = max(self.mip_level, other.mip_level)
-        for d, o in ((self.wall_ms, other.wall_ms), (self.gpu_ms, other.gpu_ms)):
-            for k, v in o.items():
-                d[k] = d.get(k, 0.0) + v
+    def add_ms(self, stage: str, ms: float) -> None:
+        self.wall_ms[stage] = self.wall_ms.get(stage, 0.0) + ms
 
 
 @dataclass
 class CollisionResult:
     """The answer to one query.
 
-    pairs : (K, 2) int64, unique colliding pairs ``(i, j)`` with ``i < j``, sorted
-    records : structured array of :data:`RECORD_DTYPE`, one row per collision pixel
-    views : the view of each ``records["view"]`` index
+    Attributes
+    ----------
+    pairs : (K, 2) int64
+        Unique colliding pairs ``(i, j)`` with ``i < j``, sorted.
+    records : structured array of :data:`~pycinder.RECORD_DTYPE`
+        One row per edge sample found inside another body.
+    stats : Stats
+    views : list of View
+        Scene strategy: the view of each ``records["view"]`` index.
+    tiles : TilePlan or None
+        Focused strategy: the tile of each ``records["view"]`` index.
     """
 
     pairs: np.ndarray
     records: np.ndarray
-    views: list[View]
-    resolution: tuple[int, int]
     stats: Stats
-    edge_table: tuple[np.ndarray, np.ndarray, np.ndarray] | None = field(default=None, repr=False)
-    """The scene's (edges (E, 2), edge_start (N+1,), vertex_start (N+1,)), for :meth:`edges`."""
+    views: list[View] = field(default_factory=list)
+    tiles: TilePlan | None = field(default=None, repr=False)
+    scene: Scene | None = field(default=None, repr=False)
+
+    @classmethod
+    def empty(cls, stats: Stats) -> CollisionResult:
+        return cls(np.zeros((0, 2), dtype=np.int64), np.zeros(0, RECORD_DTYPE), stats)
 
     @property
     def is_collision(self) -> bool:
@@ -104,86 +107,28 @@ class CollisionResult:
     def __bool__(self) -> bool:
         return self.is_collision
 
+    def __len__(self) -> int:
+        return len(self.pairs)
+
     def points(self) -> np.ndarray:
         """World-space points of the records, (len(records), 3) float64."""
-        out = np.zeros((len(self.records), 3))
-        w, h = self.resolution
-        for k, view in enumerate(self.views):
-            sel = self.records["view"] == k
-            if sel.any():
-                r = self.records[sel]
-                out[sel] = view.unproject(r["x"], r["y"], r["depth"], w, h)
-        return out
+        return self.records["point"].copy()
 
     def edge_vertices(self) -> np.ndarray:
-        """Each record's penetrating edge as (len(records), 2) int64 vertex indices of the
-        penetrating body (indices into that body's own vertex array)."""
-        if self.edge_table is None or (self.records["edge"] < 0).any():
-            raise ValueError("edge indices are not encoded (encode='normal')")
-        edges, edge_start, vertex_start = self.edge_table
-        pen = self.records["penetrating"].astype(np.int64)
-        return edges[edge_start[pen] + self.records["edge"]].astype(np.int64) - vertex_start[pen, None]
+        """Each record's penetrating edge as (len(records), 2) int64 vertex indices into the
+        penetrating body's own vertex array."""
+        if self.scene is None:
+            raise ValueError("this result has no scene to look edges up in")
+        rec = self.records
+        out = np.zeros((len(rec), 2), dtype=np.int64)
+        if (rec["edge"] < 0).any():
+            raise ValueError("edge indices are not encoded in these records")
+        shape = self.scene.body_shape[rec["penetrating"]]
+        for k in np.unique(shape):
+            sel = shape == k
+            out[sel] = self.scene.shapes[k].topology.edges[rec["edge"][sel]]
+        return out
 
-    def pair_names(self, names: Sequence[str]) -> set[tuple[str, str]]:
-        """The pairs as a set of name tuples, as trimesh's ``return_names`` gives them."""
+    def pair_names(self, names: Sequence[Any]) -> set[tuple[Any, Any]]:
+        """The pairs as a set of sorted name tuples, as trimesh's ``return_names`` gives them."""
         return {tuple(sorted((names[i], names[j]))) for i, j in self.pairs.tolist()}
-
-
-def unpack_normals(packed: np.ndarray) -> np.ndarray:
-    """10:10:10 packed normals (n,) uint32 to unit vectors (n, 3) float32."""
-    q = np.stack([(packed >> s) & 1023 for s in (0, 10, 20)], axis=1).astype(np.float32)
-    n = q / 1023.0 * 2.0 - 1.0
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
-
-
-def make_records(pixel: np.ndarray, pen_id: np.ndarray, pend_id: np.ndarray, depth_bits: np.ndarray,
-                 payload: np.ndarray, width: int, view_index: int, encode: str,
-                 edge_start: np.ndarray) -> np.ndarray:
-    """Structured records from decoded channels, all (n,) uint32 arrays, sorted by pixel."""
-    order = np.argsort(pixel, kind="stable")
-    pixel, pen_id, pend_id, depth_bits, payload = (
-        a[order] for a in (pixel, pen_id, pend_id, depth_bits, payload))
-    rec = np.zeros(len(pixel), dtype=RECORD_DTYPE)
-    rec["x"] = pixel % width
-    rec["y"] = pixel // width
-    rec["depth"] = depth_bits.astype(np.uint32).view(np.float32)
-    rec["penetrating"] = pen_id.astype(np.int64) - 1
-    rec["penetrated"] = pend_id.astype(np.int64) - 1
-    rec["view"] = view_index
-    if encode == "normal":
-        rec["edge"] = -1
-        rec["normal"] = unpack_normals(payload.astype(np.uint32))
-    else:
-        rec["edge"] = payload.astype(np.int64) - 1 - edge_start[rec["penetrating"]]
-        rec["normal"] = np.nan
-    return rec
-
-
-def decode_image(image: np.ndarray, width: int, view_index: int, encode: str,
-                 edge_start: np.ndarray) -> np.ndarray:
-    """Records from a filtered image, (H*W*4,) uint32 as read back."""
-    image = image.reshape(-1, 4)
-    pixel = np.flatnonzero(image[:, 0])
-    rows = image[pixel]
-    return make_records(pixel.astype(np.uint32), rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3],
-                        width, view_index, encode, edge_start)
-
-
-def decode_compact(data: np.ndarray, width: int, view_index: int, encode: str,
-                   edge_start: np.ndarray) -> np.ndarray:
-    """Records from compacted rows (pixel, r << 16 | g, depth bits, payload), (K*4,) uint32."""
-    rows = data.reshape(-1, 4)
-    return make_records(rows[:, 0], rows[:, 1] >> 16, rows[:, 1] & 0xFFFF, rows[:, 2], rows[:, 3],
-                        width, view_index, encode, edge_start)
-
-
-def unique_pairs(records: np.ndarray) -> np.ndarray:
-    """Unique sorted (K, 2) int64 pairs with i < j from records."""
-    if len(records) == 0:
-        return np.zeros((0, 2), dtype=np.int64)
-    a = records["penetrating"].astype(np.int64)
-    b = records["penetrated"].astype(np.int64)
-    # One int64 key per pair: a 1-D unique is far faster than np.unique(axis=0).
-    key = np.unique(np.minimum(a, b) << 16 | np.maximum(a, b))
-    return np.stack([key >> 16, key & 0xFFFF], axis=1)

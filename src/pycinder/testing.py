@@ -1,12 +1,19 @@
 """Scenes and exact ground truth, shared by the tests and the benchmarks.
 
-Ground truth is the intersection volume computed by manifold3d, scored with a tolerance band:
+Truth is computed from the meshes themselves, never from pycinder's output, in the terms of the
+tolerance contract (see :mod:`pycinder.request`), for a tolerance ``t`` per pair:
 
-* a pair **overlaps** when it still overlaps with both solids shrunk 5% about their centroids;
-* a pair is **separate** when it is still apart with both solids grown 5%;
-* pairs in between are **ambiguous** and not scored.
+* a pair is **separate** when its meshes do not overlap (manifold3d intersection volume) and their
+  exact distance is at least ``t`` (manifold3d ``min_gap``): it must never be reported;
+* a pair **must be reported** when some point of one body's surface lies inside the other at a
+  distance of at least ``2 t`` from its surface (trimesh signed distances at the vertices and at
+  evenly sampled surface points). Then moving either body by ``2 t`` in any direction keeps that
+  point inside, so the pair's penetration is at least ``2 t``: a sufficient test, so the few
+  pairs whose depth it cannot prove are left unscored rather than guessed;
+* every other pair is **ambiguous**: closer than ``t``, or overlapping by less than ``2 t``
+  somewhere the samples can show, and not scored.
 
-Needs the ``test`` extra (``pip install pycinder[test]``) for manifold3d.
+Needs the ``test`` extra (``pip install pycinder[test]``) for manifold3d and rtree.
 """
 
 from __future__ import annotations
@@ -19,7 +26,10 @@ from typing import Any
 import numpy as np
 import trimesh
 
-BAND = 0.05
+from .request import DEFAULT_RELATIVE_TOLERANCE
+
+SURFACE_SAMPLES = 1500
+"""Evenly spaced surface points per body (besides its vertices) for the depth test."""
 
 
 def _manifold3d() -> Any:
@@ -30,32 +40,45 @@ def _manifold3d() -> Any:
     return manifold3d
 
 
-def world_mesh(mesh: trimesh.Trimesh, transform: np.ndarray | None) -> trimesh.Trimesh:
-    m = mesh.copy()
+def world_mesh(mesh: Any, transform: np.ndarray | None) -> trimesh.Trimesh:
+    """A trimesh copy of ``mesh`` (a Trimesh or a (vertices, faces) pair) in world coordinates."""
+    if isinstance(mesh, trimesh.Trimesh):
+        m = mesh.copy()
+    else:
+        m = trimesh.Trimesh(np.asarray(mesh[0], np.float64), np.asarray(mesh[1]), process=False)
     if transform is not None:
-        m.apply_transform(transform)
+        m.apply_transform(np.asarray(transform, dtype=np.float64))
     return m
 
 
-def scaled_about_centroid(mesh: trimesh.Trimesh, factor: float) -> np.ndarray:
-    """Vertices (V, 3) of ``mesh`` scaled by ``factor`` about its volume centroid."""
-    c = mesh.center_mass if mesh.is_volume else mesh.centroid
-    return c + (mesh.vertices - c) * factor
-
-
-def _manifold(vertices: np.ndarray, faces: np.ndarray) -> Any:
+def _manifold(mesh: trimesh.Trimesh) -> Any:
     m3d = _manifold3d()
-    return m3d.Manifold(m3d.Mesh(vert_properties=np.asarray(vertices, np.float32),
-                                 tri_verts=np.asarray(faces, np.uint32)))
+    return m3d.Manifold(m3d.Mesh(vert_properties=np.asarray(mesh.vertices, np.float32),
+                                 tri_verts=np.asarray(mesh.faces, np.uint32)))
+
+
+def pair_tolerances(meshes: list, transforms: list | np.ndarray | None, pairs: np.ndarray,
+                    tolerance: float | None) -> np.ndarray:
+    """(K,) tolerance of each pair: ``tolerance``, or the documented default (1% of the smaller
+    body's bounding-box diagonal in world units)."""
+    if tolerance is not None:
+        return np.full(len(pairs), float(tolerance))
+    sizes = []
+    for i, m in enumerate(meshes):
+        v = np.asarray(m.vertices if hasattr(m, "vertices") else m[0], np.float64)
+        t = np.eye(4) if transforms is None else np.asarray(transforms[i], np.float64)
+        sizes.append(np.linalg.norm(t[:3, :3] @ (v.max(axis=0) - v.min(axis=0))))
+    sizes = np.asarray(sizes)
+    return DEFAULT_RELATIVE_TOLERANCE * np.minimum(sizes[pairs[:, 0]], sizes[pairs[:, 1]])
 
 
 @dataclass
 class Truth:
     """Ground truth of a scene.
 
-    overlap : (K, 2) int64 pairs that clearly overlap
-    separate : (M, 2) int64 pairs that are clearly apart
-    ambiguous : (L, 2) int64 pairs inside the tolerance band
+    overlap : (K, 2) int64 pairs that must be reported (penetration of at least 2 tolerances)
+    separate : (M, 2) int64 pairs at least one tolerance apart: never to be reported
+    ambiguous : (L, 2) int64 pairs in between, not scored
     """
 
     overlap: np.ndarray
@@ -63,7 +86,7 @@ class Truth:
     ambiguous: np.ndarray
 
     def score(self, found: np.ndarray) -> dict[str, Any]:
-        """Recall on clear overlaps and the clear separations reported, for ``found`` (K, 2)."""
+        """Recall on pairs that must be reported, and separate pairs reported, for ``found``."""
         found_set = {tuple(p) for p in np.asarray(found).reshape(-1, 2).tolist()}
         overlap = {tuple(p) for p in self.overlap.tolist()}
         separate = {tuple(p) for p in self.separate.tolist()}
@@ -78,43 +101,68 @@ class Truth:
         }
 
 
-def ground_truth(meshes: list[trimesh.Trimesh], transforms: list[np.ndarray] | None = None,
-                 band: float = BAND) -> Truth:
-    """Exact overlap classes of every pair, with the tolerance band."""
-    world = [world_mesh(m, None if transforms is None else transforms[i]) for i, m in enumerate(meshes)]
-    n = len(world)
-    small = [scaled_about_centroid(m, 1.0 - band) for m in world]
-    large = [scaled_about_centroid(m, 1.0 + band) for m in world]
-    lo = np.array([v.min(axis=0) for v in large])
-    hi = np.array([v.max(axis=0) for v in large])
-    cache_small: dict[int, Any] = {}
-    cache_large: dict[int, Any] = {}
+class _Body:
+    """A world mesh with its manifold and surface samples, built when first needed."""
 
-    def solid(cache: dict[int, Any], verts: list[np.ndarray], i: int) -> Any:
-        if i not in cache:
-            cache[i] = _manifold(verts[i], world[i].faces)
-        return cache[i]
+    def __init__(self, mesh: trimesh.Trimesh, seed: int) -> None:
+        self.mesh = mesh
+        self.seed = seed
+        self._solid = None
+        self._points = None
 
-    overlap, separate, ambiguous = [], [], []
-    for i in range(n):
-        # Pairs whose grown bounding boxes do not touch are clearly separate.
-        near = np.flatnonzero((lo[i + 1:] <= hi[i]).all(axis=1) & (hi[i + 1:] >= lo[i]).all(axis=1))
-        near_set = set((near + i + 1).tolist())
-        for j in range(i + 1, n):
-            if j not in near_set:
-                separate.append((i, j))
-                continue
-            vs = (solid(cache_small, small, i) ^ solid(cache_small, small, j)).volume()
-            if vs > 1e-12:
-                overlap.append((i, j))
-                continue
-            vl = (solid(cache_large, large, i) ^ solid(cache_large, large, j)).volume()
-            (ambiguous if vl > 1e-12 else separate).append((i, j))
+    @property
+    def solid(self) -> Any:
+        if self._solid is None:
+            self._solid = _manifold(self.mesh)
+        return self._solid
 
-    def arr(x: list) -> np.ndarray:
-        return np.array(x, dtype=np.int64).reshape(-1, 2)
+    @property
+    def points(self) -> np.ndarray:
+        if self._points is None:
+            samples = trimesh.sample.sample_surface_even(self.mesh, SURFACE_SAMPLES,
+                                                         seed=self.seed)[0]
+            self._points = np.vstack([self.mesh.vertices, samples])
+        return self._points
 
-    return Truth(arr(overlap), arr(separate), arr(ambiguous))
+
+def _deep(a: _Body, b: _Body, depth: float) -> bool:
+    """Whether some surface sample of ``b`` lies inside ``a`` at least ``depth`` from its surface."""
+    lo, hi = a.mesh.bounds
+    pts = b.points
+    pts = pts[((pts >= lo + depth) & (pts <= hi - depth)).all(axis=1)]
+    if len(pts) == 0:
+        return False
+    return bool((trimesh.proximity.signed_distance(a.mesh, pts) >= depth).any())
+
+
+def ground_truth(meshes: list, transforms: list | np.ndarray | None = None,
+                 tolerance: float | None = None) -> Truth:
+    """Classify every pair of a scene (see the module's doc).
+
+    Parameters
+    ----------
+    meshes : list of trimesh.Trimesh or (vertices, faces) pairs
+    transforms : list of (4, 4) float, optional
+    tolerance : float, optional
+        World units; default: the per-pair relative tolerance pycinder documents.
+    """
+    bodies = [_Body(world_mesh(m, None if transforms is None else transforms[i]), i)
+              for i, m in enumerate(meshes)]
+    n = len(bodies)
+    iu, ju = np.triu_indices(n, 1)
+    pairs = np.stack([iu, ju], axis=1).astype(np.int64)
+    tol = pair_tolerances(meshes, transforms, pairs, tolerance)
+    lo = np.array([b.mesh.bounds[0] for b in bodies]).reshape(-1, 3)
+    hi = np.array([b.mesh.bounds[1] for b in bodies]).reshape(-1, 3)
+    near = ((lo[iu] <= hi[ju] + tol[:, None]) & (lo[ju] <= hi[iu] + tol[:, None])).all(axis=1)
+    classes = np.zeros(len(pairs), dtype=np.int8)  # 0 separate, 1 must, 2 ambiguous
+    for k in np.flatnonzero(near):
+        a, b, t = bodies[pairs[k, 0]], bodies[pairs[k, 1]], tol[k]
+        if (a.solid ^ b.solid).volume() > 0.0:
+            classes[k] = 1 if (_deep(a, b, 2 * t) or _deep(b, a, 2 * t)) else 2
+        elif a.solid.min_gap(b.solid, 2 * t) < t:
+            classes[k] = 2
+    return Truth(pairs[classes == 1], pairs[classes == 0], pairs[classes == 2])
 
 
 def random_rotation(rng: np.random.Generator) -> np.ndarray:

@@ -122,6 +122,15 @@ class View:
         hi = np.stack([v.max(axis=0) for v in verts])
         return cls.fit(world_corners(lo, hi, t), **kwargs)
 
+    def pixel_size_at(self, point: np.ndarray, resolution: int) -> float:
+        """World size of one pixel of a ``resolution``-wide image at a world point (the same
+        everywhere for orthographic views; growing with distance for perspective ones)."""
+        p = np.asarray(self.projection, dtype=np.float64)
+        if p[3, 2] == 0.0:  # orthographic
+            return 2.0 / (abs(p[0, 0]) * resolution)
+        eye = np.asarray(self.view, dtype=np.float64) @ np.append(np.asarray(point, float), 1.0)
+        return 2.0 * max(-eye[2], 1e-12) / (abs(p[0, 0]) * resolution)
+
     def depth_range(self, local_min: np.ndarray, local_max: np.ndarray, transforms: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray]:
         """Per body, the (min, max) depth of its bounding-box corners in this view: (N,), (N,)."""

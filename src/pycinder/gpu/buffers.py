@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import wgpu
 
-from ..scene import PackedScene
+from ..scene.pack import PackedScene
 
 STORAGE = wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_DST
 RECORD_FORMAT = "rgba32uint"
@@ -71,8 +71,9 @@ class SceneBuffers:
     def upload(self, scene: PackedScene) -> None:
         """Upload ``scene``, skipping what the GPU already holds.
 
-        The topology (indices, edges, normals) is uploaded when it differs from the last scene;
-        vertex positions only for bodies whose vertices changed.
+        The topology (indices, edges) is uploaded when it differs from the last scene; vertex
+        positions only for bodies whose vertices changed, and normals (when the scene carries
+        them) whenever any body's vertices changed, so they are never stale.
         """
         same_topology = self.scene is not None and self.scene.topology_ids == scene.topology_ids \
             and np.array_equal(self.scene.vertex_start, scene.vertex_start)
@@ -81,19 +82,23 @@ class SceneBuffers:
             s["positions"].ensure(scene.positions.nbytes)
             s["vertex_body"].ensure(scene.vertex_body.nbytes)
             s["edges"].ensure(scene.edges.nbytes)
-            s["vertex_normals"].ensure(scene.vertex_normals.nbytes)
-            s["edge_normals"].ensure(scene.edge_normals.nbytes)
             self.index.ensure(scene.indices.nbytes)
             s["positions"].write(scene.positions)
             s["vertex_body"].write(scene.vertex_body)
             s["edges"].write(scene.edges)
-            s["vertex_normals"].write(scene.vertex_normals)
-            s["edge_normals"].write(scene.edge_normals)
             self.index.write(scene.indices)
             self.uploaded_vertex_bytes = scene.positions.nbytes
-        else:
+        elif self.scene.shape_ids != scene.shape_ids:
             self.uploaded_vertex_bytes = self._upload_changed_vertices(scene)
-        self._uploaded_positions = scene.positions.copy()
+        else:
+            self.uploaded_vertex_bytes = 0
+        if not same_topology or self.scene.shape_ids != scene.shape_ids \
+                or self.scene.normals != scene.normals:
+            s["vertex_normals"].ensure(scene.vertex_normals.nbytes)
+            s["edge_normals"].ensure(scene.edge_normals.nbytes)
+            s["vertex_normals"].write(scene.vertex_normals)
+            s["edge_normals"].write(scene.edge_normals)
+        self._uploaded_positions = scene.positions
         self.scene = scene
 
     def _upload_changed_vertices(self, scene: PackedScene) -> int:

@@ -15,6 +15,10 @@ INSTALL_HINT = (
 )
 
 
+STORAGE_BUFFERS_NEEDED = 10
+"""Storage buffers the focused edge test binds at once."""
+
+
 class NoAdapterError(RuntimeError):
     """No WebGPU adapter could be found."""
 
@@ -27,6 +31,15 @@ class Gpu:
     device: wgpu.GPUDevice
     depth_format: str
     timestamps: bool
+
+    @property
+    def max_binding(self) -> int:
+        """Largest storage buffer one binding may hold, in bytes."""
+        return int(self.device.limits["max-storage-buffer-binding-size"])
+
+    @property
+    def backend(self) -> str:
+        return str(self.adapter.info["backend_type"])
 
     @property
     def max_resolution(self) -> int:
@@ -65,17 +78,33 @@ def get_gpu() -> Gpu:
     timestamps = "timestamp-query" in adapter.features
     if timestamps:
         wanted.append("timestamp-query")
+    storage = adapter.limits["max-storage-buffers-per-shader-stage"]
+    if storage < STORAGE_BUFFERS_NEEDED:
+        info = adapter.info
+        raise NoAdapterError(
+            f"the WebGPU adapter {info['device']} ({info['backend_type']}) offers "
+            f"{storage} storage buffers per shader stage; pycinder needs "
+            f"{STORAGE_BUFFERS_NEEDED}. {INSTALL_HINT}")
     limits = {"max-texture-dimension-2d": adapter.limits["max-texture-dimension-2d"],
               "max-storage-buffer-binding-size": adapter.limits["max-storage-buffer-binding-size"],
-              "max-buffer-size": adapter.limits["max-buffer-size"]}
+              "max-buffer-size": adapter.limits["max-buffer-size"],
+              "max-storage-buffers-per-shader-stage": STORAGE_BUFFERS_NEEDED}
     device = adapter.request_device_sync(required_features=wanted, required_limits=limits)
     return Gpu(adapter, device, depth_format, timestamps)
 
 
 @lru_cache(maxsize=None)
 def shader_source(name: str) -> str:
-    """The WGSL source ``shaders/<name>.wgsl``."""
-    return resources.files("pycinder.shaders").joinpath(f"{name}.wgsl").read_text()
+    """The WGSL source ``shaders/<name>.wgsl``, with ``//!include other.wgsl`` lines replaced by
+    that file's source (WGSL has no includes of its own)."""
+    text = resources.files("pycinder.shaders").joinpath(f"{name}.wgsl").read_text()
+    lines = []
+    for line in text.splitlines():
+        if line.startswith("//!include "):
+            lines.append(shader_source(line.split()[1].removesuffix(".wgsl")))
+        else:
+            lines.append(line)
+    return "\n".join(lines) + "\n"
 
 
 def check_resolution(gpu: Gpu, width: int, height: int) -> None:

@@ -13,7 +13,7 @@ import wgpu
 
 from ..gpu.buffers import RECORD_FORMAT, SceneBuffers, Targets
 from ..gpu.device import Gpu, shader_source
-from .states import DEPTH_CLEAR, PASSES, PLAN, PREVENT, PREVENT_PLAN, STENCIL_MASK, PassState, RenderStep
+from .states import DEPTH_CLEAR, PASSES, PLAN, STENCIL_MASK, PassState, RenderStep
 
 _VERTEX, _FRAGMENT = wgpu.ShaderStage.VERTEX, wgpu.ShaderStage.FRAGMENT
 
@@ -31,18 +31,19 @@ def _bind_group_layout(device: wgpu.GPUDevice) -> wgpu.GPUBindGroupLayout:
 class RaycastPasses:
     """The render pipelines of passes 1-7 and the recording of their draws.
 
-    prevent : use the self-interference prevention variant of the passes (paper 4.3.1.3)
+    states : the pass table (``PASSES``, or ``PREVENT`` for paper 4.3.1.3)
+    plan : the render steps the passes are grouped into
     """
 
-    def __init__(self, gpu: Gpu, *, prevent: bool = False) -> None:
+    def __init__(self, gpu: Gpu, states: dict[int, PassState] = PASSES,
+                 plan: tuple[RenderStep, ...] = PLAN) -> None:
         self.gpu = gpu
-        self.prevent = prevent
         device = gpu.device
         self.module = device.create_shader_module(label="raycast", code=shader_source("raycast"))
         self.layout = _bind_group_layout(device)
         pipeline_layout = device.create_pipeline_layout(bind_group_layouts=[self.layout])
-        self.states = PREVENT if prevent else PASSES
-        self.plan: tuple[RenderStep, ...] = PREVENT_PLAN if prevent else PLAN
+        self.states = states
+        self.plan = plan
         self.pipelines = {n: self._pipeline(pipeline_layout, s) for n, s in self.states.items()}
         self._bundles: dict[tuple, list[wgpu.GPURenderBundle]] = {}
         self._bind_group: wgpu.GPUBindGroup | None = None

@@ -12,7 +12,7 @@ import numpy as np
 import wgpu
 
 from ..gpu.device import Gpu, shader_source
-from .selfint import RECORD_BYTES, WORKGROUP
+from .filter import RECORD_BYTES, WORKGROUP
 
 
 def level_sizes(width: int, height: int, levels: int) -> list[tuple[int, int]]:

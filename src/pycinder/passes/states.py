@@ -1,4 +1,5 @@
-"""The pipeline state of every CInDeR pass, in one table.
+"""The pipeline state of every CInDeR pass, in one place: the paper's whole-scene passes 1-7
+(strategy ``"scene"``) and the focused passes F0-F4 (strategy ``"focused"``, the default).
 
 This is Appendix A of the paper (with its swap of lines 34/37 and 35/38) and the OpenGL state of
 section 4.2.1, written as WebGPU state. A reader holding the paper should be able to check every
@@ -122,3 +123,52 @@ PREVENT_PLAN = (RenderStep((1,), True, True),
 DEPTH_CLEAR = 0.0
 STENCIL_REFERENCE = 0
 STENCIL_MASK = 0xFF
+
+
+# -- The focused strategy ---------------------------------------------------------------------
+#
+# A tile per candidate pair replaces the one image of the whole scene. Per tile the pair's two
+# bodies are the only ones drawn, so the penetrated body of any edge inside a solid is simply the
+# other one: passes 5-7 go away, and with them self-interference (a body's edges are only ever
+# tested against the other body's faces). The counting of passes 2 and 3 moves from the stencil
+# buffer to per-pixel lists written with storage atomics, so that every edge sample is tested at
+# its own depth: no edge hides another in its pixel.
+#
+# ======  ==========================  ======  ===========  =======  ======  =======================
+# pass    draws                       cull    depth        stencil  colour  writes
+# ======  ==========================  ======  ===========  =======  ======  =======================
+# F0      (compute) cluster bounds    -       -            -        -       bounds of changed shapes
+# F1      (compute) clusters per tile -       -            -        -       face / edge work items
+# F2      (compute) faces per cluster -       -            -        -       triangles clipped to tiles
+# F3      clipped faces of both       none    none         none     none    per pixel: winding outside
+#         bodies, all tiles                                                 the box, crossings inside
+# F4      (compute) edges per cluster -       -            -        -       records, per-tile counts
+# ======  ==========================  ======  ===========  =======  ======  =======================
+#
+# F3 is the only rasterised pass. It has no depth or stencil attachment: a face crossing a pixel's
+# ray in front of the tile's box (for tiles counting towards the back: behind it) adds +1 (front
+# face) or -1 (back face) to that body's winding at the pixel, as passes 2 and 3 do; a face crossing
+# it within the box's depth range is listed with its depth and facing. F4 then counts, for an edge
+# sample at depth z, the listed crossings of the other body between z and the counting side.
+
+
+@dataclass(frozen=True)
+class FocusedPassState:
+    """Fixed-function state of the focused strategy's rasterised pass."""
+
+    number: str
+    purpose: str
+    draws: str
+    cull: Literal["none", "back", "front"]
+    depth_stencil: None
+    color_writes: str
+
+    @property
+    def write_mask(self) -> int:
+        return 0 if not self.color_writes else sum({"r": 1, "g": 2, "b": 4, "a": 8}[c]
+                                                   for c in self.color_writes)
+
+
+FOCUSED_CROSSINGS = FocusedPassState(
+    "F3", "list every face crossing of each pixel ray, per body", "clipped faces of both bodies",
+    "none", None, "")

@@ -1,0 +1,107 @@
+"""Broad phase: world boxes per frame, and the candidate pairs whose boxes overlap.
+
+Sweep and prune, vectorised: the boxes are sorted along the axis where their centres spread most,
+each box is paired with the boxes that start before it ends on that axis (one ``searchsorted``),
+and the pairs are kept where the boxes also overlap on the other two axes. No Python loop runs per
+body or per pair; memory is bounded by processing the sweep in chunks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+CHUNK_PAIRS = 4_000_000
+"""Most axis-overlap pairs expanded at once (about 100 MB of temporaries)."""
+
+
+def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The 8 corners of each box.
+
+    Parameters
+    ----------
+    lo, hi : (N, 3) float
+        Minimum and maximum corners.
+
+    Returns
+    -------
+    (N, 8, 3) float
+    """
+    bits = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)], dtype=lo.dtype)
+    return lo[:, None, :] + bits[None] * (hi - lo)[:, None, :]
+
+
+def world_boxes(points: np.ndarray, owner: np.ndarray, transforms: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """World-space bounding boxes of bodies given body-space points that bound them.
+
+    Parameters
+    ----------
+    points : (P, 3) float
+        Body-space points of all bodies, grouped by body (for example each body's convex hull
+        vertices, or the corners of its body-space box).
+    owner : (N + 1,) int
+        Prefix offsets: body ``i`` owns ``points[owner[i]:owner[i + 1]]``. Every body owns at
+        least one point.
+    transforms : (N, 4, 4) float
+        World-from-body matrices.
+
+    Returns
+    -------
+    lo, hi : (N, 3) float64
+    """
+    counts = np.diff(owner)
+    body = np.repeat(np.arange(len(counts)), counts)
+    t = transforms[body]
+    world = np.einsum("pij,pj->pi", t[:, :3, :3], points) + t[:, :3, 3]
+    starts = owner[:-1]
+    return np.minimum.reduceat(world, starts, axis=0), np.maximum.reduceat(world, starts, axis=0)
+
+
+def sweep_and_prune(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """All pairs of boxes that overlap (touching counts as overlapping).
+
+    Parameters
+    ----------
+    lo, hi : (N, 3) float
+        Box corners.
+
+    Returns
+    -------
+    (K, 2) int64
+        Pairs ``(i, j)`` with ``i < j``, sorted.
+    """
+    n = len(lo)
+    if n < 2:
+        return np.zeros((0, 2), dtype=np.int64)
+    centre = 0.5 * (lo + hi)
+    axis = int(np.argmax(centre.var(axis=0)))
+    order = np.argsort(lo[:, axis], kind="stable")
+    lo_s, hi_s = lo[order], hi[order]
+    # For the box at sorted position i, the boxes i+1 .. end[i]-1 start before it ends.
+    end = np.searchsorted(lo_s[:, axis], hi_s[:, axis], side="right")
+    count = np.maximum(end - np.arange(n) - 1, 0)
+    others = [a for a in range(3) if a != axis]
+    out = []
+    cum = np.cumsum(count)
+    start = 0
+    while start < n:
+        # Take as many boxes as keep the expansion under CHUNK_PAIRS (at least one).
+        base = cum[start - 1] if start else 0
+        stop = max(start + 1, int(np.searchsorted(cum, base + CHUNK_PAIRS, side="right")))
+        stop = min(stop, n)
+        c = count[start:stop]
+        total = int(c.sum())
+        if total:
+            i = np.repeat(np.arange(start, stop), c)
+            offset = np.arange(total) - np.repeat(np.cumsum(c) - c, c)
+            j = i + 1 + offset
+            keep = np.ones(total, dtype=bool)
+            for a in others:
+                keep &= (lo_s[j, a] <= hi_s[i, a]) & (lo_s[i, a] <= hi_s[j, a])
+            a_, b_ = order[i[keep]], order[j[keep]]
+            out.append(np.stack([np.minimum(a_, b_), np.maximum(a_, b_)], axis=1))
+        start = stop
+    if not out:
+        return np.zeros((0, 2), dtype=np.int64)
+    pairs = np.concatenate(out).astype(np.int64)
+    return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]

@@ -1,0 +1,193 @@
+"""The focused strategy: broad phase, a tile per candidate pair, the focused passes, the result.
+
+    scene -> world boxes -> sweep and prune -> tolerance per pair -> tiles and atlas
+          -> passes F1-F4 (one submission) -> per-tile counts and records -> pairs and records
+
+A pair collides when any of its tiles found a sample inside the other body. A tile whose samples
+could not all be decided (a pixel held more crossings within the tile's box than its list) and
+found nothing is planned again with its box cut in two along the view, until nothing is
+undecided; whatever is still undecided after that is counted in ``stats.possibly_lost``.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .broadphase import sweep_and_prune
+from .errors import LossWarning, warn_at_caller
+from .gpu.device import Gpu
+from .passes.focused import (C_SAMPLES, C_TOTAL_TRIS, LIST_CAPACITY, FocusedOutput,
+                             FocusedPasses)
+from .records import RECORD_DTYPE, empty_records, unique_pairs
+from .request import DEFAULT_RELATIVE_TOLERANCE, CollisionRequest
+from .result import CollisionResult, Stats
+from .scene import Scene
+from .scene.pack import ShapePack, pack_shapes, shape_layout
+from .tiles import TilePlan, plan_tiles, split_depth
+
+DEPTH_SPLITS = 4
+"""Times an undecided tile's box may be cut in two along the view before giving up."""
+
+
+def body_sizes(scene: Scene) -> np.ndarray:
+    """(N,) world length of each body's bounding-box diagonal."""
+    diag = scene.local_hi - scene.local_lo
+    return np.linalg.norm(np.einsum("nij,nj->ni", scene.transforms[:, :3, :3], diag), axis=1)
+
+
+class FocusedStrategy:
+    """Runs queries with one tile per candidate pair.
+
+    Parameters
+    ----------
+    gpu : Gpu
+    request : CollisionRequest
+    """
+
+    def __init__(self, gpu: Gpu, request: CollisionRequest) -> None:
+        self.gpu = gpu
+        self.request = request
+        self.passes = FocusedPasses(gpu, LIST_CAPACITY)
+        per_pixel = 8 + 4 * LIST_CAPACITY
+        self.budget_pixels = int(min(request.memory_budget // per_pixel,
+                                     gpu.max_binding // (4 * LIST_CAPACITY),
+                                     gpu.max_resolution * 2048))
+        self._pack: ShapePack | None = None
+
+    def tolerances(self, scene: Scene, pairs: np.ndarray) -> np.ndarray:
+        """(K,) tolerance of each candidate pair, in world units."""
+        if self.request.tolerance is not None:
+            return np.full(len(pairs), self.request.tolerance)
+        size = body_sizes(scene)
+        tol = DEFAULT_RELATIVE_TOLERANCE * np.minimum(size[pairs[:, 0]], size[pairs[:, 1]])
+        # A body of no size (all vertices at one point) still gets a usable pixel.
+        return np.maximum(tol, 1e-12 * max(float(size.max(initial=0.0)), 1e-30))
+
+    def _shapes(self, scene: Scene, stats: Stats) -> ShapePack:
+        if self._pack is None or self._pack.layout != shape_layout(scene.shapes):
+            self._pack = pack_shapes(scene.shapes)
+        stats.uploaded_vertex_bytes = self.passes.upload(self._pack, scene.shapes)
+        return self._pack
+
+    def run(self, scene: Scene, stats: Stats) -> CollisionResult:
+        """Find the colliding pairs of a validated scene."""
+        t0 = time.perf_counter()
+        if len(scene) < 2:
+            return CollisionResult.empty(stats)
+        lo, hi = scene.world_boxes()
+        pairs = sweep_and_prune(lo, hi)
+        stats.candidates = len(pairs)
+        t1 = time.perf_counter()
+        stats.add_ms("broad phase", (t1 - t0) * 1e3)
+        if len(pairs) == 0:
+            return CollisionResult.empty(stats)
+        tol = self.tolerances(scene, pairs)
+        stats.tolerance = (float(tol.min()), float(tol.max()))
+        plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
+                          budget_pixels=self.budget_pixels)
+        stats.separated = plan.separated
+        t2 = time.perf_counter()
+        stats.add_ms("tiles", (t2 - t1) * 1e3)
+        if len(plan) == 0:
+            return CollisionResult.empty(stats)
+        pack = self._shapes(scene, stats)
+        t3 = time.perf_counter()
+        stats.add_ms("upload", (t3 - t2) * 1e3)
+        found_tiles, records, plans = [], [], []
+        current = plan
+        for attempt in range(DEPTH_SPLITS + 1):
+            out = self.passes.run(current, current.tile_from_body(scene.transforms),
+                                  scene.body_shape, pack, records=self.request.records)
+            self._count(stats, current, out)
+            hit = out.tile_counts[:, 0] > 0
+            found_tiles.append(current.bodies[hit])
+            records.append((current, out.records))
+            plans.append(current)
+            undecided = out.tile_counts[:, 1] > 0
+            if not undecided.any():
+                break
+            decided = unique_pairs(current.bodies[hit, 0], current.bodies[hit, 1])
+            again = undecided & ~_member(current.bodies, decided)
+            if not again.any():
+                break
+            if attempt == DEPTH_SPLITS:
+                lost = unique_pairs(current.bodies[again, 0], current.bodies[again, 1])
+                stats.possibly_lost = len(lost)
+                warn_at_caller(
+                    f"{len(lost)} candidate pairs could not be decided: their tiles hold more "
+                    f"than {LIST_CAPACITY} surface crossings per pixel even with boxes cut "
+                    f"{2 ** DEPTH_SPLITS} times thinner (first pair: bodies "
+                    f"{lost[0].tolist()}); see stats.possibly_lost", LossWarning)
+                break
+            stats.retries += 1
+            current = split_depth(current, np.flatnonzero(again), self.budget_pixels)
+        t4 = time.perf_counter()
+        stats.add_ms("gpu", (t4 - t3) * 1e3)
+        both = np.concatenate(found_tiles)
+        result_pairs = unique_pairs(both[:, 0], both[:, 1])
+        rec = np.concatenate([self._decode(scene, p, pack, r) for p, r in records]) \
+            if records else empty_records()
+        stats.records = len(rec)
+        stats.add_ms("decode", (time.perf_counter() - t4) * 1e3)
+        return CollisionResult(result_pairs, rec, stats, tiles=plans[0], scene=scene)
+
+    @staticmethod
+    def _count(stats: Stats, plan: TilePlan, out: FocusedOutput) -> None:
+        stats.tiles += len(plan)
+        stats.pixels += plan.pixels
+        stats.atlas_pixels += plan.atlas_pixels
+        stats.rounds += len(plan.round_rows)
+        stats.triangles += int(out.counters[C_TOTAL_TRIS])
+        stats.samples += int(out.counters[C_SAMPLES])
+        stats.undecided += int(out.tile_counts[:, 1].sum())
+        stats.bytes_read += out.bytes_read
+        stats.reruns += out.reruns
+
+    def _decode(self, scene: Scene, plan: TilePlan, pack: ShapePack, rows: np.ndarray
+                ) -> np.ndarray:
+        """Records from the rows of pass F4 (tile, u | v << 16, z bits, edge | side << 31)."""
+        if len(rows) == 0:
+            return empty_records()
+        tile = rows[:, 0].astype(np.int64)
+        u = (rows[:, 1] & 0xFFFF).astype(np.int64)
+        v = (rows[:, 1] >> 16).astype(np.int64)
+        z = rows[:, 2].view(np.float32)
+        edge = (rows[:, 3] & 0x7FFFFFFF).astype(np.int64)
+        side = (rows[:, 3] >> 31).astype(np.int64)
+        rec = np.zeros(len(rows), dtype=RECORD_DTYPE)
+        rec["penetrating"] = plan.bodies[tile, side]
+        rec["penetrated"] = plan.bodies[tile, 1 - side]
+        rec["edge"] = pack.edge_original[edge]
+        rec["view"] = tile
+        rec["x"], rec["y"], rec["depth"] = u, v, z
+        rec["point"] = plan.to_world(tile, u + 0.5, v + 0.5, z)
+        if self.request.encode == "normal":
+            rec["normal"] = edge_normals(scene, rec["penetrating"], rec["edge"])
+        else:
+            rec["normal"] = np.nan
+        return rec
+
+
+def edge_normals(scene: Scene, body: np.ndarray, edge: np.ndarray) -> np.ndarray:
+    """World-space unit normals (n, 3) of edges given by body and edge index, from the bodies'
+    current vertices."""
+    out = np.zeros((len(body), 3), dtype=np.float32)
+    shape = scene.body_shape[body]
+    for k in np.unique(shape):
+        sel = shape == k
+        local = scene.shapes[k].normals()[1][edge[sel]].astype(np.float64)
+        # Normals transform with the inverse transpose of the linear part.
+        inv_t = np.linalg.inv(scene.transforms[body[sel], :3, :3]).transpose(0, 2, 1)
+        world = np.einsum("nij,nj->ni", inv_t, local)
+        out[sel] = world / np.maximum(np.linalg.norm(world, axis=1, keepdims=True), 1e-30)
+    return out
+
+
+def _member(bodies: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """(T,) whether each tile's pair is among ``pairs`` (K, 2), both sorted i < j."""
+    if len(pairs) == 0:
+        return np.zeros(len(bodies), dtype=bool)
+    key = bodies[:, 0] << 32 | bodies[:, 1]
+    return np.isin(key, pairs[:, 0] << 32 | pairs[:, 1])

@@ -1,0 +1,178 @@
+"""What a query asks for: every option, checked once, frozen.
+
+:class:`CollisionRequest` is shared by :class:`~pycinder.Detector`,
+:func:`~pycinder.find_collisions`, :class:`~pycinder.CollisionManager` and ``pycinder check``.
+
+The tolerance contract (strategy ``"focused"``, the default)
+------------------------------------------------------------
+With ``tolerance = t`` in world units, for every pair of closed bodies:
+
+1. A pair whose exact distance is at least ``t`` is never reported.
+2. A pair whose penetration is at least ``2 t`` is always reported: the pair still overlaps when
+   either body is moved by ``2 t`` in any direction. This assumes the bodies are solids at the
+   scale of the tolerance: the overlap has some edge of one body at least about ``1.6 t`` inside
+   the other. Walls thinner than ``t``, and wedges sharper than ``t`` across, can pass through
+   each other unseen, as with any method that samples space at a given spacing.
+3. Both hold whatever the scene's extent, its units and its body count: each candidate pair is
+   tested in its own tiles, whose pixels are ``t`` wide, so other bodies never change a pair's
+   answer. Pairs in between (closer than ``t``, or overlapping by less than ``2 t``) may go
+   either way.
+
+Why: an edge sample is tested at the centre of its pixel, which is at most ``0.71 t`` from the
+edge (promise 1), and edges are sampled at most one pixel apart along each axis of the tile, so
+any edge point is within ``1.6 t`` of a tested point (promise 2).
+
+Without a tolerance, each pair gets ``DEFAULT_RELATIVE_TOLERANCE`` (1%) of the smaller body's
+size (the length of its bounding box's diagonal in world units): the promises then hold per pair
+at that scale, again independent of the rest of the scene.
+
+The whole-scene strategy (``"scene"``) is the paper's: one image of ``resolution`` pixels across
+the whole scene, with the paper's self-interference and readback options. Its pixel is the
+scene's extent divided by the resolution, so it makes no promise in world units.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any, Literal
+
+STRATEGIES = ("focused", "scene")
+SELF_INTERFERENCE_MODES = ("prevent", "filter", "offset")
+READBACK_MODES = ("compact", "full", "mipmap", "adaptive")
+ENCODINGS = ("edge", "normal")
+
+DEFAULT_RELATIVE_TOLERANCE = 0.01
+"""Default tolerance of a pair, as a fraction of the smaller body's bounding-box diagonal."""
+
+DEFAULT_MEMORY_BUDGET = 256 * 2**20
+"""Bytes the focused strategy's atlas may use per round (more pixels are processed in rounds)."""
+
+MAX_BODIES = {"focused": 2**24 - 1, "scene": 65535}
+"""Bodies one query can hold: the scene strategy writes 16-bit ids as the paper does; the focused
+strategy is limited by tile and record layouts."""
+
+_SCENE_ONLY = ("resolution", "self_interference", "readback", "mipmap_levels", "edge_offset")
+
+
+@dataclass(frozen=True)
+class CollisionRequest:
+    """Every option of a query, checked when the request is made.
+
+    Parameters
+    ----------
+    strategy : {"focused", "scene"}
+        ``"focused"`` (default): a broad phase, then one tile per candidate pair sized by the
+        tolerance. ``"scene"``: the paper's passes over one image of the whole scene.
+    tolerance : float, optional
+        World-unit tolerance of the focused strategy (see the module's contract). Default: 1% of
+        the smaller body's size, per pair.
+    resolution : int, optional
+        Scene strategy: width and height of the image in pixels (default 1024).
+    self_interference : {"prevent", "filter", "offset"}
+        Scene strategy: how z-fighting of a body's edges with its own faces is handled (paper
+        4.3.1). The focused strategy never tests a body against itself.
+    readback : {"compact", "full", "mipmap", "adaptive"}
+        Scene strategy: what is read back (paper 4.3.2). The focused strategy reads the per-tile
+        counts and the compact records.
+    mipmap_levels : int
+        Scene strategy, ``readback="mipmap"``: how many 2x2 reductions.
+    encode : {"edge", "normal"}
+        What each record carries besides its point: the penetrating edge's index, or also its
+        world-space normal (paper 5.3).
+    edge_offset : float, optional
+        Scene strategy, ``self_interference="offset"``: how far edges move outwards, in body
+        units (default: half a pixel of the view at the scene's centre).
+    strict : bool
+        Raise instead of warning for open, inside-out and zero-area meshes and for views that
+        cut a body.
+    profile : bool
+        Time each GPU pass with timestamp queries where the adapter supports them.
+    memory_budget : int
+        Focused strategy: bytes of pixel data per round of the atlas.
+    records : bool
+        Read back every record (False: only which pairs collide).
+    """
+
+    strategy: Literal["focused", "scene"] = "focused"
+    tolerance: float | None = None
+    resolution: int | None = None
+    self_interference: str = "prevent"
+    readback: str = "compact"
+    mipmap_levels: int = 2
+    encode: str = "edge"
+    edge_offset: float | None = None
+    strict: bool = False
+    profile: bool = False
+    memory_budget: int = DEFAULT_MEMORY_BUDGET
+    records: bool = True
+
+    def __post_init__(self) -> None:
+        _one_of("strategy", self.strategy, STRATEGIES)
+        _one_of("encode", self.encode, ENCODINGS)
+        for name in ("strict", "profile", "records"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
+        if self.tolerance is not None:
+            if isinstance(self.tolerance, bool) or not isinstance(self.tolerance, (int, float)) \
+                    or not math.isfinite(self.tolerance) or self.tolerance <= 0:
+                raise ValueError(f"tolerance must be a positive number of world units, got "
+                                 f"{self.tolerance!r}")
+            object.__setattr__(self, "tolerance", float(self.tolerance))
+        if not _positive_int(self.memory_budget) or self.memory_budget < 2**20:
+            raise ValueError(f"memory_budget must be a whole number of bytes, at least 1 MiB, "
+                             f"got {self.memory_budget!r}")
+        if self.strategy == "focused":
+            given = [n for n in _SCENE_ONLY if getattr(self, n) != _DEFAULTS[n]]
+            if given:
+                raise ValueError(
+                    f"{', '.join(given)} only apply to strategy='scene' (the paper's whole-scene "
+                    "image); the focused strategy sizes its pixels by the tolerance. Pass "
+                    "strategy='scene' to use them.")
+            return
+        if self.tolerance is not None:
+            raise ValueError("tolerance applies to strategy='focused'; the scene strategy's "
+                             "accuracy is set by its resolution")
+        if self.resolution is None:
+            object.__setattr__(self, "resolution", 1024)
+        if not _positive_int(self.resolution):
+            raise ValueError(f"resolution must be a positive whole number of pixels, got "
+                             f"{self.resolution!r}")
+        object.__setattr__(self, "resolution", int(self.resolution))
+        _one_of("self_interference", self.self_interference, SELF_INTERFERENCE_MODES)
+        _one_of("readback", self.readback, READBACK_MODES)
+        if not _positive_int(self.mipmap_levels) or not 1 <= self.mipmap_levels <= 14:
+            raise ValueError(f"mipmap_levels must be a whole number from 1 to 14, got "
+                             f"{self.mipmap_levels!r}")
+        if self.edge_offset is not None and (
+                not isinstance(self.edge_offset, (int, float)) or isinstance(self.edge_offset, bool)
+                or not math.isfinite(self.edge_offset)):
+            raise ValueError(f"edge_offset must be a finite number, got {self.edge_offset!r}")
+
+    @property
+    def max_bodies(self) -> int:
+        return MAX_BODIES[self.strategy]
+
+    def replace(self, **changes: Any) -> CollisionRequest:
+        """A copy with some options changed (checked again)."""
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        if changes.get("strategy", self.strategy) == "focused":
+            for name in _SCENE_ONLY:
+                values[name] = _DEFAULTS[name]
+        values.update(changes)
+        return CollisionRequest(**values)
+
+
+def _positive_int(value: Any) -> bool:
+    import numpy as np
+
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value > 0
+
+
+def _one_of(name: str, value: Any, allowed: tuple[str, ...]) -> None:
+    if value not in allowed:
+        raise ValueError(f"{name} must be one of {', '.join(map(repr, allowed))}; got {value!r}")
+
+
+_DEFAULTS = {"resolution": None, "self_interference": "prevent", "readback": "compact",
+             "mipmap_levels": 2, "edge_offset": None}

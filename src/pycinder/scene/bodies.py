@@ -1,0 +1,320 @@
+"""Bodies in, a validated :class:`Scene` out.
+
+A body is a closed triangle mesh (a ``trimesh.Trimesh`` or a ``(vertices, faces)`` pair) plus a
+world-from-body transform. Bodies that share one vertex array and one face array (250 copies of
+one sphere) share one :class:`Shape`, so each mesh is checked, measured and uploaded once.
+
+Shapes are cached across calls by content, like topologies: a rigid body passed again costs a
+lookup (trimesh meshes) or a fingerprint and a comparison (plain arrays), never a new check. The
+cache is bounded by bytes, so passing fresh arrays every frame does not grow memory.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections import OrderedDict
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .normals import face_normals, signed_volume, vertex_and_edge_normals
+from .topology import DEFAULT_CACHE_BYTES, Topology, TopologyCache, report_problems
+
+
+def body_label(index: int, name: str | None) -> str:
+    return f"body {index}" + (f" ({name!r})" if name else "")
+
+
+@dataclass(eq=False)
+class Shape:
+    """One distinct mesh: its vertices in body space and what is derived from them.
+
+    Attributes
+    ----------
+    vertices : (V, 3) float32
+    topology : Topology
+    lo, hi : (3,) float64
+        Body-space bounding box.
+    radius : float
+        Radius of the body-space bounding sphere about the box's centre.
+    """
+
+    vertices: np.ndarray
+    topology: Topology
+    lo: np.ndarray
+    hi: np.ndarray
+    radius: float
+    _normals: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+
+    @property
+    def centre(self) -> np.ndarray:
+        return 0.5 * (self.lo + self.hi)
+
+    @property
+    def nbytes(self) -> int:
+        extra = sum(a.nbytes for a in self._normals) if self._normals is not None else 0
+        return self.vertices.nbytes + extra
+
+    def normals(self) -> tuple[np.ndarray, np.ndarray]:
+        """Vertex normals (V, 3) and edge normals (E, 3) of this pose, float32."""
+        if self._normals is None:
+            self._normals = vertex_and_edge_normals(self.vertices, self.topology)
+        return self._normals
+
+
+def mesh_arrays(body: Any, label: str) -> tuple[Any, Any]:
+    """(vertices, faces) of a trimesh.Trimesh or a (vertices, faces) pair, as given."""
+    if hasattr(body, "vertices") and hasattr(body, "faces"):
+        return body.vertices, body.faces
+    if isinstance(body, (tuple, list)) and len(body) == 2:
+        return body[0], body[1]
+    raise TypeError(
+        f"{label}: expected a trimesh.Trimesh or a (vertices, faces) pair, got {type(body).__name__}"
+    )
+
+
+def check_vertices(vertices: Any, label: str) -> np.ndarray:
+    """A float32 copy of ``vertices`` (V, 3), raising on NaN, infinities and bad shapes."""
+    vertices = np.asarray(vertices)
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise ValueError(f"{label}: vertices must have shape (V, 3), got {vertices.shape}")
+    if not np.issubdtype(vertices.dtype, np.number) or np.issubdtype(vertices.dtype, np.complexfloating):
+        raise ValueError(f"{label}: vertices must be real numbers, got dtype {vertices.dtype}")
+    if len(vertices) == 0:
+        raise ValueError(f"{label}: the mesh is empty (0 vertices)")
+    finite = np.isfinite(vertices)
+    if not finite.all():
+        bad = np.flatnonzero(~finite.all(axis=1))
+        raise ValueError(
+            f"{label}: {len(bad)} vertices are NaN or infinite (first: vertex {int(bad[0])})"
+        )
+    v32 = np.ascontiguousarray(vertices, dtype=np.float32)
+    if not np.isfinite(v32).all():
+        raise ValueError(f"{label}: vertices overflow single precision (largest magnitude "
+                         f"{float(np.abs(vertices).max()):.3g})")
+    return v32
+
+
+def check_transforms(transforms: Any, n: int, names: Sequence[str | None]) -> np.ndarray:
+    """World-from-body matrices, checked.
+
+    Parameters
+    ----------
+    transforms : None or (N, 4, 4) float
+    n : int
+        Number of bodies.
+    names : sequence of str or None
+        Body names for messages.
+
+    Returns
+    -------
+    (N, 4, 4) float64
+    """
+    if transforms is None:
+        return np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    try:
+        t = np.asarray(transforms, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"transforms must be (N, 4, 4) numbers: {exc}") from exc
+    if t.shape != (n, 4, 4):
+        raise ValueError(f"transforms must have shape ({n}, 4, 4), one per body; got {t.shape}")
+    finite = np.isfinite(t).reshape(n, -1).all(axis=1)
+    if not finite.all():
+        i = int(np.flatnonzero(~finite)[0])
+        raise ValueError(f"{body_label(i, names[i])}: transform contains NaN or infinite values")
+    bottom = np.abs(t[:, 3, :] - np.array([0.0, 0.0, 0.0, 1.0])).max(axis=1)
+    if (bottom > 1e-9).any():
+        i = int(np.flatnonzero(bottom > 1e-9)[0])
+        raise ValueError(
+            f"{body_label(i, names[i])}: transform is not affine (last row must be [0, 0, 0, 1])"
+        )
+    det = np.linalg.det(t[:, :3, :3])
+    if (np.abs(det) < 1e-300).any() or not np.isfinite(det).all():
+        i = int(np.flatnonzero((np.abs(det) < 1e-300) | ~np.isfinite(det))[0])
+        raise ValueError(f"{body_label(i, names[i])}: transform is singular (it flattens the body)")
+    return t
+
+
+def _vertex_key(vertices: Any) -> tuple[tuple, bool]:
+    """A content key for a vertex array and whether it is a full hash (trimesh tracked arrays)."""
+    if type(vertices).__name__ == "TrackedArray":
+        return ("tracked", hash(vertices), vertices.shape), True
+    v = np.asarray(vertices)
+    n = len(v) if v.ndim else 0
+    rows = v if n <= 256 else v[:: max(1, n // 256)]
+    return ("array", zlib.crc32(np.ascontiguousarray(rows).tobytes()), v.shape, v.dtype.str), False
+
+
+class ShapeCache:
+    """Shapes by content, least recently used first out, bounded by bytes (topologies included).
+
+    Parameters
+    ----------
+    max_bytes : int
+        Memory the cached shapes and topologies may hold together.
+    """
+
+    def __init__(self, max_bytes: int = DEFAULT_CACHE_BYTES) -> None:
+        self.topologies = TopologyCache(max_bytes // 2)
+        self.max_bytes = int(max_bytes) - self.topologies.max_bytes
+        self._entries: OrderedDict[tuple, Shape] = OrderedDict()
+        self.nbytes = 0
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def get(self, vertices: Any, faces: Any, label: str, strict: bool) -> Shape:
+        """The shape of a mesh, checked and measured once per distinct content."""
+        vkey, exact = _vertex_key(vertices)
+        v32 = None if exact else check_vertices(vertices, label)
+        topo, built = self.topologies.get(faces, len(vertices if v32 is None else v32), label)
+        key = (id(topo), vkey)
+        shape = self._entries.get(key)
+        if shape is not None and shape.topology is topo and (
+                exact or np.array_equal(shape.vertices, v32)):
+            self._entries.move_to_end(key)
+            return shape
+        if v32 is None:
+            v32 = check_vertices(vertices, label)
+        lo = v32.min(axis=0).astype(np.float64)
+        hi = v32.max(axis=0).astype(np.float64)
+        centre = 0.5 * (lo + hi)
+        radius = float(np.sqrt(((v32.astype(np.float64) - centre) ** 2).sum(axis=1).max()))
+        if built:
+            _, areas = face_normals(v32, topo.faces)
+            inverted = topo.closed and signed_volume(v32, topo.faces) < 0
+            report_problems(topo, int(np.count_nonzero(areas <= 0)), label, strict, inverted)
+            before = topo.nbytes
+            topo.clusters(v32)
+            self.topologies.account(topo, topo.nbytes - before)
+        shape = Shape(v32, topo, lo, hi, radius)
+        if key in self._entries:
+            self.nbytes -= self._entries.pop(key).nbytes
+        self._entries[key] = shape
+        self.nbytes += shape.nbytes
+        while self.nbytes > self.max_bytes and len(self._entries) > 1:
+            _, old = self._entries.popitem(last=False)
+            self.nbytes -= old.nbytes
+        return shape
+
+
+@dataclass(eq=False)
+class Scene:
+    """Validated bodies of one query.
+
+    Attributes
+    ----------
+    shapes : list of Shape
+        The distinct meshes.
+    body_shape : (N,) int64
+        Each body's shape.
+    transforms : (N, 4, 4) float64
+        World from body.
+    names : list of str or None
+    """
+
+    shapes: list[Shape]
+    body_shape: np.ndarray
+    transforms: np.ndarray
+    names: list[str | None]
+
+    def __len__(self) -> int:
+        return len(self.body_shape)
+
+    def label(self, i: int) -> str:
+        return body_label(i, self.names[i])
+
+    def shape_of(self, i: int) -> Shape:
+        return self.shapes[int(self.body_shape[i])]
+
+    def _per_shape(self, values: list[np.ndarray]) -> np.ndarray:
+        return np.asarray(values)[self.body_shape]
+
+    @property
+    def local_lo(self) -> np.ndarray:
+        """(N, 3) body-space box minimum of every body."""
+        return self._per_shape([s.lo for s in self.shapes])
+
+    @property
+    def local_hi(self) -> np.ndarray:
+        """(N, 3) body-space box maximum of every body."""
+        return self._per_shape([s.hi for s in self.shapes])
+
+    def world_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) world box minimum and maximum of every body.
+
+        The intersection of two bounds that both contain the body: the world box of its
+        transformed body-space box, and that of its transformed bounding sphere (an ellipsoid
+        under scaling, whose box half-width along world axis i is the radius times the norm of
+        row i of the linear part).
+        """
+        from ..broadphase import box_corners
+
+        t = self.transforms
+        lo, hi = self.local_lo, self.local_hi
+        corners = np.einsum("nij,nkj->nki", t[:, :3, :3], box_corners(lo, hi)) + t[:, None, :3, 3]
+        radius = np.array([s.radius for s in self.shapes])[self.body_shape]
+        centre = np.einsum("nij,nj->ni", t[:, :3, :3], 0.5 * (lo + hi)) + t[:, :3, 3]
+        half = radius[:, None] * np.linalg.norm(t[:, :3, :3], axis=2)
+        return (np.maximum(corners.min(axis=1), centre - half),
+                np.minimum(corners.max(axis=1), centre + half))
+
+
+def prepare_scene(bodies: Sequence[Any], transforms: Any = None, *,
+                  names: Sequence[str | None] | None = None, strict: bool = False,
+                  cache: ShapeCache | None = None, max_bodies: int | None = None) -> Scene:
+    """Validate bodies and transforms.
+
+    Parameters
+    ----------
+    bodies : sequence of trimesh.Trimesh or (vertices (V, 3), faces (F, 3)) pairs
+    transforms : None or (N, 4, 4) float
+        World-from-body matrices.
+    names : sequence of str or None, optional
+        Names for messages.
+    strict : bool
+        Raise instead of warning for open, inside-out and zero-area meshes.
+    cache : ShapeCache, optional
+        Shapes seen before (a detector keeps one).
+    max_bodies : int, optional
+        Most bodies the caller can handle.
+
+    Returns
+    -------
+    Scene
+    """
+    if isinstance(bodies, (str, bytes)) or not isinstance(bodies, Sequence):
+        bodies = list(bodies)
+    n = len(bodies)
+    if max_bodies is not None and n > max_bodies:
+        raise ValueError(
+            f"{n} bodies is more than the {max_bodies} one query can hold; split the scene into "
+            "several queries"
+        )
+    names = list(names) if names is not None else [None] * n
+    if len(names) != n:
+        raise ValueError(f"names must give one name per body: {len(names)} names, {n} bodies")
+    cache = cache if cache is not None else ShapeCache()
+    t = check_transforms(transforms, n, names)
+    shapes: list[Shape] = []
+    index: dict[int, int] = {}
+    seen: dict[tuple[int, int], int] = {}
+    keep_alive: list[Any] = []  # ids below stay valid while the arrays are referenced here
+    body_shape = np.empty(n, dtype=np.int64)
+    for i, body in enumerate(bodies):
+        label = body_label(i, names[i])
+        vertices, faces = mesh_arrays(body, label)
+        key = (id(vertices), id(faces))
+        k = seen.get(key)
+        if k is None:
+            keep_alive.append((vertices, faces))
+            shape = cache.get(vertices, faces, label, strict)
+            k = index.get(id(shape))
+            if k is None:
+                k = index[id(shape)] = len(shapes)
+                shapes.append(shape)
+            seen[key] = k
+        body_shape[i] = k
+    return Scene(shapes, body_shape, t, names)

@@ -1,0 +1,237 @@
+"""Topology: what depends on a face array alone (unique edges, closedness, clusters), computed once
+per distinct face content and kept in a cache bounded by bytes.
+
+Animation loops pass the same faces every frame, often as a new array each time (``(mesh.vertices,
+mesh.faces)``, or faces rebuilt by user code). The cache is therefore keyed on content: trimesh's
+tracked arrays carry their own cached content hash; other arrays are fingerprinted from a sample
+of their rows and then compared in full with the cached copy, which costs a memory comparison
+rather than a rebuild.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections import OrderedDict
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .clusters import Clusters, build_clusters
+from ..errors import DegenerateFaceWarning, OpenMeshWarning, warn_at_caller
+
+DEFAULT_CACHE_BYTES = 512 * 2**20
+
+
+@dataclass(eq=False)
+class Topology:
+    """What is computed once per distinct face array.
+
+    Attributes
+    ----------
+    faces : (F, 3) uint32
+        Vertex indices, counter-clockwise seen from outside.
+    edges : (E, 2) uint32
+        Unique undirected edges.
+    edge_faces : (3F,) int64
+        The unique edge of each directed face edge (face-major order).
+    n_vertices : int
+    boundary_edges, nonmanifold_edges, misoriented_edges : int
+        Edges used by one face; by three or more; whose two faces run the same way along them.
+    """
+
+    faces: np.ndarray
+    edges: np.ndarray
+    edge_faces: np.ndarray
+    n_vertices: int
+    boundary_edges: int
+    nonmanifold_edges: int
+    misoriented_edges: int
+    _clusters: Clusters | None = field(default=None, repr=False)
+
+    @property
+    def closed(self) -> bool:
+        return self.boundary_edges == 0 and self.nonmanifold_edges == 0 and self.misoriented_edges == 0
+
+    @property
+    def nbytes(self) -> int:
+        extra = self._clusters.nbytes if self._clusters is not None else 0
+        return self.faces.nbytes + self.edges.nbytes + self.edge_faces.nbytes + extra
+
+    def problem(self) -> str:
+        parts = []
+        if self.boundary_edges:
+            parts.append(f"{self.boundary_edges} boundary edges (holes)")
+        if self.nonmanifold_edges:
+            parts.append(f"{self.nonmanifold_edges} edges shared by more than two faces")
+        if self.misoriented_edges:
+            parts.append(f"{self.misoriented_edges} edges between inconsistently wound faces")
+        return ", ".join(parts)
+
+    def clusters(self, vertices: np.ndarray) -> Clusters:
+        """Spatially coherent clusters of faces and edges (built from the first vertices seen)."""
+        if self._clusters is None:
+            self._clusters = build_clusters(self, vertices)
+        return self._clusters
+
+
+def build_topology(faces: np.ndarray, n_vertices: int, label: str) -> Topology:
+    """Check a face array and derive its unique edges.
+
+    Parameters
+    ----------
+    faces : (F, 3) int
+        Indices into a vertex array of length ``n_vertices``.
+    n_vertices : int
+    label : str
+        How errors name the body.
+
+    Returns
+    -------
+    Topology
+    """
+    faces = np.asarray(faces)
+    if faces.ndim != 2 or faces.shape[1] != 3:
+        raise ValueError(f"{label}: faces must have shape (F, 3), got {faces.shape}")
+    if len(faces) == 0 or n_vertices == 0:
+        raise ValueError(f"{label}: the mesh is empty ({n_vertices} vertices, {len(faces)} faces)")
+    if not np.issubdtype(faces.dtype, np.integer):
+        if not np.issubdtype(faces.dtype, np.number) or not np.all(np.equal(np.mod(faces, 1), 0)):
+            raise ValueError(f"{label}: face indices must be integers")
+    lo, hi = int(faces.min()), int(faces.max())
+    if lo < 0 or hi >= n_vertices:
+        bad = int(np.count_nonzero((faces < 0).any(1) | (faces >= n_vertices).any(1)))
+        raise ValueError(
+            f"{label}: {bad} faces index vertices out of range (indices span {lo}..{hi}, "
+            f"the mesh has {n_vertices} vertices)"
+        )
+    faces = faces.astype(np.uint32)
+    repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
+    if repeated.any():
+        first = int(np.flatnonzero(repeated)[0])
+        raise ValueError(
+            f"{label}: {int(repeated.sum())} degenerate faces repeat a vertex index "
+            f"(first: face {first} = {faces[first].tolist()}); remove them, for example with "
+            "trimesh's mesh.update_faces(mesh.nondegenerate_faces())"
+        )
+    directed = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2).astype(np.int64)
+    lo_hi = np.sort(directed, axis=1)
+    key = lo_hi[:, 0] * np.int64(n_vertices) + lo_hi[:, 1]
+    unique_keys, first_index, inverse, counts = np.unique(
+        key, return_index=True, return_inverse=True, return_counts=True
+    )
+    edges = lo_hi[first_index].astype(np.uint32)
+    # Orientation: in a closed, consistently wound mesh each undirected edge is walked once in
+    # each direction. Count the walks from low to high vertex per edge.
+    forward = (directed[:, 0] < directed[:, 1]).astype(np.int64)
+    forward_per_edge = np.bincount(inverse, weights=forward, minlength=len(unique_keys))
+    misoriented = int(np.count_nonzero((counts == 2) & (forward_per_edge != 1)))
+    return Topology(
+        faces=faces,
+        edges=edges,
+        edge_faces=inverse.astype(np.int64),
+        n_vertices=int(n_vertices),
+        boundary_edges=int(np.count_nonzero(counts == 1)),
+        nonmanifold_edges=int(np.count_nonzero(counts > 2)),
+        misoriented_edges=misoriented,
+    )
+
+
+def report_problems(topo: Topology, zero_area: int, label: str, strict: bool,
+                    inverted: bool = False) -> None:
+    """Warn (or raise when ``strict``) about open, inside-out and zero-area meshes."""
+    if not topo.closed:
+        message = (
+            f"{label} is not a closed, consistently oriented surface: {topo.problem()}. CInDeR "
+            "counts faces along rays, which is only meaningful for closed solids, so collisions "
+            "with this body may be missed or invented. Repair it (trimesh.repair.fill_holes, "
+            "pymeshlab's close holes) or ask for strict checking to make this an error."
+        )
+        if strict:
+            raise ValueError(message)
+        warn_at_caller(message, OpenMeshWarning)
+    elif inverted:
+        message = (
+            f"{label} is closed but wound inside out (its volume is negative): its faces point "
+            "inwards, so the ray count sees the outside as solid. Flip it (trimesh's "
+            "mesh.invert()) or ask for strict checking to make this an error."
+        )
+        if strict:
+            raise ValueError(message)
+        warn_at_caller(message, OpenMeshWarning)
+    if zero_area:
+        message = f"{label} has {zero_area} faces of zero area"
+        if strict:
+            raise ValueError(message)
+        warn_at_caller(message, DegenerateFaceWarning)
+
+
+def _fingerprint(faces: np.ndarray) -> int:
+    """A cheap content key: shape, dtype and a CRC of up to 512 evenly spaced rows."""
+    n = len(faces)
+    rows = faces if n <= 512 else faces[:: max(1, n // 512)]
+    return zlib.crc32(np.ascontiguousarray(rows).tobytes()) ^ hash((faces.shape, faces.dtype.str))
+
+
+class TopologyCache:
+    """Topology per distinct face content, least recently used first out, bounded by bytes.
+
+    Parameters
+    ----------
+    max_bytes : int
+        Memory the cached topologies may hold together.
+    """
+
+    def __init__(self, max_bytes: int = DEFAULT_CACHE_BYTES) -> None:
+        self.max_bytes = int(max_bytes)
+        self._entries: OrderedDict[tuple, Topology] = OrderedDict()
+        self.nbytes = 0
+        self.builds = 0
+        """How many topologies were built (a cache miss each)."""
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def _key(self, faces: np.ndarray, n_vertices: int) -> tuple[tuple, bool]:
+        """The cache key and whether it is a full content hash (no comparison needed)."""
+        if type(faces).__name__ == "TrackedArray":
+            return ("tracked", hash(faces), faces.shape, n_vertices), True
+        return ("array", _fingerprint(faces), faces.shape, n_vertices), False
+
+    def get(self, faces: np.ndarray, n_vertices: int, label: str) -> tuple[Topology, bool]:
+        """The topology of ``faces``; the flag says whether it was built just now.
+
+        Parameters
+        ----------
+        faces : (F, 3) int
+        n_vertices : int
+            Length of the vertex array the faces index.
+        label : str
+            How errors name the body.
+        """
+        faces_arr = faces if isinstance(faces, np.ndarray) else np.asarray(faces)
+        if faces_arr.ndim != 2:
+            return build_topology(faces_arr, n_vertices, label), True
+        key, exact = self._key(faces_arr, n_vertices)
+        topo = self._entries.get(key)
+        if topo is not None and (exact or np.array_equal(topo.faces, faces_arr)):
+            self._entries.move_to_end(key)
+            return topo, False
+        topo = build_topology(faces_arr, n_vertices, label)
+        self.builds += 1
+        if key in self._entries:
+            self.nbytes -= self._entries.pop(key).nbytes
+        self._entries[key] = topo
+        self.nbytes += topo.nbytes
+        self.evict()
+        return topo, True
+
+    def evict(self) -> None:
+        """Drop the least recently used topologies until the cache fits its byte bound."""
+        while self.nbytes > self.max_bytes and len(self._entries) > 1:
+            _, old = self._entries.popitem(last=False)
+            self.nbytes -= old.nbytes
+
+    def account(self, topo: Topology, added: int) -> None:
+        """Count bytes a topology grew by after it was cached (its clusters)."""
+        self.nbytes += added
+        self.evict()

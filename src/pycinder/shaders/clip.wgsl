@@ -1,0 +1,196 @@
+// Focused strategy, pass F2 (compute): the faces of each kept cluster, projected into their tile
+// and clipped to its window, as triangles for pass F3 to rasterise.
+//
+// A face entirely inside the window is passed on as it is. A face that crosses the window's edge
+// is cut to the window: the polygon of its vertices inside the window, the points where its edges
+// cross the window's sides, and the window corners inside it, fanned into triangles. The crossing
+// points are computed from each edge's lower-indexed vertex, so the two faces sharing an edge cut
+// it at the same point bit for bit and the clipped surface stays watertight: every ray through a
+// pixel centre of the window still crosses the surface of a closed body an even number of times.
+// Facing comes from the projected winding (flipped for mirroring transforms); pass F3 draws both
+// sides.
+//!include tiles.wgsl
+
+struct Params {
+    tri_cap: u32,
+    item_cap: u32,
+    _p1: u32,
+    _p2: u32,
+};
+
+@group(0) @binding(0) var<storage, read> tiles: array<Tile>;
+@group(0) @binding(1) var<storage, read> clusters: array<Cluster>;
+@group(0) @binding(2) var<storage, read> positions: array<f32>;
+@group(0) @binding(3) var<storage, read> faces: array<u32>;
+@group(0) @binding(4) var<storage, read> face_items: array<vec2u>;
+// Three vertices per triangle: atlas x, atlas y, z relative to the box's near depth (f32 bits),
+// and flags: tile << 3 | count_back << 2 | front << 1 | side.
+@group(0) @binding(5) var<storage, read_write> tris: array<vec4u>;
+@group(0) @binding(6) var<storage, read_write> counters: array<atomic<u32>>;
+@group(0) @binding(7) var<uniform> params: Params;
+
+fn position(v: u32) -> vec3f {
+    return vec3f(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
+}
+
+fn cross2(a: vec2f, b: vec2f) -> f32 {
+    return a.x * b.y - a.y * b.x;
+}
+
+// Where the edge between vertices ia and ib crosses the line where coordinate `axis` equals
+// `at`, computed from the lower-indexed vertex so both faces of the edge agree exactly.
+fn cross_line(pa: vec3f, ia: u32, pb: vec3f, ib: u32, axis: u32, at: f32) -> vec3f {
+    var p = pa;
+    var q = pb;
+    if (ib < ia) {
+        p = pb;
+        q = pa;
+    }
+    let t = (at - p[axis]) / (q[axis] - p[axis]);
+    var r = p + t * (q - p);
+    r[axis] = at;
+    return r;
+}
+
+// The edge function of the edge (ia, ib) at point c, as seen walking from ia to ib, evaluated
+// from the lower-indexed vertex so both faces of the edge agree exactly (with opposite signs).
+fn edge_side(pa: vec2f, ia: u32, pb: vec2f, ib: u32, c: vec2f) -> f32 {
+    if (ia < ib) {
+        return cross2(pb - pa, c - pa);
+    }
+    return -cross2(pa - pb, c - pb);
+}
+
+fn emit(slot: u32, a: vec3f, b: vec3f, c: vec3f, origin: vec2f, z0: f32, flags: u32) {
+    if (slot >= params.tri_cap) {
+        return;
+    }
+    let base = 3u * slot;
+    tris[base] = vec4u(bitcast<vec3u>(vec3f(a.xy + origin, a.z - z0)), flags);
+    tris[base + 1u] = vec4u(bitcast<vec3u>(vec3f(b.xy + origin, b.z - z0)), flags);
+    tris[base + 2u] = vec4u(bitcast<vec3u>(vec3f(c.xy + origin, c.z - z0)), flags);
+}
+
+@compute @workgroup_size(64)
+fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
+    let item_index = wg.y * ROW + wg.x;
+    if (item_index >= min(atomicLoad(&counters[C_FACE_ITEMS]), params.item_cap)) {
+        return;
+    }
+    let item = face_items[item_index];
+    let c = item.y & 0x7FFFFFFFu;
+    let side = item.y >> 31u;
+    let info = clusters[c];
+    if (lid >= info.face_count) {
+        return;
+    }
+    let t = tiles[item.x];
+    let f = info.face_start + lid;
+    let ids = vec3u(faces[3u * f], faces[3u * f + 1u], faces[3u * f + 2u]);
+    var p: array<vec3f, 3>;
+    p[0] = tile_point(t, side, position(ids.x));
+    p[1] = tile_point(t, side, position(ids.y));
+    p[2] = tile_point(t, side, position(ids.z));
+    let w = f32(t.window.z);
+    let h = f32(t.window.w);
+    let lo = min(min(p[0], p[1]), p[2]);
+    let hi = max(max(p[0], p[1]), p[2]);
+    if (hi.x <= 0.0 || lo.x >= w || hi.y <= 0.0 || lo.y >= h) {
+        return;
+    }
+    let back = (t.info.z & FLAG_COUNT_BACK) != 0u;
+    if ((!back && lo.z > t.slab.y) || (back && hi.z < t.slab.x)) {
+        return;  // wholly on the far side of the box: crosses no ray the count looks along
+    }
+    let area = cross2(p[1].xy - p[0].xy, p[2].xy - p[0].xy);
+    if (area == 0.0) {
+        return;  // seen edge-on: covers no pixel centre
+    }
+    // Tile coordinates are right-handed with z pointing away from the viewer, so the outward
+    // normal of a counter-clockwise face has z component `area`: negative when it faces the viewer.
+    let front = (area < 0.0) != mirrored(t, side);
+    let flags = (item.x << 3u) | (select(0u, 4u, back)) | (select(0u, 2u, front)) | side;
+    let origin = vec2f(f32(t.window.x), f32(t.window.y));
+    let z0 = t.slab.x;
+    if (lo.x >= 0.0 && hi.x <= w && lo.y >= 0.0 && hi.y <= h) {
+        emit(atomicAdd(&counters[C_TRIS], 1u), p[0], p[1], p[2], origin, z0, flags);
+        return;
+    }
+    // The face cut to the window: a convex polygon of at most 7 corners (13 candidates).
+    let id = array<u32, 3>(ids.x, ids.y, ids.z);
+    var pts: array<vec3f, 13>;
+    var n = 0u;
+    for (var k = 0u; k < 3u; k++) {
+        let q = p[k];
+        if (q.x >= 0.0 && q.x <= w && q.y >= 0.0 && q.y <= h) {
+            pts[n] = q;
+            n++;
+        }
+    }
+    let limits = array<vec2f, 2>(vec2f(0.0, w), vec2f(0.0, h));
+    for (var k = 0u; k < 3u; k++) {
+        let k1 = (k + 1u) % 3u;
+        for (var axis = 0u; axis < 2u; axis++) {
+            let other = 1u - axis;
+            for (var s = 0u; s < 2u; s++) {
+                let at = limits[axis][s];
+                if ((p[k][axis] - at) * (p[k1][axis] - at) < 0.0) {
+                    let r = cross_line(p[k], id[k], p[k1], id[k1], axis, at);
+                    if (r[other] >= 0.0 && r[other] <= limits[other].y) {
+                        pts[n] = r;
+                        n++;
+                    }
+                }
+            }
+        }
+    }
+    // Window corners inside the face, on the face's plane.
+    let corners = array<vec2f, 4>(vec2f(0.0, 0.0), vec2f(w, 0.0), vec2f(w, h), vec2f(0.0, h));
+    for (var k = 0u; k < 4u; k++) {
+        let q = corners[k];
+        let e0 = edge_side(p[0].xy, id[0], p[1].xy, id[1], q);
+        let e1 = edge_side(p[1].xy, id[1], p[2].xy, id[2], q);
+        let e2 = edge_side(p[2].xy, id[2], p[0].xy, id[0], q);
+        let inside = select(e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0,
+                            e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0, area > 0.0);
+        if (inside) {
+            // Barycentric weights of the corner give its depth on the face's plane.
+            let z = (e1 * p[0].z + e2 * p[1].z + e0 * p[2].z) / area;
+            pts[n] = vec3f(q, z);
+            n++;
+        }
+    }
+    if (n < 3u) {
+        return;
+    }
+    // Order the corners around their centroid and fan them.
+    var centre = vec2f(0.0);
+    for (var k = 0u; k < n; k++) {
+        centre += pts[k].xy;
+    }
+    centre /= f32(n);
+    var angle: array<f32, 13>;
+    for (var k = 0u; k < n; k++) {
+        let d = pts[k].xy - centre;
+        angle[k] = atan2(d.y, d.x);
+    }
+    for (var k = 1u; k < n; k++) {
+        let a = angle[k];
+        let q = pts[k];
+        var j = k;
+        loop {
+            if (j == 0u || angle[j - 1u] <= a) {
+                break;
+            }
+            angle[j] = angle[j - 1u];
+            pts[j] = pts[j - 1u];
+            j--;
+        }
+        angle[j] = a;
+        pts[j] = q;
+    }
+    let slot = atomicAdd(&counters[C_TRIS], n - 2u);
+    for (var k = 1u; k + 1u < n; k++) {
+        emit(slot + k - 1u, pts[0], pts[k], pts[k + 1u], origin, z0, flags);
+    }
+}

@@ -1,0 +1,78 @@
+// Focused strategy, pass F3 (render): the virtual ray casting of CInDeR, per pixel and per body.
+//
+// Each clipped face of both bodies is rasterised once (no culling, no depth or stencil test; see
+// passes/states.py). At every pixel centre it covers, the face crosses the pixel's ray. Crossings
+// on the counting side of the box only change how many times the ray has entered each body
+// before it reaches the box: they are summed per body (front faces +1, back faces -1, as passes 2
+// and 3 of the paper do in the stencil buffer). Crossings within the box's depth range are kept
+// in a short list per pixel, so that pass F4 can count, for an edge sample at any depth in the
+// box, the crossings between it and the counting side: there is no one-edge-per-pixel limit.
+//!include tiles.wgsl
+
+struct Atlas {
+    width: u32,       // atlas pixels per row
+    height: u32,      // rows in this round
+    capacity: u32,    // list entries per pixel
+    _p0: u32,
+};
+
+@group(0) @binding(0) var<storage, read> tris: array<vec4u>;
+@group(0) @binding(1) var<storage, read> tiles: array<Tile>;
+// Per pixel: [2p] crossings listed at the pixel (may exceed `capacity`: then the pixel is
+// undecided), [2p + 1] the outside-the-box winding of body a (low 16 bits) and b (high 16 bits).
+@group(0) @binding(2) var<storage, read_write> pixels: array<atomic<u32>>;
+// Per pixel, `capacity` crossings: bits of the f32 depth relative to the box's near side with the
+// two low bits replaced by front << 1 | side.
+@group(0) @binding(3) var<storage, read_write> crossings: array<u32>;
+@group(0) @binding(4) var<uniform> atlas: Atlas;
+
+struct VertexOut {
+    @builtin(position) position: vec4f,
+    @location(0) z: f32,
+    @location(1) @interpolate(flat) flags: u32,
+    @location(2) @interpolate(flat) depth: f32,   // the box's depth range, pixels
+};
+
+@vertex
+fn vs(@builtin(vertex_index) vi: u32) -> VertexOut {
+    let v = tris[vi];
+    let p = bitcast<vec3f>(v.xyz);
+    let t = tiles[v.w >> 3u];
+    var out: VertexOut;
+    out.position = vec4f(p.x / f32(atlas.width) * 2.0 - 1.0, 1.0 - p.y / f32(atlas.height) * 2.0,
+                         0.5, 1.0);
+    out.z = p.z;
+    out.flags = v.w;
+    out.depth = t.slab.y - t.slab.x;
+    return out;
+}
+
+@fragment
+fn fs(in: VertexOut) {
+    let pixel = u32(in.position.y) * atlas.width + u32(in.position.x);
+    let side = in.flags & 1u;
+    let front = (in.flags >> 1u) & 1u;
+    let back = (in.flags >> 2u) & 1u;
+    var outside: bool;
+    var within: bool;
+    if (back == 0u) {
+        outside = in.z < 0.0;
+        within = !outside && in.z <= in.depth;
+    } else {
+        outside = in.z > in.depth;
+        within = !outside && in.z >= 0.0;
+    }
+    if (outside) {
+        // Seen from inside the box, a ray towards the counting side enters a body through a
+        // face turned towards that side: +1; leaves it through one turned away: -1.
+        let towards = (front == 1u) != (back == 1u);
+        let one = select(0xFFFFFFFFu, 1u, towards);
+        atomicAdd(&pixels[2u * pixel + 1u], select(one, one << 16u, side == 1u));
+    } else if (within) {
+        let slot = atomicAdd(&pixels[2u * pixel], 1u);
+        if (slot < atlas.capacity) {
+            crossings[pixel * atlas.capacity + slot] =
+                (bitcast<u32>(in.z) & 0xFFFFFFFCu) | (front << 1u) | side;
+        }
+    }
+}

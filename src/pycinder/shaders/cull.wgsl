@@ -1,0 +1,93 @@
+// Focused strategy, pass F1 (compute): cull clusters per tile.
+//
+// One thread per (tile, side, cluster of that side's body). A cluster's faces are kept when its
+// bounds meet the tile's window and are not wholly on the far side of the box from the counting
+// side (its faces could cross rays through the window there); its edges are kept when its
+// bounds meet the box itself (only there can an edge lie inside the other body).
+//!include tiles.wgsl
+
+struct Params {
+    total: u32,        // threads of this round
+    first_entry: u32,  // first (tile, side) entry of this round
+    n_entries: u32,    // entries in this round
+    face_cap: u32,
+    edge_cap: u32,
+    _p0: u32,
+    _p1: u32,
+    _p2: u32,
+};
+
+@group(0) @binding(0) var<storage, read> tiles: array<Tile>;
+@group(0) @binding(1) var<storage, read> clusters: array<Cluster>;
+@group(0) @binding(2) var<storage, read> bounds: array<vec4f>;
+// Per entry e = 2 * tile + side: the first thread of the entry (prefix over the whole frame),
+// and the first cluster of the entry's body; entry_prefix has one more element at the end.
+@group(0) @binding(3) var<storage, read> entry_prefix: array<u32>;
+@group(0) @binding(4) var<storage, read> entry_cluster: array<u32>;
+@group(0) @binding(5) var<storage, read_write> face_items: array<vec2u>;
+@group(0) @binding(6) var<storage, read_write> edge_items: array<vec2u>;
+@group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
+@group(0) @binding(8) var<uniform> params: Params;
+
+@compute @workgroup_size(64)
+fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
+    let local = (wg.y * ROW + wg.x) * 64u + lid;
+    if (local >= params.total) {
+        return;
+    }
+    let first = params.first_entry;
+    let i = entry_prefix[first] + local;
+    // The entry holding thread i: the last e with entry_prefix[e] <= i.
+    var lo = first;
+    var hi = first + params.n_entries;
+    loop {
+        if (hi - lo <= 1u) {
+            break;
+        }
+        let mid = (lo + hi) / 2u;
+        if (entry_prefix[mid] <= i) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let e = lo;
+    let tile_index = e / 2u;
+    let side = e % 2u;
+    let t = tiles[tile_index];
+    let c = entry_cluster[e] + (i - entry_prefix[e]);
+    let blo = bounds[2u * c].xyz;
+    let bhi = bounds[2u * c + 1u].xyz;
+    let centre = 0.5 * (blo + bhi);
+    let half = 0.5 * (bhi - blo);
+    var mid_p: vec3f;
+    var ext: vec3f;
+    for (var k = 0u; k < 3u; k++) {
+        let row = tile_row(t, side, k);
+        mid_p[k] = dot(row.xyz, centre) + row.w;
+        // Half a pixel more, so rounding never culls what touches the window.
+        ext[k] = dot(abs(row.xyz), half) + 0.5;
+    }
+    let w = f32(t.window.z);
+    let h = f32(t.window.w);
+    if (mid_p.x + ext.x < 0.0 || mid_p.x - ext.x > w || mid_p.y + ext.y < 0.0 || mid_p.y - ext.y > h) {
+        return;
+    }
+    let back = (t.info.z & FLAG_COUNT_BACK) != 0u;
+    let z_lo = mid_p.z - ext.z;
+    let z_hi = mid_p.z + ext.z;
+    let faces_needed = select(z_lo <= t.slab.y, z_hi >= t.slab.x, back);
+    let item = vec2u(tile_index, c | (side << 31u));
+    if (faces_needed) {
+        let slot = atomicAdd(&counters[C_FACE_ITEMS], 1u);
+        if (slot < params.face_cap) {
+            face_items[slot] = item;
+        }
+    }
+    if (z_hi >= t.slab.x && z_lo <= t.slab.y && clusters[c].edge_count > 0u) {
+        let slot = atomicAdd(&counters[C_EDGE_ITEMS], 1u);
+        if (slot < params.edge_cap) {
+            edge_items[slot] = item;
+        }
+    }
+}

@@ -1,0 +1,137 @@
+// Focused strategy, pass F4 (compute): every edge of both bodies inside the box, sampled, and each
+// sample tested against the other body with the crossings of pass F3.
+//
+// An edge is clipped to the box and sampled at steps of at most one pixel along u, v and z. A
+// sample is tested at the centre of its pixel, at its own depth: the other body's winding there is
+// the outside-the-box winding of the pixel plus the listed crossings between the sample and the
+// counting side. A non-zero winding means the sample lies inside the other body: the pair
+// collides, and the sample is appended as a record. Samples at pixels whose list overflowed are
+// counted as undecided (the host then retries their tiles with thinner boxes).
+//!include tiles.wgsl
+
+struct Params {
+    atlas_width: u32,
+    capacity: u32,      // list entries per pixel
+    record_cap: u32,
+    item_cap: u32,
+};
+
+@group(0) @binding(0) var<storage, read> tiles: array<Tile>;
+@group(0) @binding(1) var<storage, read> clusters: array<Cluster>;
+@group(0) @binding(2) var<storage, read> positions: array<f32>;
+@group(0) @binding(3) var<storage, read> edges: array<u32>;
+@group(0) @binding(4) var<storage, read> edge_items: array<vec2u>;
+@group(0) @binding(5) var<storage, read> pixels: array<u32>;
+@group(0) @binding(6) var<storage, read> crossings: array<u32>;
+// Per tile: [2t] samples found inside, [2t + 1] samples undecided.
+@group(0) @binding(7) var<storage, read_write> tile_counts: array<atomic<u32>>;
+// Per record: tile, pixel u | v << 16, f32 bits of the sample's z, edge | side << 31.
+@group(0) @binding(8) var<storage, read_write> records: array<vec4u>;
+@group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>>;
+@group(0) @binding(10) var<uniform> params: Params;
+
+fn position(v: u32) -> vec3f {
+    return vec3f(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
+}
+
+fn winding_outside(packed: u32, side: u32) -> i32 {
+    let lo = i32(packed << 16u) >> 16u;                  // the low half, sign-extended
+    if (side == 0u) {
+        return lo;
+    }
+    let rest = (packed - u32(lo)) >> 16u;                 // the high half, once the low is taken off
+    return i32(rest << 16u) >> 16u;
+}
+
+@compute @workgroup_size(64)
+fn edge_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
+    let item_index = wg.y * ROW + wg.x;
+    if (item_index >= min(atomicLoad(&counters[C_EDGE_ITEMS]), params.item_cap)) {
+        return;
+    }
+    let item = edge_items[item_index];
+    let c = item.y & 0x7FFFFFFFu;
+    let side = item.y >> 31u;
+    let info = clusters[c];
+    if (lid >= info.edge_count) {
+        return;
+    }
+    let tile_index = item.x;
+    let t = tiles[tile_index];
+    let e = info.edge_start + lid;
+    let a = tile_point(t, side, position(edges[2u * e]));
+    let b = tile_point(t, side, position(edges[2u * e + 1u]));
+    // Clip the edge to the box.
+    let box_lo = vec3f(0.0, 0.0, t.slab.x);
+    let box_hi = vec3f(f32(t.window.z), f32(t.window.w), t.slab.y);
+    let d = b - a;
+    var t0 = 0.0;
+    var t1 = 1.0;
+    for (var k = 0u; k < 3u; k++) {
+        if (d[k] == 0.0) {
+            if (a[k] < box_lo[k] || a[k] > box_hi[k]) {
+                return;
+            }
+        } else {
+            let ta = (box_lo[k] - a[k]) / d[k];
+            let tb = (box_hi[k] - a[k]) / d[k];
+            t0 = max(t0, min(ta, tb));
+            t1 = min(t1, max(ta, tb));
+        }
+    }
+    if (t0 > t1) {
+        return;
+    }
+    let p = a + t0 * d;
+    let span = (t1 - t0) * d;
+    let steps = u32(ceil(max(max(abs(span.x), abs(span.y)), abs(span.z))));
+    let other = 1u - side;
+    let back = (t.info.z & FLAG_COUNT_BACK) != 0u;
+    let cap = params.capacity;
+    let w = t.window.z;
+    let h = t.window.w;
+    var found = 0u;
+    var undecided = 0u;
+    for (var i = 0u; i <= steps; i++) {
+        let s = p + span * (f32(i) / f32(max(steps, 1u)));
+        let x = min(u32(max(s.x, 0.0)), w - 1u);
+        let y = min(u32(max(s.y, 0.0)), h - 1u);
+        let pixel = (t.window.y + y) * params.atlas_width + t.window.x + x;
+        let listed = pixels[2u * pixel];
+        if (listed > cap) {
+            undecided++;
+            continue;
+        }
+        var winding = winding_outside(pixels[2u * pixel + 1u], other);
+        let z = s.z - t.slab.x;
+        for (var k = 0u; k < listed; k++) {
+            let entry = crossings[pixel * cap + k];
+            if ((entry & 1u) != other) {
+                continue;
+            }
+            let ze = bitcast<f32>(entry & 0xFFFFFFFCu);
+            let front = (entry & 2u) != 0u;
+            if (!back && ze < z) {
+                winding += select(-1, 1, front);
+            } else if (back && ze > z) {
+                winding += select(1, -1, front);
+            }
+        }
+        if (winding != 0) {
+            found++;
+            let slot = atomicAdd(&counters[C_RECORDS], 1u);
+            if (slot < params.record_cap) {
+                records[slot] = vec4u(tile_index, x | (y << 16u), bitcast<u32>(s.z),
+                                      e | (side << 31u));
+            }
+        }
+    }
+    atomicAdd(&counters[C_SAMPLES], steps + 1u);
+    if (found > 0u) {
+        atomicAdd(&tile_counts[2u * tile_index], found);
+    }
+    if (undecided > 0u) {
+        atomicAdd(&tile_counts[2u * tile_index + 1u], undecided);
+        atomicAdd(&counters[C_UNDECIDED], undecided);
+    }
+}

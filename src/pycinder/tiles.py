@@ -1,0 +1,367 @@
+"""Tiles: an orthographic view per candidate pair over the region where the pair can touch, and the
+atlas that holds them all.
+
+For a candidate pair the region is the box where the pair's bounding volumes overlap (both bodies'
+oriented boxes and world boxes), taken in one of three frames: the world's axes, or either body's
+own axes. The frame whose box projects to the smallest window wins. The view looks along that
+box's longest axis, tilted by :data:`TILT` towards its middle axis about its thinnest one, so that
+a thin contact slab stays one slab thick on screen and edges that follow the frame's axes are
+never seen end-on. If the boxes are apart along any axis of the three frames, the pair cannot
+touch and gets no tile (a separating-axis test for free).
+
+The pixel size is the pair's tolerance (see :mod:`pycinder.request` for the contract). A window
+is cut into pieces of at most :data:`MAX_TILE` pixels, and the pieces are packed into the atlas:
+bands :data:`ATLAS_WIDTH` pixels wide, one band height per class of tile height, each tile at the
+next free column of its class's band. A tile that would cross a band's end is cut in two there.
+When the atlas would need more pixels than the budget allows, it is processed in rounds.
+
+Tile coordinates: ``u`` and ``v`` count pixels across the window from its corner, ``z`` counts
+pixels along the view direction from the middle of the overlap box. World point
+``X = origin + p * (u * axes[0] + v * axes[1] + z * axes[2])``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .broadphase import box_corners
+
+TILT = 0.41
+"""Radians between the view direction and the overlap box's longest axis."""
+
+MAX_TILE = (512, 128)
+"""Largest tile, (width, height) in pixels; larger windows are split."""
+
+HEIGHT_CLASSES = (8, 16, 32, 64, 128)
+"""Band heights of the atlas: a tile goes to the band of the smallest class that holds it."""
+
+ATLAS_WIDTH = 2048
+
+MARGIN_PX = 1
+"""Pixels added around the overlap box's projection, so that a sample near the box's edge still
+has a pixel centre in the window."""
+
+FLAG_COUNT_BACK = 1
+"""Tile flag: count the crossings behind the overlap box instead of in front of it."""
+FLAG_MIRROR = (2, 4)
+"""Tile flags: body a's (body b's) transform reverses orientation, so its faces' facing flips."""
+
+
+@dataclass
+class TilePlan:
+    """Every tile of one frame.
+
+    pair : (T,) int64
+        Index of each tile's candidate pair.
+    bodies : (T, 2) int64
+        The pair's bodies ``(a, b)``.
+    axes : (T, 3, 3) float64
+        Rows: the world directions of screen x, screen y and the view direction (right-handed).
+    origin : (T, 3) float64
+        World point at ``u = v = z = 0``.
+    pixel : (T,) float64
+        World size of one pixel.
+    window : (T, 4) int64
+        Atlas column and row (relative to the tile's round) and width and height in pixels.
+    slab : (T, 2) float64
+        Depth range ``(z0, z1)`` of the overlap box, in pixels.
+    flags : (T,) int64
+        :data:`FLAG_COUNT_BACK` and :data:`FLAG_MIRROR` bits.
+    round : (T,) int64
+        The round the tile is processed in.
+    round_rows : list[int]
+        Atlas rows used by each round.
+    separated : int
+        Candidate pairs dropped because their bounding volumes are apart.
+    """
+
+    pair: np.ndarray
+    bodies: np.ndarray
+    axes: np.ndarray
+    origin: np.ndarray
+    pixel: np.ndarray
+    window: np.ndarray
+    slab: np.ndarray
+    flags: np.ndarray
+    round: np.ndarray
+    round_rows: list[int] = field(default_factory=list)
+    atlas_width: int = ATLAS_WIDTH
+    separated: int = 0
+
+    def __len__(self) -> int:
+        return len(self.pair)
+
+    @property
+    def pixels(self) -> int:
+        """Pixels of all tiles (what is rasterised), not counting the atlas's unused parts."""
+        return int((self.window[:, 2] * self.window[:, 3]).sum())
+
+    @property
+    def atlas_pixels(self) -> int:
+        return int(sum(self.round_rows)) * self.atlas_width
+
+    def to_world(self, tile: np.ndarray, u: np.ndarray, v: np.ndarray, z: np.ndarray
+                 ) -> np.ndarray:
+        """World points of tile coordinates.
+
+        Parameters
+        ----------
+        tile : (n,) int
+        u, v, z : (n,) float
+            Tile coordinates in pixels.
+
+        Returns
+        -------
+        (n, 3) float64
+        """
+        a = self.axes[tile]
+        uvz = np.stack([u, v, z], axis=1).astype(np.float64) * self.pixel[tile, None]
+        return self.origin[tile] + np.einsum("nk,nkj->nj", uvz, a)
+
+    def tile_from_body(self, transforms: np.ndarray) -> np.ndarray:
+        """Per tile and side, the (3, 4) matrix from body coordinates to tile coordinates.
+
+        Parameters
+        ----------
+        transforms : (N, 4, 4) float
+            World-from-body matrices of all bodies.
+
+        Returns
+        -------
+        (T, 2, 3, 4) float64
+        """
+        t = transforms[self.bodies]                                   # (T, 2, 4, 4)
+        scale = (1.0 / self.pixel)[:, None, None, None]
+        rot = np.einsum("tij,tsjk->tsik", self.axes, t[:, :, :3, :3]) * scale
+        shift = np.einsum("tij,tsj->tsi", self.axes,
+                          t[:, :, :3, 3] - self.origin[:, None, :]) * scale[..., 0]
+        return np.concatenate([rot, shift[..., None]], axis=3)
+
+
+def _empty_plan(separated: int = 0) -> TilePlan:
+    z = np.zeros(0, dtype=np.int64)
+    return TilePlan(z, np.zeros((0, 2), np.int64), np.zeros((0, 3, 3)), np.zeros((0, 3)),
+                    np.zeros(0), np.zeros((0, 4), np.int64), np.zeros((0, 2)), z, z, [],
+                    separated=separated)
+
+
+def _frames(transforms: np.ndarray) -> np.ndarray:
+    """Orthonormal body frames (N, 3, 3), rows = axes, from the transforms' linear parts."""
+    q, r = np.linalg.qr(transforms[:, :3, :3])
+    # QR's sign convention is arbitrary; that is fine for a frame, but keep it proper.
+    det = np.linalg.det(q)
+    q[:, :, 2] *= np.where(det < 0, -1.0, 1.0)[:, None]
+    return np.transpose(q, (0, 2, 1))
+
+
+def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
+               local_hi: np.ndarray, world_lo: np.ndarray, world_hi: np.ndarray,
+               transforms: np.ndarray, *, budget_pixels: int, chunk: int = 16384) -> TilePlan:
+    """Tiles for candidate pairs.
+
+    Parameters
+    ----------
+    pairs : (K, 2) int
+        Candidate pairs from the broad phase.
+    tolerance : (K,) float
+        Each pair's tolerance; it is the pixel size of the pair's tiles.
+    local_lo, local_hi : (N, 3) float
+        Body-space bounding boxes.
+    world_lo, world_hi : (N, 3) float
+        World bounding boxes (at least as tight as the transformed body-space boxes).
+    transforms : (N, 4, 4) float
+        World-from-body matrices.
+    budget_pixels : int
+        Most atlas pixels processed in one round.
+    chunk : int
+        Pairs planned at once (bounds temporary memory).
+
+    Returns
+    -------
+    TilePlan
+    """
+    if len(pairs) == 0:
+        return _empty_plan()
+    obb = np.einsum("nij,nkj->nki", transforms[:, :3, :3], box_corners(local_lo, local_hi)) \
+        + transforms[:, None, :3, 3]                                                   # (N, 8, 3)
+    aabb = box_corners(world_lo, world_hi)                                             # (N, 8, 3)
+    frames = _frames(transforms)
+    parts = [_plan_chunk(pairs[s:s + chunk], tolerance[s:s + chunk], obb, aabb, frames,
+                         transforms, s) for s in range(0, len(pairs), chunk)]
+    keep = [p for p in parts if p is not None]
+    separated = len(pairs) - sum(len(np.unique(p["pair"])) for p in keep)
+    if not keep:
+        return _empty_plan(separated)
+    cat = {k: np.concatenate([p[k] for p in keep]) for k in keep[0]}
+    return _pack(cat, budget_pixels, separated)
+
+
+def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, obb: np.ndarray, aabb: np.ndarray,
+                frames: np.ndarray, transforms: np.ndarray, first: int) -> dict | None:
+    a, b = pairs[:, 0], pairs[:, 1]
+    k = len(pairs)
+    # Three candidate frames per pair: world, body a's, body b's.
+    cand = np.empty((k, 3, 3, 3))
+    cand[:, 0] = np.eye(3)
+    cand[:, 1] = frames[a]
+    cand[:, 2] = frames[b]
+    pts = np.concatenate([obb[a], obb[b], aabb[a], aabb[b]], axis=1)                    # (k, 32, 3)
+    proj = np.einsum("kfij,kpj->kfpi", cand, pts)                                       # (k, 3, 32, 3)
+    groups = proj.reshape(k, 3, 4, 8, 3)
+    lo = groups.min(axis=3).max(axis=2)                                                 # (k, 3, 3)
+    hi = groups.max(axis=3).min(axis=2)
+    apart = (hi < lo).any(axis=(1, 2))
+    lo = np.minimum(lo, hi)
+    extent = hi - lo
+    order = np.argsort(-extent, axis=2)                                                 # long, mid, thin
+    e_sorted = np.take_along_axis(extent, order, axis=2)
+    c, s = np.cos(TILT), np.sin(TILT)
+    p = tol[:, None]
+    win_x = (e_sorted[..., 0] * s + e_sorted[..., 1] * c) / p + 2 * MARGIN_PX + 1
+    win_y = e_sorted[..., 2] / p + 2 * MARGIN_PX + 1
+    best = np.argmin(win_x * win_y, axis=1)
+    keep = ~apart
+    if not keep.any():
+        return None
+    idx = np.flatnonzero(keep)
+    f = best[idx]
+    frame = cand[idx, f]                                                                # (m, 3, 3)
+    lo_f, hi_f = lo[idx, f], hi[idx, f]
+    o = order[idx, f]
+    r = np.arange(len(idx))
+    long_, mid, thin = frame[r, o[:, 0]], frame[r, o[:, 1]], frame[r, o[:, 2]]
+    x_axis = -s * long_ + c * mid
+    y_axis = thin.copy()
+    d_axis = c * long_ + s * mid
+    flip = np.einsum("ni,ni->n", np.cross(x_axis, y_axis), d_axis) < 0
+    y_axis[flip] *= -1
+    axes = np.stack([x_axis, y_axis, d_axis], axis=1)                                   # (m, 3, 3)
+    # The overlap box (axis-aligned in the frame) in view coordinates.
+    box = box_corners(lo_f, hi_f)                                                       # (m, 8, 3)
+    box_world = np.einsum("nji,nkj->nki", frame, box)
+    view = np.einsum("nij,nkj->nki", axes, box_world)                                   # (m, 8, 3)
+    vlo, vhi = view.min(axis=1), view.max(axis=1)
+    # Put the window's long side along screen x.
+    swap = (vhi[:, 1] - vlo[:, 1]) > (vhi[:, 0] - vlo[:, 0])
+    if swap.any():
+        nx, ny = axes[swap, 1].copy(), -axes[swap, 0]
+        axes[swap, 0], axes[swap, 1] = nx, ny
+        lo0, hi0 = vlo[swap, 0].copy(), vhi[swap, 0].copy()
+        vlo[swap, 0], vhi[swap, 0] = vlo[swap, 1], vhi[swap, 1]
+        vlo[swap, 1], vhi[swap, 1] = -hi0, -lo0
+    px = tol[idx]
+    w = np.ceil((vhi[:, 0] - vlo[:, 0]) / px).astype(np.int64) + 2 * MARGIN_PX
+    h = np.ceil((vhi[:, 1] - vlo[:, 1]) / px).astype(np.int64) + 2 * MARGIN_PX
+    zmid = 0.5 * (vlo[:, 2] + vhi[:, 2])
+    origin = (np.einsum("n,ni->ni", vlo[:, 0] - MARGIN_PX * px, axes[:, 0])
+              + np.einsum("n,ni->ni", vlo[:, 1] - MARGIN_PX * px, axes[:, 1])
+              + np.einsum("n,ni->ni", zmid, axes[:, 2]))
+    z0 = (vlo[:, 2] - zmid) / px
+    z1 = (vhi[:, 2] - zmid) / px
+    # Count towards the side of the slab with less of the pair's depth extent behind it.
+    depth = np.einsum("ni,nkpi->nkp", axes[:, 2], np.stack([obb[a[idx]], obb[b[idx]]], axis=1))
+    front_len = vlo[:, 2] - depth.min(axis=(1, 2))
+    back_len = depth.max(axis=(1, 2)) - vhi[:, 2]
+    flags = np.where(back_len < front_len, FLAG_COUNT_BACK, 0)
+    det = np.linalg.det(transforms[:, :3, :3])
+    flags |= np.where(det[a[idx]] < 0, FLAG_MIRROR[0], 0)
+    flags |= np.where(det[b[idx]] < 0, FLAG_MIRROR[1], 0)
+    # Split windows larger than a tile into a grid of pieces.
+    nx = -(-w // MAX_TILE[0])
+    ny = -(-h // MAX_TILE[1])
+    pieces = nx * ny
+    rep = np.repeat(np.arange(len(idx)), pieces)
+    piece = np.arange(len(rep)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    ix, iy = piece % nx[rep], piece // nx[rep]
+    u0, v0 = ix * MAX_TILE[0], iy * MAX_TILE[1]
+    pw = np.minimum(w[rep] - u0, MAX_TILE[0])
+    ph = np.minimum(h[rep] - v0, MAX_TILE[1])
+    org = origin[rep] + (u0 * px[rep])[:, None] * axes[rep, 0] + (v0 * px[rep])[:, None] * axes[rep, 1]
+    return {
+        "pair": idx[rep] + first, "bodies": pairs[idx[rep]], "axes": axes[rep], "origin": org,
+        "pixel": px[rep], "w": pw, "h": ph, "slab": np.stack([z0, z1], axis=1)[rep],
+        "flags": flags[rep],
+    }
+
+
+def _pack(t: dict, budget_pixels: int, separated: int) -> TilePlan:
+    """Place the tiles in atlas bands, cutting tiles at band ends, and split the bands into
+    rounds of at most ``budget_pixels``."""
+    classes = np.array(HEIGHT_CLASSES)
+    cls = np.searchsorted(classes, t["h"])
+    order = np.argsort(cls, kind="stable")
+    t = {k: v[order] for k, v in t.items()}
+    cls = cls[order]
+    w = t["w"]
+    # Start column of every tile in its class's run of bands.
+    first_of_class = np.searchsorted(cls, np.arange(len(classes)))
+    csum = np.cumsum(w)
+    before = np.concatenate([[0], csum[:-1]])
+    class_base = np.concatenate([[0], csum])[first_of_class][cls]
+    start = before - class_base
+    band = start // ATLAS_WIDTH
+    end = start + w
+    cut = (end - 1) // ATLAS_WIDTH > band
+    # Cut the tiles that cross a band's end: the first part keeps the tile, the rest is a copy.
+    first_w = np.where(cut, (band + 1) * ATLAS_WIDTH - start, w)
+    rest = np.flatnonzero(cut)
+    cols = np.concatenate([start % ATLAS_WIDTH, np.zeros(len(rest), np.int64)])
+    bands = np.concatenate([band, band[rest] + 1])
+    widths = np.concatenate([first_w, w[rest] - first_w[rest]])
+    src = np.concatenate([np.arange(len(w)), rest])
+    shift = np.concatenate([np.zeros(len(w)), first_w[rest].astype(np.float64)])
+    out = {k: v[src] for k, v in t.items()}
+    out["origin"] = out["origin"] + (shift * out["pixel"])[:, None] * out["axes"][:, 0]
+    out["w"] = widths
+    tile_cls = cls[src]
+    # Bands of each class, in class order; rows from the top of the atlas.
+    class_width = np.bincount(cls, weights=w, minlength=len(classes))
+    class_bands = np.ceil(class_width / ATLAS_WIDTH).astype(np.int64)
+    band_class = np.repeat(np.arange(len(classes)), class_bands)
+    band_rows = classes[band_class]
+    band_first = np.concatenate([[0], np.cumsum(class_bands)])[:-1]
+    # Rounds: bands in order, a new round whenever the budget would be passed (few bands).
+    rows_budget = max(int(budget_pixels) // ATLAS_WIDTH, int(classes[-1]))
+    band_round = np.zeros(len(band_rows), np.int64)
+    band_row0 = np.zeros(len(band_rows), np.int64)
+    round_rows: list[int] = [0]
+    for i, rows in enumerate(band_rows.tolist()):
+        if round_rows[-1] + rows > rows_budget:
+            round_rows.append(0)
+        band_round[i] = len(round_rows) - 1
+        band_row0[i] = round_rows[-1]
+        round_rows[-1] += rows
+    global_band = band_first[tile_cls] + bands
+    window = np.stack([cols, band_row0[global_band], widths, out["h"]], axis=1)
+    # Tiles in band order, so that each round's tiles are contiguous.
+    o = np.argsort(global_band, kind="stable")
+    return TilePlan(out["pair"][o], out["bodies"][o], out["axes"][o], out["origin"][o],
+                    out["pixel"][o], window[o], out["slab"][o], out["flags"][o],
+                    band_round[global_band][o], round_rows, ATLAS_WIDTH, separated)
+
+
+def split_depth(plan: TilePlan, which: np.ndarray, budget_pixels: int) -> TilePlan:
+    """Tiles ``which`` of ``plan``, each cut in two along the view at the middle of its box and
+    packed into a new atlas: each half lists only the crossings within its own half of the box.
+
+    Parameters
+    ----------
+    plan : TilePlan
+    which : (n,) int
+        Tiles to cut.
+    budget_pixels : int
+        Most atlas pixels per round.
+    """
+    z0, z1 = plan.slab[which, 0], plan.slab[which, 1]
+    mid = 0.5 * (z0 + z1)
+    t = {
+        "pair": np.tile(plan.pair[which], 2), "bodies": np.tile(plan.bodies[which], (2, 1)),
+        "axes": np.tile(plan.axes[which], (2, 1, 1)), "origin": np.tile(plan.origin[which], (2, 1)),
+        "pixel": np.tile(plan.pixel[which], 2), "w": np.tile(plan.window[which, 2], 2),
+        "h": np.tile(plan.window[which, 3], 2),
+        "slab": np.concatenate([np.stack([z0, mid], axis=1), np.stack([mid, z1], axis=1)]),
+        "flags": np.tile(plan.flags[which], 2),
+    }
+    return _pack(t, budget_pixels, 0)
