@@ -49,7 +49,7 @@ class FocusedStrategy:
     def __init__(self, gpu: Gpu, request: CollisionRequest) -> None:
         self.gpu = gpu
         self.request = request
-        self.passes = FocusedPasses(gpu, LIST_CAPACITY)
+        self.passes = FocusedPasses(gpu, LIST_CAPACITY, profile=request.profile)
         per_pixel = 8 + 4 * LIST_CAPACITY
         self.budget_pixels = int(min(request.memory_budget // per_pixel,
                                      gpu.max_binding // (4 * LIST_CAPACITY),
@@ -86,7 +86,7 @@ class FocusedStrategy:
         tol = self.tolerances(scene, pairs)
         stats.tolerance = (float(tol.min()), float(tol.max()))
         plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
-                          budget_pixels=self.budget_pixels)
+                          budget_pixels=self.budget_pixels, probe=self.request.records != "all")
         stats.separated = plan.separated
         t2 = time.perf_counter()
         stats.add_ms("tiles", (t2 - t1) * 1e3)
@@ -99,7 +99,8 @@ class FocusedStrategy:
         current = plan
         for attempt in range(DEPTH_SPLITS + 1):
             out = self.passes.run(current, current.tile_from_body(scene.transforms),
-                                  scene.body_shape, pack, records=self.request.records)
+                                  scene.body_shape, pack, len(pairs),
+                                  records=self.request.records != "none")
             self._count(stats, current, out)
             hit = out.tile_counts[:, 0] > 0
             found_tiles.append(current.bodies[hit])
@@ -133,8 +134,7 @@ class FocusedStrategy:
         stats.add_ms("decode", (time.perf_counter() - t4) * 1e3)
         return CollisionResult(result_pairs, rec, stats, tiles=plans[0], scene=scene)
 
-    @staticmethod
-    def _count(stats: Stats, plan: TilePlan, out: FocusedOutput) -> None:
+    def _count(self, stats: Stats, plan: TilePlan, out: FocusedOutput) -> None:
         stats.tiles += len(plan)
         stats.pixels += plan.pixels
         stats.atlas_pixels += plan.atlas_pixels
@@ -144,6 +144,8 @@ class FocusedStrategy:
         stats.undecided += int(out.tile_counts[:, 1].sum())
         stats.bytes_read += out.bytes_read
         stats.reruns += out.reruns
+        for name, ms in self.passes.gpu_ms.items():
+            stats.gpu_ms[name] = stats.gpu_ms.get(name, 0.0) + ms
 
     def _decode(self, scene: Scene, plan: TilePlan, pack: ShapePack, rows: np.ndarray
                 ) -> np.ndarray:

@@ -41,6 +41,7 @@ STRATEGIES = ("focused", "scene")
 SELF_INTERFERENCE_MODES = ("prevent", "filter", "offset")
 READBACK_MODES = ("compact", "full", "mipmap", "adaptive")
 ENCODINGS = ("edge", "normal")
+RECORD_MODES = ("found", "all", "none")
 
 DEFAULT_RELATIVE_TOLERANCE = 0.01
 """Default tolerance of a pair, as a fraction of the smaller body's bounding-box diagonal."""
@@ -90,8 +91,12 @@ class CollisionRequest:
         Time each GPU pass with timestamp queries where the adapter supports them.
     memory_budget : int
         Focused strategy: bytes of pixel data per round of the atlas.
-    records : bool
-        Read back every record (False: only which pairs collide).
+    records : {"found", "all", "none"}
+        Focused strategy: ``"found"`` (default) stops testing a pair as soon as one of its tiles
+        found it colliding (large windows are probed at their centre first) and returns the
+        records found on the way; ``"all"`` tests every tile and returns every sample inside the
+        other body (for contact generation); ``"none"`` returns pairs only. The pairs are the
+        same in every mode. The scene strategy always returns its records.
     """
 
     strategy: Literal["focused", "scene"] = "focused"
@@ -105,12 +110,13 @@ class CollisionRequest:
     strict: bool = False
     profile: bool = False
     memory_budget: int = DEFAULT_MEMORY_BUDGET
-    records: bool = True
+    records: str = "found"
 
     def __post_init__(self) -> None:
         _one_of("strategy", self.strategy, STRATEGIES)
         _one_of("encode", self.encode, ENCODINGS)
-        for name in ("strict", "profile", "records"):
+        _one_of("records", self.records, RECORD_MODES)
+        for name in ("strict", "profile"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if self.tolerance is not None:

@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .broadphase import box_corners
 
 TILT = 0.41
 """Radians between the view direction and the overlap box's longest axis."""
@@ -47,6 +46,12 @@ FLAG_COUNT_BACK = 1
 """Tile flag: count the crossings behind the overlap box instead of in front of it."""
 FLAG_MIRROR = (2, 4)
 """Tile flags: body a's (body b's) transform reverses orientation, so its faces' facing flips."""
+FLAG_SKIP_IF_HIT = 8
+"""Tile flag: skip this tile once another tile of its pair found a hit."""
+
+PROBE = (24, 24)
+"""Largest probe tile: windows larger than this are probed at their centre first. Deep overlaps,
+where most pixels go, are then decided by the probe alone."""
 
 
 @dataclass
@@ -134,9 +139,9 @@ class TilePlan:
         """
         t = transforms[self.bodies]                                   # (T, 2, 4, 4)
         scale = (1.0 / self.pixel)[:, None, None, None]
-        rot = np.einsum("tij,tsjk->tsik", self.axes, t[:, :, :3, :3]) * scale
-        shift = np.einsum("tij,tsj->tsi", self.axes,
-                          t[:, :, :3, 3] - self.origin[:, None, :]) * scale[..., 0]
+        rot = (self.axes[:, None] @ t[:, :, :3, :3]) * scale
+        shift = (self.axes[:, None] @ (t[:, :, :3, 3] - self.origin[:, None, :])[..., None])[..., 0] \
+            * scale[..., 0]
         return np.concatenate([rot, shift[..., None]], axis=3)
 
 
@@ -158,7 +163,8 @@ def _frames(transforms: np.ndarray) -> np.ndarray:
 
 def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
                local_hi: np.ndarray, world_lo: np.ndarray, world_hi: np.ndarray,
-               transforms: np.ndarray, *, budget_pixels: int, chunk: int = 16384) -> TilePlan:
+               transforms: np.ndarray, *, budget_pixels: int, probe: bool = True,
+               chunk: int = 16384) -> TilePlan:
     """Tiles for candidate pairs.
 
     Parameters
@@ -175,6 +181,9 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
         World-from-body matrices.
     budget_pixels : int
         Most atlas pixels processed in one round.
+    probe : bool
+        Give large windows a probe tile at their centre that runs first; the rest of the window
+        is skipped once the pair has a hit.
     chunk : int
         Pairs planned at once (bounds temporary memory).
 
@@ -184,9 +193,12 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     """
     if len(pairs) == 0:
         return _empty_plan()
-    obb = np.einsum("nij,nkj->nki", transforms[:, :3, :3], box_corners(local_lo, local_hi)) \
-        + transforms[:, None, :3, 3]                                                   # (N, 8, 3)
-    aabb = box_corners(world_lo, world_hi)                                             # (N, 8, 3)
+    # Every bound as a box: centre + M @ [-1, 1]^3 (columns of M: the box's half axes).
+    t3 = transforms[:, :3, :3]
+    half_local = 0.5 * (local_hi - local_lo)
+    obb = (np.einsum("nij,nj->ni", t3, 0.5 * (local_lo + local_hi)) + transforms[:, :3, 3],
+           t3 * half_local[:, None, :])
+    aabb = (0.5 * (world_lo + world_hi), 0.5 * (world_hi - world_lo))
     frames = _frames(transforms)
     parts = [_plan_chunk(pairs[s:s + chunk], tolerance[s:s + chunk], obb, aabb, frames,
                          transforms, s) for s in range(0, len(pairs), chunk)]
@@ -195,10 +207,31 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     if not keep:
         return _empty_plan(separated)
     cat = {k: np.concatenate([p[k] for p in keep]) for k in keep[0]}
-    return _pack(cat, budget_pixels, separated)
+    plans = [_pack(p, budget_pixels, separated) for p in _phases(cat, probe) if len(p["w"])]
+    return _concat(plans)
 
 
-def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, obb: np.ndarray, aabb: np.ndarray,
+def _concat(plans: list[TilePlan]) -> TilePlan:
+    """Plans one after another: rounds of later plans follow those of earlier ones."""
+    if len(plans) == 1:
+        return plans[0]
+    offsets = np.cumsum([0] + [len(p.round_rows) for p in plans[:-1]])
+    cat = {name: np.concatenate([getattr(p, name) for p in plans])
+           for name in ("pair", "bodies", "axes", "origin", "pixel", "window", "slab", "flags")}
+    rounds = np.concatenate([p.round + o for p, o in zip(plans, offsets)])
+    return TilePlan(**cat, round=rounds, round_rows=sum((p.round_rows for p in plans), []),
+                    atlas_width=plans[0].atlas_width, separated=plans[0].separated)
+
+
+def _support(rows: np.ndarray, centre: np.ndarray, axes: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Interval of boxes along directions: ``rows @ centre`` and the half-width ``|rows @ axes|``
+    summed over the box's half axes. Shapes broadcast as (..., 3, 3) rows, (..., 3) centres,
+    (..., 3, 3) axes; returns (..., 3) centres and half-widths."""
+    return (rows @ centre[..., None])[..., 0], np.abs(rows @ axes).sum(axis=-1)
+
+
+def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, obb: tuple, aabb: tuple,
                 frames: np.ndarray, transforms: np.ndarray, first: int) -> dict | None:
     a, b = pairs[:, 0], pairs[:, 1]
     k = len(pairs)
@@ -207,11 +240,13 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, obb: np.ndarray, aabb: np.nd
     cand[:, 0] = np.eye(3)
     cand[:, 1] = frames[a]
     cand[:, 2] = frames[b]
-    pts = np.concatenate([obb[a], obb[b], aabb[a], aabb[b]], axis=1)                    # (k, 32, 3)
-    proj = np.einsum("kfij,kpj->kfpi", cand, pts)                                       # (k, 3, 32, 3)
-    groups = proj.reshape(k, 3, 4, 8, 3)
-    lo = groups.min(axis=3).max(axis=2)                                                 # (k, 3, 3)
-    hi = groups.max(axis=3).min(axis=2)
+    # Four bounds per pair (both oriented boxes, both world boxes), in every candidate frame.
+    centres = np.stack([obb[0][a], obb[0][b], aabb[0][a], aabb[0][b]], axis=1)        # (k, 4, 3)
+    half_aabb = aabb[1][:, :, None] * np.eye(3)
+    axes4 = np.stack([obb[1][a], obb[1][b], half_aabb[a], half_aabb[b]], axis=1)      # (k, 4, 3, 3)
+    c, h = _support(cand[:, :, None], centres[:, None], axes4[:, None])              # (k, 3, 4, 3)
+    lo = (c - h).max(axis=2)                                                          # (k, 3, 3)
+    hi = (c + h).min(axis=2)
     apart = (hi < lo).any(axis=(1, 2))
     lo = np.minimum(lo, hi)
     extent = hi - lo
@@ -239,10 +274,9 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, obb: np.ndarray, aabb: np.nd
     y_axis[flip] *= -1
     axes = np.stack([x_axis, y_axis, d_axis], axis=1)                                   # (m, 3, 3)
     # The overlap box (axis-aligned in the frame) in view coordinates.
-    box = box_corners(lo_f, hi_f)                                                       # (m, 8, 3)
-    box_world = np.einsum("nji,nkj->nki", frame, box)
-    view = np.einsum("nij,nkj->nki", axes, box_world)                                   # (m, 8, 3)
-    vlo, vhi = view.min(axis=1), view.max(axis=1)
+    vc, vh = _support(axes @ np.transpose(frame, (0, 2, 1)), 0.5 * (lo_f + hi_f),
+                      0.5 * (hi_f - lo_f)[:, None, :] * np.eye(3))
+    vlo, vhi = vc - vh, vc + vh
     # Put the window's long side along screen x.
     swap = (vhi[:, 1] - vlo[:, 1]) > (vhi[:, 0] - vlo[:, 0])
     if swap.any():
@@ -255,35 +289,65 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, obb: np.ndarray, aabb: np.nd
     w = np.ceil((vhi[:, 0] - vlo[:, 0]) / px).astype(np.int64) + 2 * MARGIN_PX
     h = np.ceil((vhi[:, 1] - vlo[:, 1]) / px).astype(np.int64) + 2 * MARGIN_PX
     zmid = 0.5 * (vlo[:, 2] + vhi[:, 2])
-    origin = (np.einsum("n,ni->ni", vlo[:, 0] - MARGIN_PX * px, axes[:, 0])
-              + np.einsum("n,ni->ni", vlo[:, 1] - MARGIN_PX * px, axes[:, 1])
-              + np.einsum("n,ni->ni", zmid, axes[:, 2]))
+    origin = ((vlo[:, 0] - MARGIN_PX * px)[:, None] * axes[:, 0]
+              + (vlo[:, 1] - MARGIN_PX * px)[:, None] * axes[:, 1] + zmid[:, None] * axes[:, 2])
     z0 = (vlo[:, 2] - zmid) / px
     z1 = (vhi[:, 2] - zmid) / px
     # Count towards the side of the slab with less of the pair's depth extent behind it.
-    depth = np.einsum("ni,nkpi->nkp", axes[:, 2], np.stack([obb[a[idx]], obb[b[idx]]], axis=1))
-    front_len = vlo[:, 2] - depth.min(axis=(1, 2))
-    back_len = depth.max(axis=(1, 2)) - vhi[:, 2]
+    dc, dh = _support(axes[:, None, 2:3], np.stack([obb[0][a[idx]], obb[0][b[idx]]], axis=1),
+                      np.stack([obb[1][a[idx]], obb[1][b[idx]]], axis=1))                # (m, 2, 1)
+    front_len = vlo[:, 2] - (dc - dh).min(axis=(1, 2))
+    back_len = (dc + dh).max(axis=(1, 2)) - vhi[:, 2]
     flags = np.where(back_len < front_len, FLAG_COUNT_BACK, 0)
     det = np.linalg.det(transforms[:, :3, :3])
     flags |= np.where(det[a[idx]] < 0, FLAG_MIRROR[0], 0)
     flags |= np.where(det[b[idx]] < 0, FLAG_MIRROR[1], 0)
-    # Split windows larger than a tile into a grid of pieces.
+    return {
+        "pair": idx + first, "bodies": pairs[idx], "axes": axes, "origin": origin, "pixel": px,
+        "w": w, "h": h, "slab": np.stack([z0, z1], axis=1), "flags": flags,
+    }
+
+
+def _window_part(t: dict, rep: np.ndarray, u0: np.ndarray, v0: np.ndarray, w: np.ndarray,
+                 h: np.ndarray, extra_flags: int = 0) -> dict:
+    """Sub-windows of windows ``rep``: offset (u0, v0) pixels, size (w, h) pixels."""
+    out = {k: v[rep] for k, v in t.items()}
+    out["origin"] = out["origin"] + (u0 * out["pixel"])[:, None] * out["axes"][:, 0] \
+        + (v0 * out["pixel"])[:, None] * out["axes"][:, 1]
+    out["w"], out["h"] = w, h
+    out["flags"] = out["flags"] | extra_flags
+    return out
+
+
+def _pieces(t: dict, which: np.ndarray, extra_flags: int = 0) -> dict:
+    """Windows ``which`` cut into a grid of pieces of at most :data:`MAX_TILE` pixels."""
+    w, h = t["w"][which], t["h"][which]
     nx = -(-w // MAX_TILE[0])
     ny = -(-h // MAX_TILE[1])
     pieces = nx * ny
-    rep = np.repeat(np.arange(len(idx)), pieces)
+    rep = np.repeat(np.arange(len(which)), pieces)
     piece = np.arange(len(rep)) - np.repeat(np.cumsum(pieces) - pieces, pieces)
-    ix, iy = piece % nx[rep], piece // nx[rep]
-    u0, v0 = ix * MAX_TILE[0], iy * MAX_TILE[1]
-    pw = np.minimum(w[rep] - u0, MAX_TILE[0])
-    ph = np.minimum(h[rep] - v0, MAX_TILE[1])
-    org = origin[rep] + (u0 * px[rep])[:, None] * axes[rep, 0] + (v0 * px[rep])[:, None] * axes[rep, 1]
-    return {
-        "pair": idx[rep] + first, "bodies": pairs[idx[rep]], "axes": axes[rep], "origin": org,
-        "pixel": px[rep], "w": pw, "h": ph, "slab": np.stack([z0, z1], axis=1)[rep],
-        "flags": flags[rep],
-    }
+    u0 = (piece % nx[rep]) * MAX_TILE[0]
+    v0 = (piece // nx[rep]) * MAX_TILE[1]
+    return _window_part(t, which[rep], u0, v0, np.minimum(w[rep] - u0, MAX_TILE[0]),
+                        np.minimum(h[rep] - v0, MAX_TILE[1]), extra_flags)
+
+
+def _phases(t: dict, probe: bool) -> list[dict]:
+    """The tiles of each phase. Without probes, one phase of every window's pieces. With probes,
+    windows larger than :data:`PROBE` first get a probe at their centre (phase 0, with the small
+    windows), and their pieces come in phase 1, skipped on the GPU once the pair has a hit."""
+    everything = np.arange(len(t["w"]))
+    if not probe:
+        return [_pieces(t, everything)]
+    big = (t["w"] > PROBE[0]) | (t["h"] > PROBE[1])
+    small = np.flatnonzero(~big)
+    large = np.flatnonzero(big)
+    pw = np.minimum(t["w"][large], PROBE[0])
+    ph = np.minimum(t["h"][large], PROBE[1])
+    probes = _window_part(t, large, (t["w"][large] - pw) // 2, (t["h"][large] - ph) // 2, pw, ph)
+    first = {k: np.concatenate([v[small], probes[k]]) for k, v in t.items()}
+    return [first, _pieces(t, large, FLAG_SKIP_IF_HIT)]
 
 
 def _pack(t: dict, budget_pixels: int, separated: int) -> TilePlan:

@@ -40,6 +40,9 @@ C_TOTAL_TRIS, C_TOTAL_FACE_ITEMS, C_TOTAL_EDGE_ITEMS = 11, 12, 13
 ROW = 32768
 """Workgroups per row of an indirect dispatch (``tiles.wgsl``)."""
 
+PASS_NAMES = ("F1 cull", "F2 clip", "F3 crossings", "F4 edge test")
+MAX_PROFILED_ROUNDS = 8
+
 SPECULATIVE_RECORDS = 4096
 """Records copied into the first readback, so that most frames need one round trip."""
 
@@ -111,10 +114,19 @@ class FocusedPasses:
         Crossings kept per pixel.
     """
 
-    def __init__(self, gpu: Gpu, list_capacity: int = LIST_CAPACITY) -> None:
+    def __init__(self, gpu: Gpu, list_capacity: int = LIST_CAPACITY, profile: bool = False
+                 ) -> None:
         self.gpu = gpu
         self.capacity = int(list_capacity)
         device = gpu.device
+        self.profile = profile and gpu.timestamps
+        if self.profile:
+            n = 2 * len(PASS_NAMES) * MAX_PROFILED_ROUNDS
+            self.queries = device.create_query_set(type="timestamp", count=n)
+            self.query_buf = device.create_buffer(size=8 * n,
+                                                  usage=_U.QUERY_RESOLVE | _U.COPY_SRC)
+            self.query_readback = Readback(device, "timestamps")
+        self.gpu_ms: dict[str, float] = {}
         modules: dict[str, wgpu.GPUShaderModule] = {}
 
         def compute(name: str, entry: str) -> wgpu.GPUComputePipeline:
@@ -256,7 +268,7 @@ class FocusedPasses:
     # -- one frame --------------------------------------------------------------------------
 
     def run(self, plan: TilePlan, matrices: np.ndarray, body_shape: np.ndarray,
-            pack: ShapePack, *, records: bool = True) -> FocusedOutput:
+            pack: ShapePack, n_pairs: int, *, records: bool = True) -> FocusedOutput:
         """Run passes F1-F4 for every tile and read back what they found.
 
         Parameters
@@ -268,8 +280,10 @@ class FocusedPasses:
             Each body's shape in ``pack``.
         pack : ShapePack
             The uploaded shapes.
+        n_pairs : int
+            Candidate pairs (``plan.pair`` indexes them).
         records : bool
-            Read back every record (False: only the per-tile counts).
+            Read back the records (False: only the per-tile counts).
         """
         t = len(plan)
         words = tile_words(plan, matrices)
@@ -291,7 +305,8 @@ class FocusedPasses:
         items = int(round_threads.max()) if len(round_threads) else 0
         self.face_items.ensure(8 * max(items, 1))
         self.edge_items.ensure(8 * max(items, 1))
-        self.tile_counts.ensure(8 * max(t, 1))
+        self.tile_counts.ensure(8 * t + 4 * n_pairs + 4)
+        self.n_pairs = n_pairs
         width = plan.atlas_width
         rows = max(plan.round_rows) if plan.round_rows else 1
         self._ensure_target(width, rows)
@@ -315,6 +330,14 @@ class FocusedPasses:
                 return out
             reruns += 1
 
+    def _timestamps(self, r: int, k: int) -> dict:
+        """Timestamp writes of pass ``k`` of round ``r`` (only while profiling)."""
+        if not self.profile or r >= MAX_PROFILED_ROUNDS:
+            return {}
+        i = 2 * (r * len(PASS_NAMES) + k)
+        return {"timestamp_writes": {"query_set": self.queries, "beginning_of_pass_write_index": i,
+                                     "end_of_pass_write_index": i + 1}}
+
     def _ensure_target(self, width: int, rows: int) -> None:
         if self.target is not None and self.target.width >= width and self.target.height >= rows:
             return
@@ -335,14 +358,15 @@ class FocusedPasses:
         self.round_params.ensure(PARAM_STRIDE * max(n_rounds, 1))
         block = np.zeros((max(n_rounds, 1), PARAM_STRIDE // 4), dtype=np.uint32)
         for r in range(n_rounds):
-            block[r, :5] = (round_threads[r], 2 * bounds[r], 2 * (bounds[r + 1] - bounds[r]),
-                            items, items)
+            block[r, :6] = (round_threads[r], 2 * bounds[r], 2 * (bounds[r + 1] - bounds[r]),
+                            items, items, 2 * len(plan))
         self.round_params.write(block)
         frame = np.zeros((4, PARAM_STRIDE // 4), dtype=np.uint32)
         frame[P_FINALIZE, :4] = (items, items, caps["tris"], 0)
         frame[P_CLIP, :4] = (caps["tris"], items, 0, 0)
         frame[P_ATLAS, :4] = (width, self.target.height, self.capacity, 0)
-        frame[P_EDGES, :4] = (width, self.capacity, caps["records"], items)
+        frame[P_EDGES, :5] = (width, self.capacity, caps["records"] if want_records else 0,
+                              items, 2 * len(plan))
         queue.write_buffer(self.frame_params, 0, frame)
 
         b = self
@@ -359,21 +383,22 @@ class FocusedPasses:
         edges = self._bind("edges", self.edge_test, [
             b.tiles.buffer, b.clusters.buffer, b.positions.buffer, b.edges.buffer,
             b.edge_items.buffer, b.pixels.buffer, b.lists.buffer, b.tile_counts.buffer,
-            b.records.buffer, b.counters, (b.frame_params, P_EDGES * PARAM_STRIDE, 16)])
+            b.records.buffer, b.counters, (b.frame_params, P_EDGES * PARAM_STRIDE, 32)])
 
         encoder = device.create_command_encoder()
         encoder.clear_buffer(self.counters)
-        encoder.clear_buffer(self.tile_counts.buffer, 0, 8 * max(len(plan), 1))
+        encoder.clear_buffer(self.tile_counts.buffer, 0, 8 * len(plan) + 4 * self.n_pairs)
         for r in range(n_rounds):
             if round_threads[r] == 0:
                 continue
             cull = self._bind(f"cull{r}", self.cull, [
                 b.tiles.buffer, b.clusters.buffer, b.cluster_bounds.buffer,
                 b.entry_prefix.buffer, b.entry_cluster.buffer, b.face_items.buffer,
-                b.edge_items.buffer, b.counters, (b.round_params.buffer, r * PARAM_STRIDE, 32)])
+                b.edge_items.buffer, b.counters, (b.round_params.buffer, r * PARAM_STRIDE, 32),
+                b.tile_counts.buffer])
             encoder.clear_buffer(self.counters, 0, 16)
             encoder.clear_buffer(self.pixels.buffer, 0, 8 * width * plan.round_rows[r])
-            cpass = encoder.begin_compute_pass(label=f"F1 cull, round {r}")
+            cpass = encoder.begin_compute_pass(label=f"F1 cull, round {r}", **self._timestamps(r, 0))
             cpass.set_pipeline(self.cull)
             cpass.set_bind_group(0, cull)
             cpass.dispatch_workgroups(*_groups(-(-int(round_threads[r]) // 64)))
@@ -381,7 +406,7 @@ class FocusedPasses:
             cpass.set_bind_group(0, finalize)
             cpass.dispatch_workgroups(1)
             cpass.end()
-            cpass = encoder.begin_compute_pass(label=f"F2 clip, round {r}")
+            cpass = encoder.begin_compute_pass(label=f"F2 clip, round {r}", **self._timestamps(r, 1))
             cpass.set_pipeline(self.clip)
             cpass.set_bind_group(0, clip)
             cpass.dispatch_workgroups_indirect(self.args, 0)
@@ -392,12 +417,12 @@ class FocusedPasses:
             rpass = encoder.begin_render_pass(
                 label=f"F3 crossings, round {r}",
                 color_attachments=[{"view": self.target_view, "load_op": "load",
-                                    "store_op": "discard"}])
+                                    "store_op": "discard"}], **self._timestamps(r, 2))
             rpass.set_pipeline(self.crossings)
             rpass.set_bind_group(0, crossings)
             rpass.draw_indirect(self.args, 24)
             rpass.end()
-            cpass = encoder.begin_compute_pass(label=f"F4 edge test, round {r}")
+            cpass = encoder.begin_compute_pass(label=f"F4 edge test, round {r}", **self._timestamps(r, 3))
             cpass.set_pipeline(self.edge_test)
             cpass.set_bind_group(0, edges)
             cpass.dispatch_workgroups_indirect(self.args, 12)
@@ -411,7 +436,22 @@ class FocusedPasses:
             encoder.copy_buffer_to_buffer(self.tile_counts.buffer, 0, staging, 4 * COUNTERS, 8 * t)
         if speculative:
             encoder.copy_buffer_to_buffer(self.records.buffer, 0, staging, head, 16 * speculative)
+        profiled = min(n_rounds, MAX_PROFILED_ROUNDS) if self.profile else 0
+        if profiled:
+            nq = 2 * len(PASS_NAMES) * MAX_PROFILED_ROUNDS
+            encoder.resolve_query_set(self.queries, 0, nq, self.query_buf, 0)
+            encoder.copy_buffer_to_buffer(self.query_buf, 0, self.query_readback.ensure(8 * nq), 0,
+                                          8 * nq)
         queue.submit([encoder.finish()])
+        self.gpu_ms = {}
+        if profiled:
+            ts = self.query_readback.read(8 * 2 * len(PASS_NAMES) * MAX_PROFILED_ROUNDS, np.uint64)
+            ts = ts.astype(np.float64).reshape(MAX_PROFILED_ROUNDS, len(PASS_NAMES), 2)
+            for r in range(profiled):
+                if round_threads[r] == 0:
+                    continue
+                for k, name in enumerate(PASS_NAMES):
+                    self.gpu_ms[name] = self.gpu_ms.get(name, 0.0) + (ts[r, k, 1] - ts[r, k, 0]) * 1e-6
         n_records_guess = speculative
         data = self.readback.read(head + 16 * n_records_guess)
         counters = data[:COUNTERS].astype(np.int64)

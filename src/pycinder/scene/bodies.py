@@ -46,6 +46,8 @@ class Shape:
     lo: np.ndarray
     hi: np.ndarray
     radius: float
+    source: np.ndarray | None = field(default=None, repr=False)
+    """A copy of the vertices as given (their own dtype), for a cheap comparison next time."""
     _normals: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
 
     @property
@@ -55,6 +57,8 @@ class Shape:
     @property
     def nbytes(self) -> int:
         extra = sum(a.nbytes for a in self._normals) if self._normals is not None else 0
+        if self.source is not None and self.source is not self.vertices:
+            extra += self.source.nbytes
         return self.vertices.nbytes + extra
 
     def normals(self) -> tuple[np.ndarray, np.ndarray]:
@@ -168,16 +172,17 @@ class ShapeCache:
     def get(self, vertices: Any, faces: Any, label: str, strict: bool) -> Shape:
         """The shape of a mesh, checked and measured once per distinct content."""
         vkey, exact = _vertex_key(vertices)
-        v32 = None if exact else check_vertices(vertices, label)
-        topo, built = self.topologies.get(faces, len(vertices if v32 is None else v32), label)
+        given = vertices if exact else np.asarray(vertices)
+        if given.ndim != 2 or given.shape[1] != 3:
+            check_vertices(given, label)  # raises with the message for the shape
+        topo, built = self.topologies.get(faces, len(given), label)
         key = (id(topo), vkey)
         shape = self._entries.get(key)
         if shape is not None and shape.topology is topo and (
-                exact or np.array_equal(shape.vertices, v32)):
+                exact or (shape.source is not None and np.array_equal(shape.source, given))):
             self._entries.move_to_end(key)
             return shape
-        if v32 is None:
-            v32 = check_vertices(vertices, label)
+        v32 = check_vertices(given, label)
         lo = v32.min(axis=0).astype(np.float64)
         hi = v32.max(axis=0).astype(np.float64)
         centre = 0.5 * (lo + hi)
@@ -189,7 +194,8 @@ class ShapeCache:
             before = topo.nbytes
             topo.clusters(v32)
             self.topologies.account(topo, topo.nbytes - before)
-        shape = Shape(v32, topo, lo, hi, radius)
+        source = None if exact else (v32 if given.dtype == np.float32 else np.array(given))
+        shape = Shape(v32, topo, lo, hi, radius, source)
         if key in self._entries:
             self.nbytes -= self._entries.pop(key).nbytes
         self._entries[key] = shape

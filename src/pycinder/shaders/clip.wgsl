@@ -1,15 +1,20 @@
 // Focused strategy, pass F2 (compute): the faces of each kept cluster, projected into their tile
 // and clipped to its window, as triangles for pass F3 to rasterise.
 //
-// A face entirely inside the window is passed on as it is. A face that crosses the window's edge
-// is cut to the window: the polygon of its vertices inside the window, the points where its edges
-// cross the window's sides, and the window corners inside it, fanned into triangles. The crossing
-// points are computed from each edge's lower-indexed vertex, so the two faces sharing an edge cut
-// it at the same point bit for bit and the clipped surface stays watertight: every ray through a
-// pixel centre of the window still crosses the surface of a closed body an even number of times.
+// A face within GUARD pixels of the window is passed on as it is; pass F3 discards what it covers
+// outside the window. A face reaching further is cut to the window grown by GUARD: the polygon of
+// its vertices inside that rectangle, the points where its edges cross the rectangle's sides, and
+// the rectangle's corners inside it, fanned into triangles. The crossing points are computed from
+// each edge's lower-indexed vertex, and an edge that crosses the rectangle's side belongs to two
+// faces that both reach past it, so both cut it at the same point bit for bit: the surface stays
+// watertight, and every ray through a pixel centre of the window still crosses a closed body's
+// surface an even number of times. (The cut lines lie GUARD pixels outside the window.)
 // Facing comes from the projected winding (flipped for mirroring transforms); pass F3 draws both
 // sides.
 //!include tiles.wgsl
+
+// Pixels around the window within which faces are not cut (cutting costs more than the spill).
+const GUARD: f32 = 0.0;
 
 struct Params {
     tri_cap: u32,
@@ -112,22 +117,25 @@ fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     let flags = (item.x << 3u) | (select(0u, 4u, back)) | (select(0u, 2u, front)) | side;
     let origin = vec2f(f32(t.window.x), f32(t.window.y));
     let z0 = t.slab.x;
-    if (lo.x >= 0.0 && hi.x <= w && lo.y >= 0.0 && hi.y <= h) {
+    let r0 = -GUARD;
+    let rw = w + GUARD;
+    let rh = h + GUARD;
+    if (lo.x >= r0 && hi.x <= rw && lo.y >= r0 && hi.y <= rh) {
         emit(atomicAdd(&counters[C_TRIS], 1u), p[0], p[1], p[2], origin, z0, flags);
         return;
     }
-    // The face cut to the window: a convex polygon of at most 7 corners (13 candidates).
+    // The face cut to the rectangle: a convex polygon of at most 7 corners (13 candidates).
     let id = array<u32, 3>(ids.x, ids.y, ids.z);
     var pts: array<vec3f, 13>;
     var n = 0u;
     for (var k = 0u; k < 3u; k++) {
         let q = p[k];
-        if (q.x >= 0.0 && q.x <= w && q.y >= 0.0 && q.y <= h) {
+        if (q.x >= r0 && q.x <= rw && q.y >= r0 && q.y <= rh) {
             pts[n] = q;
             n++;
         }
     }
-    let limits = array<vec2f, 2>(vec2f(0.0, w), vec2f(0.0, h));
+    let limits = array<vec2f, 2>(vec2f(r0, rw), vec2f(r0, rh));
     for (var k = 0u; k < 3u; k++) {
         let k1 = (k + 1u) % 3u;
         for (var axis = 0u; axis < 2u; axis++) {
@@ -136,7 +144,7 @@ fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
                 let at = limits[axis][s];
                 if ((p[k][axis] - at) * (p[k1][axis] - at) < 0.0) {
                     let r = cross_line(p[k], id[k], p[k1], id[k1], axis, at);
-                    if (r[other] >= 0.0 && r[other] <= limits[other].y) {
+                    if (r[other] >= limits[other].x && r[other] <= limits[other].y) {
                         pts[n] = r;
                         n++;
                     }
@@ -144,8 +152,8 @@ fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
             }
         }
     }
-    // Window corners inside the face, on the face's plane.
-    let corners = array<vec2f, 4>(vec2f(0.0, 0.0), vec2f(w, 0.0), vec2f(w, h), vec2f(0.0, h));
+    // Rectangle corners inside the face, on the face's plane.
+    let corners = array<vec2f, 4>(vec2f(r0, r0), vec2f(rw, r0), vec2f(rw, rh), vec2f(r0, rh));
     for (var k = 0u; k < 4u; k++) {
         let q = corners[k];
         let e0 = edge_side(p[0].xy, id[0], p[1].xy, id[1], q);

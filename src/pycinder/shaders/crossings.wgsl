@@ -1,6 +1,7 @@
 // Focused strategy, pass F3 (render): the virtual ray casting of CInDeR, per pixel and per body.
 //
-// Each clipped face of both bodies is rasterised once (no culling, no depth or stencil test; see
+// Each clipped face of both bodies is rasterised once (fragments outside the face's tile are
+// dropped: faces near a window are passed on uncut) (no culling, no depth or stencil test; see
 // passes/states.py). At every pixel centre it covers, the face crosses the pixel's ray. Crossings
 // on the counting side of the box only change how many times the ray has entered each body
 // before it reaches the box: they are summed per body (front faces +1, back faces -1, as passes 2
@@ -31,6 +32,7 @@ struct VertexOut {
     @location(0) z: f32,
     @location(1) @interpolate(flat) flags: u32,
     @location(2) @interpolate(flat) depth: f32,   // the box's depth range, pixels
+    @location(3) @interpolate(flat) window: vec4f,  // the tile's window: x0, y0, x1, y1 (atlas)
 };
 
 @vertex
@@ -44,11 +46,17 @@ fn vs(@builtin(vertex_index) vi: u32) -> VertexOut {
     out.z = p.z;
     out.flags = v.w;
     out.depth = t.slab.y - t.slab.x;
+    let corner = vec2f(f32(t.window.x), f32(t.window.y));
+    out.window = vec4f(corner, corner + vec2f(f32(t.window.z), f32(t.window.w)));
     return out;
 }
 
 @fragment
 fn fs(in: VertexOut) {
+    let at = in.position.xy;
+    if (at.x < in.window.x || at.y < in.window.y || at.x > in.window.z || at.y > in.window.w) {
+        return;  // the uncut part of a face near the window, over another tile
+    }
     let pixel = u32(in.position.y) * atlas.width + u32(in.position.x);
     let side = in.flags & 1u;
     let front = (in.flags >> 1u) & 1u;

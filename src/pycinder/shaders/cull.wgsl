@@ -12,7 +12,7 @@ struct Params {
     n_entries: u32,    // entries in this round
     face_cap: u32,
     edge_cap: u32,
-    _p0: u32,
+    pair_offset: u32,  // where the per-pair hit flags start in `counts`
     _p1: u32,
     _p2: u32,
 };
@@ -28,6 +28,8 @@ struct Params {
 @group(0) @binding(6) var<storage, read_write> edge_items: array<vec2u>;
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
 @group(0) @binding(8) var<uniform> params: Params;
+// Per tile (found, undecided), then per candidate pair a hit flag (set by pass F4).
+@group(0) @binding(9) var<storage, read> counts: array<u32>;
 
 @compute @workgroup_size(64)
 fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
@@ -55,6 +57,9 @@ fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     let tile_index = e / 2u;
     let side = e % 2u;
     let t = tiles[tile_index];
+    if ((t.info.z & FLAG_SKIP_IF_HIT) != 0u && counts[params.pair_offset + t.info.w] != 0u) {
+        return;  // another tile of this pair already found it colliding
+    }
     let c = entry_cluster[e] + (i - entry_prefix[e]);
     let blo = bounds[2u * c].xyz;
     let bhi = bounds[2u * c + 1u].xyz;

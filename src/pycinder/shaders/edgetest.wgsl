@@ -12,8 +12,12 @@
 struct Params {
     atlas_width: u32,
     capacity: u32,      // list entries per pixel
-    record_cap: u32,
+    record_cap: u32,    // 0: count hits without writing records
     item_cap: u32,
+    pair_offset: u32,   // where the per-pair hit flags start in tile_counts
+    _p0: u32,
+    _p1: u32,
+    _p2: u32,
 };
 
 @group(0) @binding(0) var<storage, read> tiles: array<Tile>;
@@ -23,7 +27,7 @@ struct Params {
 @group(0) @binding(4) var<storage, read> edge_items: array<vec2u>;
 @group(0) @binding(5) var<storage, read> pixels: array<u32>;
 @group(0) @binding(6) var<storage, read> crossings: array<u32>;
-// Per tile: [2t] samples found inside, [2t + 1] samples undecided.
+// Per tile: [2t] samples found inside, [2t + 1] samples undecided; then a hit flag per pair.
 @group(0) @binding(7) var<storage, read_write> tile_counts: array<atomic<u32>>;
 // Per record: tile, pixel u | v << 16, f32 bits of the sample's z, edge | side << 31.
 @group(0) @binding(8) var<storage, read_write> records: array<vec4u>;
@@ -129,6 +133,7 @@ fn edge_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) 
     atomicAdd(&counters[C_SAMPLES], steps + 1u);
     if (found > 0u) {
         atomicAdd(&tile_counts[2u * tile_index], found);
+        atomicStore(&tile_counts[params.pair_offset + t.info.w], 1u);
     }
     if (undecided > 0u) {
         atomicAdd(&tile_counts[2u * tile_index + 1u], undecided);

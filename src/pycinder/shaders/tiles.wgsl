@@ -17,6 +17,8 @@ const FLAG_COUNT_BACK: u32 = 1u;
 // A body's transform reverses orientation: its faces' facing flips.
 const FLAG_MIRROR0: u32 = 2u;
 const FLAG_MIRROR1: u32 = 4u;
+// Skip the tile once another tile of its pair found a hit (the pieces after a pair's probe).
+const FLAG_SKIP_IF_HIT: u32 = 8u;
 
 // A cluster: up to 64 faces and the edges they own, contiguous in the packed arrays.
 struct Cluster {
