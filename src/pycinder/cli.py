@@ -1,6 +1,6 @@
 """The ``pycinder`` command.
 
-    pycinder check FILE... [--resolution N] [--json]        exit 0: no collision, 1: collisions, 2: error
+    pycinder check FILE... [--tolerance T] [--json]         exit 0: no collision, 1: collisions, 2: error
     pycinder debug-buffers [FILE...] --out DIR              PNGs of the buffers after each pass
     pycinder demo {stairs,snow-bunny,normals} [--frames N] [--out FILE.mp4|FILE.gif|DIR] [--window]
     pycinder bench [SCENE...] [--repeat N] [--out DIR]      timings against python-fcl, coal, trimesh
@@ -20,19 +20,32 @@ import numpy as np
 
 
 def _load_meshes(files: Sequence[str]) -> tuple[list, list[str]]:
+    """Meshes from files, with what is wrong with a file named in the error."""
     import trimesh
 
+    formats = set(trimesh.available_formats())
     meshes, names = [], []
     for f in files:
         path = Path(f)
         if not path.exists():
             raise FileNotFoundError(f"{f}: no such file")
+        suffixes = "".join(path.suffixes).lower().lstrip(".")
+        ext = path.suffix.lower().lstrip(".")
+        if ext not in formats and suffixes not in formats:
+            raise ValueError(f"{f}: unknown mesh format '.{ext}' (formats read: "
+                             f"{', '.join(sorted(formats))})")
         try:
-            mesh = trimesh.load(path, force="mesh")
+            # process=False keeps vertices trimesh would silently drop (NaN); merge afterwards.
+            mesh = trimesh.load(path, force="mesh", process=False)
         except Exception as exc:
             raise ValueError(f"{f}: trimesh could not read it ({exc})") from exc
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
             raise ValueError(f"{f}: no triangles in this file")
+        bad = ~np.isfinite(np.asarray(mesh.vertices)).all(axis=1)
+        if bad.any():
+            raise ValueError(f"{f}: {int(bad.sum())} vertices are NaN or infinite (first: vertex "
+                             f"{int(np.flatnonzero(bad)[0])})")
+        mesh.merge_vertices()
         meshes.append(mesh)
         names.append(path.name)
     if len(set(names)) < len(names):
@@ -40,29 +53,50 @@ def _load_meshes(files: Sequence[str]) -> tuple[list, list[str]]:
     return meshes, names
 
 
+def _detector_options(args: argparse.Namespace) -> dict:
+    options: dict = {"strict": args.strict}
+    if args.strategy == "scene":
+        options.update(strategy="scene", resolution=args.resolution or 1024)
+    else:
+        if args.resolution is not None:
+            raise ValueError("--resolution sets the image of --strategy scene; the focused "
+                             "strategy sizes its pixels by --tolerance")
+        options["tolerance"] = args.tolerance
+    return options
+
+
+def _strict_words(message: str) -> str:
+    """Messages name the library's option; on the command line it is --strict."""
+    return message.replace("ask for strict checking", "pass --strict")
+
+
 def cmd_check(args: argparse.Namespace) -> int:
     from .detector import Detector
 
     meshes, names = _load_meshes(args.files)
-    det = Detector(args.resolution, strict=args.strict)
+    det = Detector(**_detector_options(args))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = det.find_collisions(meshes, names=names)
     for w in caught:
-        print(f"warning: {w.message}", file=sys.stderr)
+        print(f"warning: {_strict_words(str(w.message))}", file=sys.stderr)
     pairs = [(names[i], names[j]) for i, j in result.pairs.tolist()]
+    st = result.stats
     if args.json:
-        counts: dict[tuple[int, int], int] = {}
-        for r in result.records:
-            key = (int(min(r["penetrating"], r["penetrated"])), int(max(r["penetrating"], r["penetrated"])))
-            counts[key] = counts.get(key, 0) + 1
+        rec = result.records
+        lo = np.minimum(rec["penetrating"], rec["penetrated"]).astype(np.int64)
+        hi = np.maximum(rec["penetrating"], rec["penetrated"]).astype(np.int64)
+        keys, counts = np.unique(lo << 32 | hi, return_counts=True)
+        per_pair = dict(zip(keys.tolist(), counts.tolist()))
         print(json.dumps({
             "collision": bool(pairs),
-            "pairs": [{"a": names[i], "b": names[j], "pixels": counts[(i, j)]}
+            "pairs": [{"a": names[i], "b": names[j], "samples": per_pair.get(i << 32 | j, 0)}
                       for i, j in result.pairs.tolist()],
-            "resolution": args.resolution,
-            "pixel_size": result.views[0].pixel_size if result.views else None,
-            "adapter": result.stats.adapter,
+            "strategy": st.strategy,
+            "tolerance": list(st.tolerance) if st.strategy == "focused" else None,
+            "resolution": args.resolution if st.strategy == "scene" else None,
+            "candidates": st.candidates,
+            "adapter": st.adapter,
         }, indent=2))
     else:
         if pairs:
@@ -90,13 +124,14 @@ def cmd_example(args: argparse.Namespace) -> int:
     from .detector import Detector
 
     boxes, names, view = three_boxes()
-    result = Detector(args.resolution).find_collisions(boxes, names=names)
-    print(f"three boxes ({', '.join(names)}), resolution {args.resolution}, "
-          f"{result.stats.adapter}")
+    result = Detector().find_collisions(boxes, names=names)
+    print(f"three boxes ({', '.join(names)}), {result.stats.adapter}")
     for i, j in result.pairs.tolist():
         print(f"  {names[i]} <-> {names[j]}")
-    print(f"  {result.stats.records} collision pixels, {result.stats.bytes_read} bytes read back, "
-          f"{result.stats.wall_ms['total']:.1f} ms")
+    st = result.stats
+    print(f"  focused: {st.candidates} candidate pairs, {st.tiles} tiles, {st.pixels} pixels, "
+          f"tolerance {st.tolerance[0]:.3g}, {st.bytes_read} bytes read back, "
+          f"{st.wall_ms['total']:.1f} ms")
     for p in write_debug_buffers(None, args.out, resolution=args.resolution):
         print(f"  wrote {p}")
     return 0
@@ -137,12 +172,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
         with bar:
             task = bar.add_task(args.name, total=args.frames)
             run(args.name, frames=args.frames, out=args.out, window=args.window,
-                resolution=args.resolution, seed=args.seed, spheres=args.spheres, scan=args.scan,
+                tolerance=args.tolerance, seed=args.seed, spheres=args.spheres, scan=args.scan,
                 close_holes=args.close_holes,
                 progress=lambda k, n: bar.update(task, completed=k))
     else:
         run(args.name, frames=args.frames, out=args.out, window=args.window,
-            resolution=args.resolution, seed=args.seed, spheres=args.spheres, scan=args.scan,
+            tolerance=args.tolerance, seed=args.seed, spheres=args.spheres, scan=args.scan,
             close_holes=args.close_holes)
     return 0
 
@@ -154,9 +189,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("check", help="print the interfering pairs among mesh files")
     p.add_argument("files", nargs="+", metavar="FILE", help="meshes in world coordinates")
-    p.add_argument("--resolution", type=int, default=1024)
+    p.add_argument("--tolerance", type=float, default=None, metavar="T",
+                   help="world units: pairs T apart are never reported, pairs overlapping by 2T "
+                        "always are (default: 1%% of the smaller body's size, per pair)")
+    p.add_argument("--strategy", choices=["focused", "scene"], default="focused",
+                   help="focused (default): a tile per candidate pair; scene: the paper's "
+                        "whole-scene image")
+    p.add_argument("--resolution", type=int, default=None,
+                   help="image size of --strategy scene (default 1024)")
     p.add_argument("--json", action="store_true", help="print JSON")
-    p.add_argument("--strict", action="store_true", help="open meshes are an error")
+    p.add_argument("--strict", action="store_true",
+                   help="open, inside-out and zero-area meshes are errors")
     p.set_defaults(func=cmd_check)
 
     p = sub.add_parser("debug-buffers", help="write PNGs of the buffers after each pass")
@@ -172,8 +215,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=120)
     p.add_argument("--out", metavar="FILE.mp4|FILE.gif|DIR", help="write the frames here")
     p.add_argument("--window", action="store_true", help="open an interactive window")
-    p.add_argument("--resolution", type=int, default=None,
-                   help="CInDeR resolution (default: 1024 for stairs, 512 for the others)")
+    p.add_argument("--tolerance", type=float, default=None,
+                   help="detection tolerance in world units (default: 1%% of the smaller body of "
+                        "each pair)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--spheres", type=int, help="spheres (stairs, normals) or flakes (snow-bunny)")
     p.add_argument("--scan", action="store_true",
@@ -206,7 +250,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return args.func(args)
     except (ValueError, RuntimeError, FileNotFoundError, TypeError, ImportError) as exc:
-        print(f"pycinder: error: {exc}", file=sys.stderr)
+        print(f"pycinder: error: {_strict_words(str(exc))}", file=sys.stderr)
         return 2
 
 

@@ -1,7 +1,8 @@
 """``pycinder debug-buffers``: the buffers after each pass, as in the paper's Figures 9 to 13.
 
-Each stage is rendered in its own render pass, so that depth, stencil and colour can be captured
-between passes; the normal path records passes 1-4 and 5-7 as two passes of replayed bundles.
+The scene strategy's frame runner runs each pass in its own render pass when given a hook, so that
+depth, stencil and colour can be captured between passes; the normal path replays one bundle per
+render step.
 """
 
 from __future__ import annotations
@@ -17,8 +18,8 @@ import wgpu
 
 from .detector import Detector
 from .gpu.device import shader_source
-from .passes.raycast import RaycastPasses
-from .passes.states import RenderStep
+from .result import Stats
+from .scene import prepare_scene
 from .view import View
 
 
@@ -77,90 +78,92 @@ def record_image(records: np.ndarray) -> np.ndarray:
 
 
 class BufferCapture:
-    """Runs the passes one render pass at a time and reads the buffers between them."""
+    """Runs the scene strategy's passes one render pass at a time (the frame runner's hook) and
+    reads the buffers between them, on any backend.
+
+    The depth buffer after pass 1 is read from the colour target's b channel, which pass 1 fills
+    with the same edges' depth bits during a capture; the stencil buffer with one stencil-equal
+    full-screen draw per value (``debug.wgsl``).
+    """
 
     def __init__(self, detector: Detector) -> None:
+        if detector.request.strategy != "scene":
+            raise ValueError("debug-buffers shows the paper's whole-scene passes: use a Detector "
+                             "with strategy='scene'")
         self.det = detector
+        self.strategy = detector.strategy
         device = detector.gpu.device
+        t = self.strategy.targets
         module = device.create_shader_module(label="debug", code=shader_source("debug"))
-        self.pipeline = device.create_compute_pipeline(
-            layout="auto", compute={"module": module, "entry_point": "dump"})
-        t = detector.targets
-        usage = wgpu.BufferUsage
-        self.depth_buf = device.create_buffer(size=4 * t.pixels, usage=usage.STORAGE | usage.COPY_SRC)
-        self.stencil_buf = device.create_buffer(size=4 * t.pixels,
-                                                usage=usage.STORAGE | usage.COPY_SRC)
-        params = device.create_buffer(size=16, usage=usage.UNIFORM | usage.COPY_DST)
-        device.queue.write_buffer(params, 0, np.array([t.width, t.height, 0, 0], np.uint32))
-        self.bind_group = device.create_bind_group(
-            layout=self.pipeline.get_bind_group_layout(0),
-            entries=[{"binding": 0, "resource": t.depth_view},
-                     {"binding": 1, "resource": t.stencil_view},
-                     {"binding": 2, "resource": {"buffer": self.depth_buf}},
-                     {"binding": 3, "resource": {"buffer": self.stencil_buf}},
-                     {"binding": 4, "resource": {"buffer": params}}])
+        equal = {"compare": "equal", "fail_op": "keep", "depth_fail_op": "keep", "pass_op": "keep"}
+        self.pipeline = device.create_render_pipeline(
+            label="stencil readout", layout="auto",
+            vertex={"module": module, "entry_point": "vs"},
+            primitive={"topology": "triangle-list"},
+            depth_stencil={"format": detector.gpu.depth_format, "depth_write_enabled": False,
+                           "depth_compare": "always", "stencil_front": equal,
+                           "stencil_back": equal, "stencil_read_mask": 0xFF,
+                           "stencil_write_mask": 0},
+            fragment={"module": module, "entry_point": "fs", "targets": [{"format": "r8uint"}]})
+        self.stencil = device.create_texture(
+            size=(t.width, t.height, 1), format="r8uint",
+            usage=wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.COPY_SRC)
 
-    def _dump_depth_stencil(self) -> tuple[np.ndarray, np.ndarray]:
-        t, device = self.det.targets, self.det.gpu.device
-        enc = device.create_command_encoder()
-        cpass = enc.begin_compute_pass()
-        cpass.set_pipeline(self.pipeline)
-        cpass.set_bind_group(0, self.bind_group)
-        cpass.dispatch_workgroups(-(-t.width // 8), -(-t.height // 8))
-        cpass.end()
-        device.queue.submit([enc.finish()])
-        depth = np.frombuffer(device.queue.read_buffer(self.depth_buf), np.float32)
-        stencil = np.frombuffer(device.queue.read_buffer(self.stencil_buf), np.uint32)
-        return depth.reshape(t.height, t.width), stencil.reshape(t.height, t.width)
+    def _read(self, texture: wgpu.GPUTexture, bytes_per_pixel: int, dtype: type,
+              channels: int) -> np.ndarray:
+        t = self.strategy.targets
+        row = -(-t.width * bytes_per_pixel // 256) * 256
+        raw = self.det.gpu.device.queue.read_texture(
+            {"texture": texture}, {"bytes_per_row": row, "rows_per_image": t.height},
+            (t.width, t.height, 1))
+        data = np.frombuffer(raw, np.uint8).reshape(t.height, row)[:, :t.width * bytes_per_pixel]
+        return data.copy().view(dtype).reshape(t.height, t.width, channels)
 
-    def _records(self) -> np.ndarray:
-        t, device = self.det.targets, self.det.gpu.device
-        return np.asarray(device.queue.read_texture(
-            {"texture": t.records}, {"bytes_per_row": 16 * t.width, "rows_per_image": t.height},
-            (t.width, t.height, 1))).view(np.uint32).reshape(t.height, t.width, 4)
+    def _stencil(self) -> np.ndarray:
+        device = self.det.gpu.device
+        encoder = device.create_command_encoder()
+        rp = encoder.begin_render_pass(
+            color_attachments=[{"view": self.stencil.create_view(), "load_op": "clear",
+                                "store_op": "store", "clear_value": (0, 0, 0, 0)}],
+            depth_stencil_attachment={"view": self.strategy.targets.depth_stencil_view,
+                                      "depth_load_op": "load", "depth_store_op": "store",
+                                      "stencil_load_op": "load", "stencil_store_op": "store"})
+        rp.set_pipeline(self.pipeline)
+        for value in range(1, 256):
+            rp.set_stencil_reference(value)
+            rp.draw(3, 1, 0, value)
+        rp.end()
+        device.queue.submit([encoder.finish()])
+        return self._read(self.stencil, 1, np.uint8, 1)[..., 0].astype(np.uint32)
 
     def capture(self, bodies: list[Any], transforms: Any = None, view: View | None = None
                 ) -> dict[str, np.ndarray]:
         """Buffers after each stage, keyed by a file-name stem."""
-        det = self.det
-        scene, transforms_arr, views = det.prepare(bodies, transforms, view=view)
-        det.set_view(views[0], transforms_arr)
-        device = det.gpu.device
-        raycast = det.raycast
-        bind_group = raycast.bind_group(det.buffers, det.targets)
+        strategy = self.strategy
+        scene = prepare_scene(bodies, transforms, cache=self.det.shapes)
+        stats = Stats(strategy="scene")
+        _, views = strategy.prepare(scene, view, stats)
+        strategy.set_view(views[0], scene)
         out: dict[str, np.ndarray] = {}
-        names = {1: "pass1_depth", 2: "pass2_stencil", 3: "pass3_stencil", 4: "pass4_colour",
-                 7: "pass7_colour"}
-        for step in raycast.plan:
-            # Split each step where a buffer is captured; the steps' own starts stay as they are.
-            chunks, current = [], []
-            for n in step.passes:
-                current.append(n)
-                if n in names:
-                    chunks.append(tuple(current))
-                    current = []
-            for k, passes in enumerate(chunks):
-                enc = device.create_command_encoder()
-                if k == 0:
-                    rp = RaycastPasses.begin_step(enc, det.targets, step)
-                else:
-                    rp = RaycastPasses.begin_step(enc, det.targets, RenderStep(passes, False, False))
-                raycast.record(rp, passes, det.buffers, bind_group)
-                rp.end()
-                device.queue.submit([enc.finish()])
-                name = names[passes[-1]]
-                if name.endswith("colour"):
-                    out[name] = self._records()
-                else:
-                    depth, stencil = self._dump_depth_stencil()
-                    out[name] = depth if name.endswith("depth") else stencil
-        enc = device.create_command_encoder()
-        det.filter.encode(enc, det.targets)
-        device.queue.submit([enc.finish()])
-        if det.filter.output == "full":
-            data = np.frombuffer(device.queue.read_buffer(det.filter.out.buffer), np.uint32)
-            out["filtered_colour"] = data[: 4 * det.targets.pixels].reshape(
-                det.targets.height, det.targets.width, 4)
+        names = {"pass 1": "pass1_depth", "pass 2": "pass2_stencil", "pass 3": "pass3_stencil",
+                 "pass 4": "pass4_colour", "pass 7": "pass7_colour"}
+
+        def hook(stage: str) -> None:
+            name = names.get(stage)
+            if name == "pass1_depth":
+                colour = self._read(strategy.targets.records, 16, np.uint32, 4)
+                out[name] = colour[..., 2].view(np.float32)
+            elif name is not None and name.endswith("stencil"):
+                out[name] = self._stencil()
+            elif name is not None:
+                out[name] = self._read(strategy.targets.records, 16, np.uint32, 4)
+
+        strategy.runner.run(stats, hook)
+        if strategy.filter.output == "full":
+            data = np.frombuffer(self.det.gpu.device.queue.read_buffer(strategy.filter.out.buffer),
+                                 np.uint32)
+            t = strategy.targets
+            out["filtered_colour"] = data[: 4 * t.pixels].reshape(t.height, t.width, 4)
         return out
 
 
@@ -181,7 +184,8 @@ def write_debug_buffers(bodies: list[Any] | None, out_dir: str | Path, *, resolu
     """
     if bodies is None:
         bodies, _, view = three_boxes()
-    det = Detector(resolution, self_interference=self_interference, readback="full")
+    det = Detector(strategy="scene", resolution=resolution, self_interference=self_interference,
+                   readback="full")
     buffers = BufferCapture(det).capture(bodies, transforms, view)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

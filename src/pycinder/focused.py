@@ -18,8 +18,8 @@ import numpy as np
 from .broadphase import sweep_and_prune
 from .errors import LossWarning, warn_at_caller
 from .gpu.device import Gpu
-from .passes.focused import (C_SAMPLES, C_TOTAL_TRIS, LIST_CAPACITY, FocusedOutput,
-                             FocusedPasses)
+from .passes.focused import (C_SAMPLES, C_TOTAL_TRIS, ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES,
+                             FocusedOutput, FocusedPasses)
 from .records import RECORD_DTYPE, empty_records, unique_pairs
 from .request import DEFAULT_RELATIVE_TOLERANCE, CollisionRequest
 from .result import CollisionResult, Stats
@@ -50,9 +50,9 @@ class FocusedStrategy:
         self.gpu = gpu
         self.request = request
         self.passes = FocusedPasses(gpu, LIST_CAPACITY, profile=request.profile)
-        per_pixel = 8 + 4 * LIST_CAPACITY
+        per_pixel = PIXEL_BYTES + ENTRY_BYTES * LIST_CAPACITY
         self.budget_pixels = int(min(request.memory_budget // per_pixel,
-                                     gpu.max_binding // (4 * LIST_CAPACITY),
+                                     gpu.max_binding // (ENTRY_BYTES * LIST_CAPACITY),
                                      gpu.max_resolution * 2048))
         self._pack: ShapePack | None = None
 
@@ -149,37 +149,51 @@ class FocusedStrategy:
 
     def _decode(self, scene: Scene, plan: TilePlan, pack: ShapePack, rows: np.ndarray
                 ) -> np.ndarray:
-        """Records from the rows of pass F4 (tile, u | v << 16, z bits, edge | side << 31)."""
+        """Records from the rows of passes F4 and F5 (tile, u | v << 16, z bits,
+        id | surface << 30 | side << 31): ``id`` is a packed edge (F4) or face (F5)."""
         if len(rows) == 0:
             return empty_records()
         tile = rows[:, 0].astype(np.int64)
         u = (rows[:, 1] & 0xFFFF).astype(np.int64)
         v = (rows[:, 1] >> 16).astype(np.int64)
         z = rows[:, 2].view(np.float32)
-        edge = (rows[:, 3] & 0x7FFFFFFF).astype(np.int64)
+        ident = (rows[:, 3] & 0x3FFFFFFF).astype(np.int64)
+        surface = (rows[:, 3] >> 30) & 1 == 1
         side = (rows[:, 3] >> 31).astype(np.int64)
         rec = np.zeros(len(rows), dtype=RECORD_DTYPE)
         rec["penetrating"] = plan.bodies[tile, side]
         rec["penetrated"] = plan.bodies[tile, 1 - side]
-        rec["edge"] = pack.edge_original[edge]
+        rec["edge"] = np.where(surface, -1, pack.edge_original[np.where(surface, 0, ident)])
+        rec["face"] = np.where(surface, pack.face_original[np.where(surface, ident, 0)], -1)
         rec["view"] = tile
         rec["x"], rec["y"], rec["depth"] = u, v, z
         rec["point"] = plan.to_world(tile, u + 0.5, v + 0.5, z)
+        rec["normal"] = np.nan
         if self.request.encode == "normal":
-            rec["normal"] = edge_normals(scene, rec["penetrating"], rec["edge"])
-        else:
-            rec["normal"] = np.nan
+            e = ~surface
+            rec["normal"][e] = edge_normals(scene, rec["penetrating"][e], rec["edge"][e])
+            rec["normal"][surface] = face_normals_world(scene, rec["penetrating"][surface],
+                                                        rec["face"][surface])
         return rec
 
 
 def edge_normals(scene: Scene, body: np.ndarray, edge: np.ndarray) -> np.ndarray:
     """World-space unit normals (n, 3) of edges given by body and edge index, from the bodies'
     current vertices."""
+    return _world_normals(scene, body, lambda shape, sel: shape.normals()[1][edge[sel]])
+
+
+def face_normals_world(scene: Scene, body: np.ndarray, face: np.ndarray) -> np.ndarray:
+    """World-space unit normals (n, 3) of faces given by body and face index."""
+    return _world_normals(scene, body, lambda shape, sel: shape.face_normals()[face[sel]])
+
+
+def _world_normals(scene: Scene, body: np.ndarray, local_of) -> np.ndarray:
     out = np.zeros((len(body), 3), dtype=np.float32)
     shape = scene.body_shape[body]
     for k in np.unique(shape):
         sel = shape == k
-        local = scene.shapes[k].normals()[1][edge[sel]].astype(np.float64)
+        local = np.asarray(local_of(scene.shapes[k], sel), dtype=np.float64)
         # Normals transform with the inverse transpose of the linear part.
         inv_t = np.linalg.inv(scene.transforms[body[sel], :3, :3]).transpose(0, 2, 1)
         world = np.einsum("nij,nj->ni", inv_t, local)

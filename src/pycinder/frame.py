@@ -26,7 +26,8 @@ from .readback import ReadbackMode
 from .result import Stats
 
 Hook = Callable[[str], None]
-"""Called with ``"pass N"`` after pass N and with ``"filter"`` after the filter."""
+"""Called with ``"pass N"`` after pass N (``"pass 7"`` after passes 5-7, which run body by body)
+and with ``"filter"`` after the filter."""
 
 
 class FrameRunner:
@@ -70,19 +71,34 @@ class FrameRunner:
                 "end_of_pass_write_index": 2 * i + 1}
 
     def _passes_with_hook(self, hook: Hook) -> None:
-        """Every pass in its own render pass and submission; the steps' own starts (clears,
-        copies) stay where they are."""
+        """Each pass in its own render pass and submission, except that passes 5-7 stay together
+        (they run body by body); the steps' own starts (clears, copies) stay where they are. Pass
+        1 also writes its edges' depth bits into the colour target (channel b) for the hook to
+        read, and the colour target is cleared again after it where the plan would not do so."""
         device = self.gpu.device
-        bind_group = self.raycast.bind_group(self.buffers, self.targets)
-        for step in self.raycast.plan:
-            for k, n in enumerate(step.passes):
+        raycast = self.raycast
+        bind_group = raycast.bind_group(self.buffers, self.targets)
+        for step in raycast.plan:
+            chunks: list[tuple[int, ...]] = []
+            for n in step.passes:
+                if chunks and raycast.states[n].per_body and raycast.states[chunks[-1][-1]].per_body:
+                    chunks[-1] += (n,)
+                else:
+                    chunks.append((n,))
+            for k, chunk in enumerate(chunks):
                 encoder = device.create_command_encoder()
-                start = step if k == 0 else RenderStep((n,), False, False)
+                start = step if k == 0 else RenderStep(chunk, False, False)
                 rp = RaycastPasses.begin_step(encoder, self.targets, start)
-                self.raycast.record(rp, (n,), self.buffers, bind_group)
+                raycast.record(rp, chunk, self.buffers, bind_group, capture=True)
                 rp.end()
                 device.queue.submit([encoder.finish()])
-                hook(f"pass {n}")
+                hook(f"pass {chunk[-1]}")
+                if chunk == (1,) and raycast.states[1].color_writes != "rba" \
+                        and len(chunks) > 1:
+                    encoder = device.create_command_encoder()
+                    RaycastPasses.begin_step(encoder, self.targets,
+                                             RenderStep((), False, True)).end()
+                    device.queue.submit([encoder.finish()])
 
     def run(self, stats: Stats, hook: Hook | None = None) -> np.ndarray:
         """Run the passes, the filter and the readback mode's GPU work; returns the header

@@ -30,6 +30,7 @@ RECORD_DTYPE = np.dtype([
     ("penetrating", np.int32),
     ("penetrated", np.int32),
     ("edge", np.int32),
+    ("face", np.int32),
     ("normal", np.float32, (3,)),
     ("view", np.int32),
     ("x", np.int32),
@@ -42,8 +43,12 @@ point : world-space point that was found inside the penetrated body (a pixel cen
     of the penetrating edge: within half a pixel's diagonal of that edge)
 penetrating : index of the body whose edge lies inside the other
 penetrated : index of the body the edge lies in
-edge : index of that edge among the penetrating body's unique edges (``topology.edges``)
-normal : world-space normal of the edge (mean of its two faces) when ``encode="normal"``, else NaN
+edge : index of that edge among the penetrating body's unique edges (``topology.edges``), or -1
+    for a surface sample
+face : focused strategy, surface samples: the penetrating body's face (index into its faces)
+    whose point lies inside the penetrated body; -1 for edge samples
+normal : with ``encode="normal"``, the world-space normal of the edge (mean of its two faces) or
+    of the face; else NaN
 view : scene strategy: index of the view; focused strategy: index of the tile
 x, y : pixel column and row in that view or tile (row 0 at the top)
 depth : scene strategy: depth of the edge's fragment, 0 at the near plane and 1 at the far plane;
@@ -80,6 +85,7 @@ def scene_records(pixel: np.ndarray, pen_id: np.ndarray, pend_id: np.ndarray,
     rec["penetrating"] = pen_id.astype(np.int64) - 1
     rec["penetrated"] = pend_id.astype(np.int64) - 1
     rec["view"] = view_index
+    rec["face"] = -1
     if encode == "normal":
         rec["edge"] = -1
         rec["normal"] = unpack_normals(payload.astype(np.uint32))

@@ -9,18 +9,23 @@ With ``tolerance = t`` in world units, for every pair of closed bodies:
 
 1. A pair whose exact distance is at least ``t`` is never reported.
 2. A pair whose penetration is at least ``2 t`` is always reported: the pair still overlaps when
-   either body is moved by ``2 t`` in any direction. This assumes the bodies are solids at the
-   scale of the tolerance: the overlap has some edge of one body at least about ``1.6 t`` inside
-   the other. Walls thinner than ``t``, and wedges sharper than ``t`` across, can pass through
-   each other unseen, as with any method that samples space at a given spacing.
+   either body is moved by ``2 t`` in any direction. Exactly what is guaranteed: the pair is
+   reported when the overlap contains a ball of radius ``0.71 t``, or when an edge of one body
+   passes at least ``1.6 t`` inside the other. Solids at the scale of the tolerance meet this
+   whenever they penetrate by ``2 t``; a wall thinner than about ``1.4 t`` can pass through a
+   body unseen, as with any method that samples space at a spacing.
 3. Both hold whatever the scene's extent, its units and its body count: each candidate pair is
    tested in its own tiles, whose pixels are ``t`` wide, so other bodies never change a pair's
    answer. Pairs in between (closer than ``t``, or overlapping by less than ``2 t``) may go
    either way.
 
-Why: an edge sample is tested at the centre of its pixel, which is at most ``0.71 t`` from the
-edge (promise 1), and edges are sampled at most one pixel apart along each axis of the tile, so
-any edge point is within ``1.6 t`` of a tested point (promise 2).
+Why: each tile's pixels are ``t`` wide, and every pixel centre's ray is cast through both bodies
+in the tile. Where such a ray leaves the overlap it crosses one body's surface inside the other:
+that surface point is tested exactly, so a ball of radius ``0.71 t`` in the overlap (which always
+holds a pixel centre's ray) is always found, and a hit is a real overlap (promise 1 with room to
+spare). Edges are also sampled at most a pixel apart along each axis and tested at their pixel's
+centre, at most ``0.71 t`` from the edge (still promise 1): an edge point ``1.6 t`` deep is
+always within reach of a sample.
 
 Without a tolerance, each pair gets ``DEFAULT_RELATIVE_TOLERANCE`` (1%) of the smaller body's
 size (the length of its bounding box's diagonal in world units): the promises then hold per pair

@@ -247,3 +247,87 @@ def sample_mesh_path(name: str) -> Path:
     if not path.exists():  # pragma: no cover
         raise FileNotFoundError(f"pymeshlab has no sample mesh {name}")
     return path
+
+
+def _fcl_object(mesh: trimesh.Trimesh) -> Any:
+    try:
+        import fcl
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ImportError("exact distances need python-fcl: pip install 'pycinder[test]'") from exc
+    model = fcl.BVHModel()
+    model.beginModel(len(mesh.vertices), len(mesh.faces))
+    model.addSubModel(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int32))
+    model.endModel()
+    return fcl.CollisionObject(model, fcl.Transform())
+
+
+def mesh_distance(a: trimesh.Trimesh, b: trimesh.Trimesh) -> float:
+    """Exact distance between two mesh surfaces (python-fcl; 0 when they cross). A body wholly
+    inside the other is not seen: check overlap with :func:`ground_truth` for that."""
+    import fcl
+
+    return float(fcl.distance(_fcl_object(a), _fcl_object(b), fcl.DistanceRequest(),
+                              fcl.DistanceResult()))
+
+
+def first_contact(a: trimesh.Trimesh, b: trimesh.Trimesh, direction: np.ndarray,
+                  gap: float = 0.0, iterations: int = 60) -> float:
+    """How far to move ``b`` along ``direction`` (from where it is) so that, coming in from far
+    away, it is first exactly ``gap`` from ``a`` (``gap = 0``: first contact).
+
+    Scans inwards in steps of a quarter of the smaller body's size (so that ``b`` can neither
+    jump into ``a`` nor over a concave part of it unseen), then bisects on the exact mesh
+    distance (python-fcl), so non-convex bodies stop at their first contact, not a later one.
+
+    Parameters
+    ----------
+    a, b : trimesh.Trimesh
+        World meshes.
+    direction : (3,) float
+        ``b`` comes in towards ``a`` along ``-direction``.
+    gap : float
+        Wanted distance.
+
+    Returns
+    -------
+    float
+        ``s`` such that ``b`` translated by ``s * direction`` is ``gap`` from ``a``.
+    """
+    import fcl
+
+    d = np.asarray(direction, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    oa, ob = _fcl_object(a), _fcl_object(b)
+    far = float(np.linalg.norm(a.extents) + np.linalg.norm(b.extents)) + 2 * gap + float(
+        np.linalg.norm(a.centroid - b.centroid))
+    step = 0.25 * min(float(a.extents.min()), float(b.extents.min()))
+
+    def distance(s: float) -> float:
+        ob.setTransform(fcl.Transform(np.eye(3), s * d))
+        return float(fcl.distance(oa, ob, fcl.DistanceRequest(), fcl.DistanceResult()))
+
+    prev = far
+    for s in np.arange(far - step, -far, -step):
+        if distance(s) <= gap:
+            hi, lo = prev, float(s)  # distance(hi) > gap >= distance(lo)
+            for _ in range(iterations):
+                mid = 0.5 * (hi + lo)
+                if distance(mid) > gap:
+                    hi = mid
+                else:
+                    lo = mid
+            return float(hi) if gap > 0 else float(lo)
+        prev = float(s)
+    raise ValueError("the bodies never come within the gap along this direction")
+
+
+def l_shape(size: float = 1.0, thickness: float = 0.3, depth: float = 0.5) -> trimesh.Trimesh:
+    """A closed L-shaped solid (two boxes joined with manifold3d): non-convex, with an inner
+    corner."""
+    m3d = _manifold3d()
+    arm = m3d.Manifold.cube((size, thickness, depth))
+    leg = m3d.Manifold.cube((thickness, size, depth))
+    mesh = (arm + leg).to_mesh()
+    out = trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
+    out.apply_translation(-out.bounds.mean(axis=0))
+    return out

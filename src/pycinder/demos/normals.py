@@ -19,7 +19,7 @@ RESTITUTION = 0.9
 
 
 class NormalsSim:
-    def __init__(self, spheres: int = 24, seed: int = 0, resolution: int = 512) -> None:
+    def __init__(self, spheres: int = 24, seed: int = 0, tolerance: float | None = None) -> None:
         self.rng = np.random.default_rng(seed)
         self.bunny, self.note = load_bunny()
         self.ball = trimesh.creation.icosphere(subdivisions=2, radius=RADIUS)
@@ -30,11 +30,7 @@ class NormalsSim:
         for i in range(spheres):
             self._shoot(i)
         self.colour = np.tile([0.8, 0.8, 0.8], (spheres, 1))
-        self.detector = Detector(resolution, encode="normal", readback="compact",
-                                 self_interference="prevent")
-        # CInDeR's view hugs the bunny for resolution (paper 4.2); the display can be anywhere.
-        box = np.array([[x, y, z] for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)])
-        self.view = View.fit(self.centre + box, resolution=resolution)
+        self.detector = Detector(tolerance=tolerance, encode="normal", records="all")
         self.bounces = 0
         self.contacts: list[tuple[np.ndarray, np.ndarray]] = []  # (points, normals) per frame
 
@@ -59,7 +55,7 @@ class NormalsSim:
         bodies = [self.bunny] + [self.ball] * len(near)
         transforms = np.concatenate([np.eye(4)[None], balls[near]])
         t0 = time.perf_counter()
-        result = self.detector.find_collisions(bodies, transforms, view=self.view)
+        result = self.detector.find_collisions(bodies, transforms)
         ms = (time.perf_counter() - t0) * 1e3
         rec = result.records
         # The bunny's edges carry its normals; spheres are only ever the penetrated body (5.3.1).

@@ -11,7 +11,7 @@ import wgpu
 from ..detector import Detector
 from ..gpu.buffers import SceneBuffers
 from ..gpu.device import shader_source
-from ..scene import TopologyCache, prepare_bodies, repack
+from ..scene import ShapeCache, prepare_scene, repack
 from ..view import View
 
 COLOUR_FORMAT = "rgba8unorm"
@@ -28,7 +28,7 @@ class Renderer:
         self.det, self.width, self.height = detector, width, height
         device = detector.gpu.device
         self.buffers = SceneBuffers(device)
-        self._topologies = TopologyCache()
+        self._shapes = ShapeCache()
         module = device.create_shader_module(label="shade", code=shader_source("shade"))
         self.pipeline = device.create_render_pipeline(
             label="display", layout="auto",
@@ -56,9 +56,8 @@ class Renderer:
         colours : (N, 3) float in [0, 1]
         """
         device = self.det.gpu.device
-        body_list, normals = prepare_bodies(bodies, transforms, cache=self._topologies)
-        scene = repack(self.buffers.scene, body_list, normals)
-        self.buffers.upload(scene)
+        scene = prepare_scene(bodies, transforms, cache=self._shapes)
+        self.buffers.upload(repack(self.buffers.scene, scene, normals=True))
         buffers = self.buffers
         transforms = np.asarray(transforms, dtype=np.float64)
         n = len(transforms)

@@ -13,24 +13,24 @@ from .render import FrameWriter, Renderer, display_available, mark_points, overl
 DEMOS = ("stairs", "snow-bunny", "normals")
 
 
-def make_sim(name: str, *, seed: int, resolution: int, spheres: int | None = None,
+def make_sim(name: str, *, seed: int, tolerance: float | None, spheres: int | None = None,
              scan: bool = False, close_holes: bool = False) -> tuple[Any, Any, str]:
     """The simulation, its display view and a title."""
     if name == "stairs":
         from . import stairs
 
-        sim = stairs.StairsSim(spheres or 50, seed, resolution or 1024)
+        sim = stairs.StairsSim(spheres or 50, seed, tolerance)
         return sim, stairs.display_view(), f"Stairs, {sim.spheres} spheres"
     if name == "snow-bunny":
         from . import snow
 
-        sim = snow.SnowSim(spheres or 150, seed, resolution or 512, scan=scan,
+        sim = snow.SnowSim(spheres or 150, seed, tolerance, scan=scan,
                            close_holes=close_holes)
         return sim, snow.display_view(), f"Snow Bunny ({sim.note})"
     if name == "normals":
         from . import normals
 
-        sim = normals.NormalsSim(spheres or 24, seed, resolution or 512)
+        sim = normals.NormalsSim(spheres or 24, seed, tolerance)
         return sim, normals.display_view(), "Edges coloured by normals"
     raise ValueError(f"unknown demo {name!r}; choose from {DEMOS}")
 
@@ -44,7 +44,7 @@ def display_scene(name: str, sim: Any, info: dict) -> tuple[list, np.ndarray, np
 
 
 def run(name: str, *, frames: int = 120, out: str | None = None, window: bool = False,
-        resolution: int | None = None, seed: int = 0, spheres: int | None = None, scan: bool = False,
+        tolerance: float | None = None, seed: int = 0, spheres: int | None = None, scan: bool = False,
         close_holes: bool = False, size: tuple[int, int] = (640, 480), quiet: bool = False,
         progress: Any = None) -> dict[str, Any]:
     """Run ``frames`` frames; write them to ``out`` (.mp4, .gif or a folder) and return a summary."""
@@ -52,9 +52,9 @@ def run(name: str, *, frames: int = 120, out: str | None = None, window: bool = 
         if not display_available():
             raise RuntimeError("--window needs a display (no DISPLAY or WAYLAND_DISPLAY is set); "
                                "run headless with --out FILE.mp4 instead")
-        return run_window(name, frames=frames, resolution=resolution, seed=seed, spheres=spheres,
+        return run_window(name, frames=frames, tolerance=tolerance, seed=seed, spheres=spheres,
                           scan=scan, close_holes=close_holes)
-    sim, view, title = make_sim(name, seed=seed, resolution=resolution, spheres=spheres, scan=scan,
+    sim, view, title = make_sim(name, seed=seed, tolerance=tolerance, spheres=spheres, scan=scan,
                                 close_holes=close_holes)
     renderer = Renderer(sim.detector, *size) if out else None
     writer = FrameWriter(out)

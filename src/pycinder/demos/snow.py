@@ -71,7 +71,8 @@ class Frozen:
 
 
 class SnowSim:
-    def __init__(self, flakes: int = 150, seed: int = 0, resolution: int = 512, scan: bool = False,
+    def __init__(self, flakes: int = 150, seed: int = 0, tolerance: float | None = None,
+                 scan: bool = False,
                  close_holes: bool = False, spin: float = 0.6) -> None:
         self.rng = np.random.default_rng(seed)
         self.bunny, self.note = load_bunny(scan, close_holes)
@@ -85,10 +86,7 @@ class SnowSim:
         self.frozen: list[Frozen] = []
         self.spin = spin
         self.angle = 0.0
-        self.detector = Detector(resolution, readback="compact", self_interference="prevent")
-        top = 1.3
-        corners = np.array([[x, y, z] for x in (-1.25, 1.25) for y in (-0.15, top) for z in (-1.25, 1.25)])
-        self.view = View.fit(corners, direction=(-0.2, -0.9, -0.35), resolution=resolution)
+        self.detector = Detector(tolerance=tolerance)
         self.warnings: list[str] = []
 
     def bunny_transform(self) -> np.ndarray:
@@ -117,7 +115,7 @@ class SnowSim:
         t0 = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", OpenMeshWarning)
-            result = self.detector.find_collisions(bodies, transforms, view=self.view)
+            result = self.detector.find_collisions(bodies, transforms)
         self.warnings += [str(w.message) for w in caught if issubclass(w.category, OpenMeshWarning)]
         ms = (time.perf_counter() - t0) * 1e3
         pairs = result.pairs

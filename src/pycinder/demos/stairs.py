@@ -53,7 +53,7 @@ Only spheres inside it go to the detector, and CInDeR's views are fitted to it."
 class StairsSim:
     spheres: int = 50
     seed: int = 0
-    resolution: int = 1024
+    tolerance: float | None = None
     emit_per_frame: int = 2
     position: np.ndarray = field(init=False)
     velocity: np.ndarray = field(init=False)
@@ -66,15 +66,9 @@ class StairsSim:
         self.position = np.zeros((self.spheres, 3))
         self.velocity = np.zeros((self.spheres, 3))
         self.active = np.zeros(self.spheres, bool)
-        self.detector = Detector(self.resolution, readback="compact", self_interference="prevent")
-        steps = step_transforms()
-        # Fixed CInDeR views around the whole domain, so no body is ever cut by their planes:
-        # one from the front and one from above, merged (paper 4.4), so that a contact hidden
-        # behind other spheres in one view is seen in the other.
-        corners = np.array([[x, y, z] for x in REGION[:, 0] for y in REGION[:, 1] for z in REGION[:, 2]])
-        self.view = [View.fit(corners, direction=d, resolution=self.resolution)
-                     for d in ((-0.2, -0.35, -0.9), (0.15, -0.95, 0.25))]
-        self.steps = steps
+        # Each candidate pair gets its own tile: no views to fit, no contact hidden behind others.
+        self.detector = Detector(tolerance=self.tolerance)
+        self.steps = step_transforms()
         self.frame_index = 0
 
     def _shoot(self, idx: np.ndarray) -> None:
@@ -109,7 +103,7 @@ class StairsSim:
         idx = self.near_steps()
         bodies, transforms = self.bodies(idx)
         t0 = time.perf_counter()
-        result = self.detector.find_collisions(bodies, transforms, view=self.view)
+        result = self.detector.find_collisions(bodies, transforms)
         ms = (time.perf_counter() - t0) * 1e3
         pairs = result.pairs
         step_hits = pairs[(pairs[:, 0] < STEPS) & (pairs[:, 1] >= STEPS)]

@@ -147,15 +147,12 @@ class Targets:
             usage=tex.RENDER_ATTACHMENT | tex.TEXTURE_BINDING | tex.COPY_SRC)
         self.depth_stencil = device.create_texture(
             label="depth-stencil", size=size, format=depth_format,
-            usage=tex.RENDER_ATTACHMENT | tex.TEXTURE_BINDING)
+            usage=tex.RENDER_ATTACHMENT)
         self.edge_owner = device.create_texture(
             label="edge owner", size=size, format=RECORD_FORMAT,
             usage=tex.TEXTURE_BINDING | tex.COPY_DST)
         self.records_view = self.records.create_view()
         self.depth_stencil_view = self.depth_stencil.create_view()
-        depth_only = "depth32float" if depth_format.startswith("depth32float") else "depth24plus"
-        self.depth_view = self.depth_stencil.create_view(aspect="depth-only", format=depth_only)
-        self.stencil_view = self.depth_stencil.create_view(aspect="stencil-only", format="stencil8")
         self.edge_owner_view = self.edge_owner.create_view()
 
     @property

@@ -5,8 +5,9 @@
     F2 clip       (compute, indirect)  kept faces into their tile's window, clipped watertight
     F3 crossings  (render, indirect)   every clipped face once: per-pixel ray crossings
     F4 edge test  (compute, indirect)  kept edges sampled and tested against the other body
+    F5 surface test (compute)          every listed surface point tested against the other body
 
-F1 to F4 run once per round of the atlas (one round unless the memory budget is exceeded), all
+F1 to F5 run once per round of the atlas (one round unless the memory budget is exceeded), all
 in one submission; one readback brings back the counters, the per-tile hit counts and the first
 records. Pipelines and buffers are created once and grown when a frame needs more; a frame whose
 counts outgrow a buffer is run again with the buffer grown, so nothing is dropped.
@@ -40,7 +41,7 @@ C_TOTAL_TRIS, C_TOTAL_FACE_ITEMS, C_TOTAL_EDGE_ITEMS = 11, 12, 13
 ROW = 32768
 """Workgroups per row of an indirect dispatch (``tiles.wgsl``)."""
 
-PASS_NAMES = ("F1 cull", "F2 clip", "F3 crossings", "F4 edge test")
+PASS_NAMES = ("F1 cull", "F2 clip", "F3 crossings", "F4 edge test", "F5 surface test")
 MAX_PROFILED_ROUNDS = 8
 
 SPECULATIVE_RECORDS = 4096
@@ -48,6 +49,12 @@ SPECULATIVE_RECORDS = 4096
 
 PARAM_STRIDE = 256
 """Bytes between parameter blocks (the uniform offset alignment)."""
+ROUND_STRIDE = 2 * PARAM_STRIDE
+"""Bytes of one round's parameters: the cull's block, then the surface test's."""
+PIXEL_BYTES = 12
+"""Per atlas pixel: crossings listed, winding outside the box, tile."""
+ENTRY_BYTES = 8
+"""Per listed crossing: depth and flags, face."""
 P_FINALIZE, P_CLIP, P_ATLAS, P_EDGES, P_BOUNDS = range(5)
 """Blocks of the frame parameter buffer."""
 
@@ -141,7 +148,9 @@ class FocusedPasses:
         self.after_cull = compute("finalize", "after_cull")
         self.clip = compute("clip", "clip")
         self.after_clip = compute("finalize", "after_clip")
+        self.after_crossings = compute("finalize", "after_crossings")
         self.edge_test = compute("edgetest", "edge_test")
+        self.surface_test = compute("surfacetest", "surface_test")
         crossings = device.create_shader_module(label="crossings", code=shader_source("crossings"))
         state = FOCUSED_CROSSINGS
         self.crossings = device.create_render_pipeline(
@@ -170,6 +179,8 @@ class FocusedPasses:
         self.face_items = grow("face items", _U.STORAGE)
         self.edge_items = grow("edge items", _U.STORAGE)
         self.tris = grow("clipped triangles", _U.STORAGE)
+        self.tri_face = grow("triangle faces", _U.STORAGE)
+        self.active = grow("active pixels", _U.STORAGE)
         self.pixels = grow("pixel counts", _U.STORAGE | _U.COPY_DST)
         self.lists = grow("pixel crossings", _U.STORAGE)
         self.tile_counts = grow("tile counts", _U.STORAGE | _U.COPY_SRC | _U.COPY_DST)
@@ -310,11 +321,13 @@ class FocusedPasses:
         width = plan.atlas_width
         rows = max(plan.round_rows) if plan.round_rows else 1
         self._ensure_target(width, rows)
-        self.pixels.ensure(8 * width * rows)
-        self.lists.ensure(4 * self.capacity * width * rows)
+        self.pixels.ensure(PIXEL_BYTES * width * rows)
+        self.lists.ensure(ENTRY_BYTES * self.capacity * width * rows)
+        self.active.ensure(4 * width * rows)
         reruns = 0
         while True:
             self.tris.ensure(48 * self.caps["tris"])
+            self.tri_face.ensure(4 * self.caps["tris"])
             self.records.ensure(16 * self.caps["records"])
             out = self._frame(plan, bounds, round_threads, items, records)
             c = out.counters
@@ -355,11 +368,14 @@ class FocusedPasses:
         width = plan.atlas_width
         caps = self.caps
         # Per-round parameters of the cull, one uniform block each.
-        self.round_params.ensure(PARAM_STRIDE * max(n_rounds, 1))
-        block = np.zeros((max(n_rounds, 1), PARAM_STRIDE // 4), dtype=np.uint32)
+        self.round_params.ensure(ROUND_STRIDE * max(n_rounds, 1))
+        block = np.zeros((max(n_rounds, 1), ROUND_STRIDE // 4), dtype=np.uint32)
+        surface = PARAM_STRIDE // 4
         for r in range(n_rounds):
             block[r, :6] = (round_threads[r], 2 * bounds[r], 2 * (bounds[r + 1] - bounds[r]),
                             items, items, 2 * len(plan))
+            block[r, surface:surface + 5] = (width, plan.round_rows[r], self.capacity,
+                                             caps["records"] if want_records else 0, 2 * len(plan))
         self.round_params.write(block)
         frame = np.zeros((4, PARAM_STRIDE // 4), dtype=np.uint32)
         frame[P_FINALIZE, :4] = (items, items, caps["tris"], 0)
@@ -376,10 +392,14 @@ class FocusedPasses:
             b.counters, b.args, (b.frame_params, P_FINALIZE * PARAM_STRIDE, 16)])
         clip = self._bind("clip", self.clip, [
             b.tiles.buffer, b.clusters.buffer, b.positions.buffer, b.faces.buffer,
-            b.face_items.buffer, b.tris.buffer, b.counters, (b.frame_params, P_CLIP * PARAM_STRIDE, 16)])
+            b.face_items.buffer, b.tris.buffer, b.counters, (b.frame_params, P_CLIP * PARAM_STRIDE, 16),
+            b.tri_face.buffer])
         crossings = self._bind("crossings", self.crossings, [
             b.tris.buffer, b.tiles.buffer, b.pixels.buffer, b.lists.buffer,
-            (b.frame_params, P_ATLAS * PARAM_STRIDE, 16)])
+            (b.frame_params, P_ATLAS * PARAM_STRIDE, 16), b.tri_face.buffer, b.active.buffer,
+            b.counters])
+        finalize3 = self._bind("finalize3", self.after_crossings, [
+            b.counters, b.args, (b.frame_params, P_FINALIZE * PARAM_STRIDE, 16)])
         edges = self._bind("edges", self.edge_test, [
             b.tiles.buffer, b.clusters.buffer, b.positions.buffer, b.edges.buffer,
             b.edge_items.buffer, b.pixels.buffer, b.lists.buffer, b.tile_counts.buffer,
@@ -394,10 +414,14 @@ class FocusedPasses:
             cull = self._bind(f"cull{r}", self.cull, [
                 b.tiles.buffer, b.clusters.buffer, b.cluster_bounds.buffer,
                 b.entry_prefix.buffer, b.entry_cluster.buffer, b.face_items.buffer,
-                b.edge_items.buffer, b.counters, (b.round_params.buffer, r * PARAM_STRIDE, 32),
+                b.edge_items.buffer, b.counters, (b.round_params.buffer, r * ROUND_STRIDE, 32),
                 b.tile_counts.buffer])
+            surface = self._bind(f"surface{r}", self.surface_test, [
+                b.tiles.buffer, b.pixels.buffer, b.lists.buffer, b.tile_counts.buffer,
+                b.records.buffer, b.counters,
+                (b.round_params.buffer, r * ROUND_STRIDE + PARAM_STRIDE, 32), b.active.buffer])
             encoder.clear_buffer(self.counters, 0, 16)
-            encoder.clear_buffer(self.pixels.buffer, 0, 8 * width * plan.round_rows[r])
+            encoder.clear_buffer(self.pixels.buffer, 0, PIXEL_BYTES * width * plan.round_rows[r])
             cpass = encoder.begin_compute_pass(label=f"F1 cull, round {r}", **self._timestamps(r, 0))
             cpass.set_pipeline(self.cull)
             cpass.set_bind_group(0, cull)
@@ -426,6 +450,15 @@ class FocusedPasses:
             cpass.set_pipeline(self.edge_test)
             cpass.set_bind_group(0, edges)
             cpass.dispatch_workgroups_indirect(self.args, 12)
+            cpass.end()
+            cpass = encoder.begin_compute_pass(label=f"F5 surface test, round {r}",
+                                               **self._timestamps(r, 4))
+            cpass.set_pipeline(self.after_crossings)
+            cpass.set_bind_group(0, finalize3)
+            cpass.dispatch_workgroups(1)
+            cpass.set_pipeline(self.surface_test)
+            cpass.set_bind_group(0, surface)
+            cpass.dispatch_workgroups_indirect(self.args, 40)
             cpass.end()
         t = len(plan)
         speculative = min(SPECULATIVE_RECORDS, caps["records"]) if want_records else 0

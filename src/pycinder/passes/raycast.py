@@ -8,6 +8,7 @@ frame; a frame only uploads transforms (and changed vertices).
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import replace
 
 import wgpu
 
@@ -45,6 +46,8 @@ class RaycastPasses:
         self.states = states
         self.plan = plan
         self.pipelines = {n: self._pipeline(pipeline_layout, s) for n, s in self.states.items()}
+        self._pipeline_layout = pipeline_layout
+        self._capture: wgpu.GPURenderPipeline | None = None
         self._bundles: dict[tuple, list[wgpu.GPURenderBundle]] = {}
         self._bind_group: wgpu.GPUBindGroup | None = None
         self._bind_key: tuple | None = None
@@ -75,6 +78,14 @@ class RaycastPasses:
                       "targets": [{"format": RECORD_FORMAT, "write_mask": state.write_mask}]},
         )
 
+    def capture_pipeline(self) -> wgpu.GPURenderPipeline:
+        """Pass 1 writing r, b, a as well (as the prevent table's pass 1 does): for the debug
+        capture, whose readout of the depth buffer is the b channel (the edge's depth bits)."""
+        if self._capture is None:
+            self._capture = self._pipeline(self._pipeline_layout,
+                                           replace(self.states[1], color_writes="rba"))
+        return self._capture
+
     def bind_group(self, buffers: SceneBuffers, targets: Targets) -> wgpu.GPUBindGroup:
         key = (buffers.generation, id(targets))
         if key != self._bind_key:
@@ -88,7 +99,7 @@ class RaycastPasses:
         return self._bind_group
 
     def record(self, enc: wgpu.GPURenderCommandsMixin, passes: Iterable[int], buffers: SceneBuffers,
-               bind_group: wgpu.GPUBindGroup) -> None:
+               bind_group: wgpu.GPUBindGroup, capture: bool = False) -> None:
         """Record the draws of ``passes`` (in paper order) onto a render pass or bundle encoder."""
         scene = buffers.scene
         passes = sorted(passes)
@@ -99,7 +110,7 @@ class RaycastPasses:
         for n in passes:
             if self.states[n].per_body:
                 continue
-            enc.set_pipeline(self.pipelines[n])
+            enc.set_pipeline(self.capture_pipeline() if capture and n == 1 else self.pipelines[n])
             if self.states[n].draws == "edges":
                 enc.draw(n_edge_vertices)
             else:

@@ -61,6 +61,10 @@ class Shape:
             extra += self.source.nbytes
         return self.vertices.nbytes + extra
 
+    def face_normals(self) -> np.ndarray:
+        """Unit face normals (F, 3) float32 of this pose."""
+        return face_normals(self.vertices, self.topology.faces)[0]
+
     def normals(self) -> tuple[np.ndarray, np.ndarray]:
         """Vertex normals (V, 3) and edge normals (E, 3) of this pose, float32."""
         if self._normals is None:

@@ -33,6 +33,8 @@ struct Params {
 @group(0) @binding(5) var<storage, read_write> tris: array<vec4u>;
 @group(0) @binding(6) var<storage, read_write> counters: array<atomic<u32>>;
 @group(0) @binding(7) var<uniform> params: Params;
+// The packed face (cluster order) each triangle comes from.
+@group(0) @binding(8) var<storage, read_write> tri_face: array<u32>;
 
 fn position(v: u32) -> vec3f {
     return vec3f(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
@@ -66,10 +68,11 @@ fn edge_side(pa: vec2f, ia: u32, pb: vec2f, ib: u32, c: vec2f) -> f32 {
     return -cross2(pa - pb, c - pb);
 }
 
-fn emit(slot: u32, a: vec3f, b: vec3f, c: vec3f, origin: vec2f, z0: f32, flags: u32) {
+fn emit(slot: u32, a: vec3f, b: vec3f, c: vec3f, origin: vec2f, z0: f32, flags: u32, face: u32) {
     if (slot >= params.tri_cap) {
         return;
     }
+    tri_face[slot] = face;
     let base = 3u * slot;
     tris[base] = vec4u(bitcast<vec3u>(vec3f(a.xy + origin, a.z - z0)), flags);
     tris[base + 1u] = vec4u(bitcast<vec3u>(vec3f(b.xy + origin, b.z - z0)), flags);
@@ -121,7 +124,7 @@ fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     let rw = w + GUARD;
     let rh = h + GUARD;
     if (lo.x >= r0 && hi.x <= rw && lo.y >= r0 && hi.y <= rh) {
-        emit(atomicAdd(&counters[C_TRIS], 1u), p[0], p[1], p[2], origin, z0, flags);
+        emit(atomicAdd(&counters[C_TRIS], 1u), p[0], p[1], p[2], origin, z0, flags, f);
         return;
     }
     // The face cut to the rectangle: a convex polygon of at most 7 corners (13 candidates).
@@ -199,6 +202,6 @@ fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     }
     let slot = atomicAdd(&counters[C_TRIS], n - 2u);
     for (var k = 1u; k + 1u < n; k++) {
-        emit(slot + k - 1u, pts[0], pts[k], pts[k + 1u], origin, z0, flags);
+        emit(slot + k - 1u, pts[0], pts[k], pts[k + 1u], origin, z0, flags, f);
     }
 }

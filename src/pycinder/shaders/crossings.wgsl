@@ -19,13 +19,18 @@ struct Atlas {
 
 @group(0) @binding(0) var<storage, read> tris: array<vec4u>;
 @group(0) @binding(1) var<storage, read> tiles: array<Tile>;
-// Per pixel: [2p] crossings listed at the pixel (may exceed `capacity`: then the pixel is
-// undecided), [2p + 1] the outside-the-box winding of body a (low 16 bits) and b (high 16 bits).
+// Per pixel: [3p] crossings listed at the pixel (may exceed `capacity`: then the pixel is
+// undecided), [3p + 1] the outside-the-box winding of body a (low 16 bits) and b (high 16 bits),
+// [3p + 2] the pixel's tile + 1.
 @group(0) @binding(2) var<storage, read_write> pixels: array<atomic<u32>>;
 // Per pixel, `capacity` crossings: bits of the f32 depth relative to the box's near side with the
-// two low bits replaced by front << 1 | side.
-@group(0) @binding(3) var<storage, read_write> crossings: array<u32>;
+// two low bits replaced by front << 1 | side, and the packed face.
+@group(0) @binding(3) var<storage, read_write> crossings: array<vec2u>;
 @group(0) @binding(4) var<uniform> atlas: Atlas;
+@group(0) @binding(5) var<storage, read> tri_face: array<u32>;
+// The pixels with a listed crossing, for pass F5 (counter C_ACTIVE).
+@group(0) @binding(6) var<storage, read_write> active_pixels: array<u32>;
+@group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
 
 struct VertexOut {
     @builtin(position) position: vec4f,
@@ -33,6 +38,7 @@ struct VertexOut {
     @location(1) @interpolate(flat) flags: u32,
     @location(2) @interpolate(flat) depth: f32,   // the box's depth range, pixels
     @location(3) @interpolate(flat) window: vec4f,  // the tile's window: x0, y0, x1, y1 (atlas)
+    @location(4) @interpolate(flat) face: u32,
 };
 
 @vertex
@@ -48,6 +54,7 @@ fn vs(@builtin(vertex_index) vi: u32) -> VertexOut {
     out.depth = t.slab.y - t.slab.x;
     let corner = vec2f(f32(t.window.x), f32(t.window.y));
     out.window = vec4f(corner, corner + vec2f(f32(t.window.z), f32(t.window.w)));
+    out.face = tri_face[vi / 3u];
     return out;
 }
 
@@ -75,12 +82,16 @@ fn fs(in: VertexOut) {
         // face turned towards that side: +1; leaves it through one turned away: -1.
         let towards = (front == 1u) != (back == 1u);
         let one = select(0xFFFFFFFFu, 1u, towards);
-        atomicAdd(&pixels[2u * pixel + 1u], select(one, one << 16u, side == 1u));
+        atomicAdd(&pixels[3u * pixel + 1u], select(one, one << 16u, side == 1u));
     } else if (within) {
-        let slot = atomicAdd(&pixels[2u * pixel], 1u);
+        let slot = atomicAdd(&pixels[3u * pixel], 1u);
+        if (slot == 0u) {
+            atomicStore(&pixels[3u * pixel + 2u], (in.flags >> 3u) + 1u);
+            active_pixels[atomicAdd(&counters[C_ACTIVE], 1u)] = pixel;
+        }
         if (slot < atlas.capacity) {
             crossings[pixel * atlas.capacity + slot] =
-                (bitcast<u32>(in.z) & 0xFFFFFFFCu) | (front << 1u) | side;
+                vec2u((bitcast<u32>(in.z) & 0xFFFFFFFCu) | (front << 1u) | side, in.face);
         }
     }
 }

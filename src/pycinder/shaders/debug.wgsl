@@ -1,25 +1,23 @@
-// debug-buffers: copy the depth and stencil aspects into a buffer that can be read back
-// (a depth24plus texture cannot be copied to a buffer directly).
+// debug-buffers: read the stencil buffer portably. A full-screen triangle is drawn once per
+// stencil value v with the stencil test "equal v" (the reference is set per draw), writing v into
+// an r8uint target: afterwards every pixel holds its stencil value. (Depth-stencil textures cannot
+// be read by shaders or copied by aspect on every backend.)
 
-struct Params {
-    width: u32,
-    height: u32,
-    _pad0: u32,
-    _pad1: u32,
+struct VertexOut {
+    @builtin(position) position: vec4f,
+    @location(0) @interpolate(flat) value: u32,
 };
 
-@group(0) @binding(0) var depth_tex: texture_depth_2d;
-@group(0) @binding(1) var stencil_tex: texture_2d<u32>;
-@group(0) @binding(2) var<storage, read_write> out_depth: array<f32>;
-@group(0) @binding(3) var<storage, read_write> out_stencil: array<u32>;
-@group(0) @binding(4) var<uniform> params: Params;
+@vertex
+fn vs(@builtin(vertex_index) vi: u32, @builtin(instance_index) value: u32) -> VertexOut {
+    let corner = vec2f(f32((vi << 1u) & 2u), f32(vi & 2u));
+    var out: VertexOut;
+    out.position = vec4f(corner * 2.0 - 1.0, 0.5, 1.0);
+    out.value = value;
+    return out;
+}
 
-@compute @workgroup_size(8, 8)
-fn dump(@builtin(global_invocation_id) gid: vec3u) {
-    if (gid.x >= params.width || gid.y >= params.height) {
-        return;
-    }
-    let i = gid.y * params.width + gid.x;
-    out_depth[i] = textureLoad(depth_tex, vec2i(gid.xy), 0);
-    out_stencil[i] = textureLoad(stencil_tex, vec2i(gid.xy), 0).r;
+@fragment
+fn fs(in: VertexOut) -> @location(0) vec4u {
+    return vec4u(in.value, 0u, 0u, 0u);
 }

@@ -8,6 +8,7 @@
 // collides, and the sample is appended as a record. Samples at pixels whose list overflowed are
 // counted as undecided (the host then retries their tiles with thinner boxes).
 //!include tiles.wgsl
+//!include lists.wgsl
 
 struct Params {
     atlas_width: u32,
@@ -26,7 +27,7 @@ struct Params {
 @group(0) @binding(3) var<storage, read> edges: array<u32>;
 @group(0) @binding(4) var<storage, read> edge_items: array<vec2u>;
 @group(0) @binding(5) var<storage, read> pixels: array<u32>;
-@group(0) @binding(6) var<storage, read> crossings: array<u32>;
+@group(0) @binding(6) var<storage, read> crossings: array<vec2u>;
 // Per tile: [2t] samples found inside, [2t + 1] samples undecided; then a hit flag per pair.
 @group(0) @binding(7) var<storage, read_write> tile_counts: array<atomic<u32>>;
 // Per record: tile, pixel u | v << 16, f32 bits of the sample's z, edge | side << 31.
@@ -36,15 +37,6 @@ struct Params {
 
 fn position(v: u32) -> vec3f {
     return vec3f(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
-}
-
-fn winding_outside(packed: u32, side: u32) -> i32 {
-    let lo = i32(packed << 16u) >> 16u;                  // the low half, sign-extended
-    if (side == 0u) {
-        return lo;
-    }
-    let rest = (packed - u32(lo)) >> 16u;                 // the high half, once the low is taken off
-    return i32(rest << 16u) >> 16u;
 }
 
 @compute @workgroup_size(64)
@@ -101,32 +93,18 @@ fn edge_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) 
         let x = min(u32(max(s.x, 0.0)), w - 1u);
         let y = min(u32(max(s.y, 0.0)), h - 1u);
         let pixel = (t.window.y + y) * params.atlas_width + t.window.x + x;
-        let listed = pixels[2u * pixel];
+        let listed = pixels[3u * pixel];
         if (listed > cap) {
             undecided++;
             continue;
         }
-        var winding = winding_outside(pixels[2u * pixel + 1u], other);
-        let z = s.z - t.slab.x;
-        for (var k = 0u; k < listed; k++) {
-            let entry = crossings[pixel * cap + k];
-            if ((entry & 1u) != other) {
-                continue;
-            }
-            let ze = bitcast<f32>(entry & 0xFFFFFFFCu);
-            let front = (entry & 2u) != 0u;
-            if (!back && ze < z) {
-                winding += select(-1, 1, front);
-            } else if (back && ze > z) {
-                winding += select(1, -1, front);
-            }
-        }
+        let winding = winding_at(pixel, listed, cap, other, s.z - t.slab.x, back);
         if (winding != 0) {
             found++;
             let slot = atomicAdd(&counters[C_RECORDS], 1u);
             if (slot < params.record_cap) {
                 records[slot] = vec4u(tile_index, x | (y << 16u), bitcast<u32>(s.z),
-                                      e | (side << 31u));
+                                      e | (side << 31u));  // bit 30 clear: an edge sample
             }
         }
     }

@@ -10,7 +10,8 @@ struct Params {
 };
 
 @group(0) @binding(0) var<storage, read_write> counters: array<u32>;
-// [0..3) face-clip dispatch, [3..6) edge-test dispatch, [6..10) draw (vertices, 1, 0, 0)
+// [0..3) face-clip dispatch, [3..6) edge-test dispatch, [6..10) draw (vertices, 1, 0, 0),
+// [10..13) surface-test dispatch (64 pixels per workgroup)
 @group(0) @binding(1) var<storage, read_write> args: array<u32>;
 @group(0) @binding(2) var<uniform> params: Params;
 
@@ -43,4 +44,11 @@ fn after_clip() {
     args[7] = 1u;
     args[8] = 0u;
     args[9] = 0u;
+}
+
+// After the crossings: one thread per pixel with a listed crossing.
+@compute @workgroup_size(1)
+fn after_crossings() {
+    _ = params.face_cap;  // the three entry points share one bind group layout
+    rows((counters[C_ACTIVE] + 63u) / 64u, 10u);
 }

@@ -32,6 +32,7 @@ struct Cluster {
 const C_FACE_ITEMS: u32 = 0u;
 const C_EDGE_ITEMS: u32 = 1u;
 const C_TRIS: u32 = 2u;
+const C_ACTIVE: u32 = 3u;        // pixels with at least one listed crossing
 const C_RECORDS: u32 = 4u;       // edge samples found inside the other body
 const C_UNDECIDED: u32 = 5u;     // samples at pixels whose crossing list overflowed
 const C_SAMPLES: u32 = 6u;       // edge samples tested
