@@ -30,18 +30,21 @@ def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return lo[:, None, :] + bits[None] * (hi - lo)[:, None, :]
 
 
-def world_boxes(points: np.ndarray, owner: np.ndarray, transforms: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """World-space bounding boxes of bodies given body-space points that bound them.
+def world_boxes(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
+                transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World boxes of bodies, recomputed every frame from their transforms in O(N).
+
+    The intersection of two boxes that both hold the body: the world box of its transformed
+    body-space box, and that of its transformed bounding sphere (an ellipsoid under scaling,
+    whose half-width along world axis i is the radius times the norm of row i of the linear
+    part). The second is tight for round bodies, the first for boxy ones.
 
     Parameters
     ----------
-    points : (P, 3) float
-        Body-space points of all bodies, grouped by body (for example each body's convex hull
-        vertices, or the corners of its body-space box).
-    owner : (N + 1,) int
-        Prefix offsets: body ``i`` owns ``points[owner[i]:owner[i + 1]]``. Every body owns at
-        least one point.
+    local_lo, local_hi : (N, 3) float
+        Body-space bounding boxes.
+    radius : (N,) float
+        Radius of each body's bounding sphere about the centre of its box.
     transforms : (N, 4, 4) float
         World-from-body matrices.
 
@@ -49,12 +52,13 @@ def world_boxes(points: np.ndarray, owner: np.ndarray, transforms: np.ndarray
     -------
     lo, hi : (N, 3) float64
     """
-    counts = np.diff(owner)
-    body = np.repeat(np.arange(len(counts)), counts)
-    t = transforms[body]
-    world = np.einsum("pij,pj->pi", t[:, :3, :3], points) + t[:, :3, 3]
-    starts = owner[:-1]
-    return np.minimum.reduceat(world, starts, axis=0), np.maximum.reduceat(world, starts, axis=0)
+    t3 = transforms[:, :3, :3]
+    corners = np.einsum("nij,nkj->nki", t3, box_corners(local_lo, local_hi)) \
+        + transforms[:, None, :3, 3]
+    centre = np.einsum("nij,nj->ni", t3, 0.5 * (local_lo + local_hi)) + transforms[:, :3, 3]
+    half = radius[:, None] * np.linalg.norm(t3, axis=2)
+    return (np.maximum(corners.min(axis=1), centre - half),
+            np.minimum(corners.max(axis=1), centre + half))
 
 
 def sweep_and_prune(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

@@ -5,8 +5,9 @@
 
 A pair collides when any of its tiles found a sample inside the other body. A tile whose samples
 could not all be decided (a pixel held more crossings within the tile's box than its list) and
-found nothing is planned again with its box cut in two along the view, until nothing is
-undecided; whatever is still undecided after that is counted in ``stats.possibly_lost``.
+whose pair was not found by another tile is run again, with lists four times longer and then
+with its box cut in two along the view, until nothing is undecided; whatever is still undecided
+after that is counted in ``stats.possibly_lost`` and warned about.
 """
 
 from __future__ import annotations
@@ -27,8 +28,10 @@ from .scene import Scene
 from .scene.pack import ShapePack, pack_shapes, shape_layout
 from .tiles import TilePlan, plan_tiles, split_depth
 
-DEPTH_SPLITS = 4
-"""Times an undecided tile's box may be cut in two along the view before giving up."""
+RETRIES = 5
+"""Times undecided tiles are run again: first with longer lists, then with thinner boxes."""
+LARGER_LISTS = 1
+"""Retries that multiply the list capacity by 4 (8 -> 32) before cutting boxes."""
 
 
 def body_sizes(scene: Scene) -> np.ndarray:
@@ -55,6 +58,10 @@ class FocusedStrategy:
                                      gpu.max_binding // (ENTRY_BYTES * LIST_CAPACITY),
                                      gpu.max_resolution * 2048))
         self._pack: ShapePack | None = None
+
+    def _budget(self, capacity: int) -> int:
+        """Atlas pixels per round with lists of ``capacity`` crossings."""
+        return self.budget_pixels * self.passes.capacity // capacity
 
     def tolerances(self, scene: Scene, pairs: np.ndarray) -> np.ndarray:
         """(K,) tolerance of each candidate pair, in world units."""
@@ -96,34 +103,39 @@ class FocusedStrategy:
         t3 = time.perf_counter()
         stats.add_ms("upload", (t3 - t2) * 1e3)
         found_tiles, records, plans = [], [], []
-        current = plan
-        for attempt in range(DEPTH_SPLITS + 1):
+        current, capacity = plan, self.passes.capacity
+        for attempt in range(RETRIES + 1):
             out = self.passes.run(current, current.tile_from_body(scene.transforms),
                                   scene.body_shape, pack, len(pairs),
-                                  records=self.request.records != "none")
+                                  records=self.request.records != "none", list_capacity=capacity)
             self._count(stats, current, out)
             hit = out.tile_counts[:, 0] > 0
             found_tiles.append(current.bodies[hit])
             records.append((current, out.records))
             plans.append(current)
             undecided = out.tile_counts[:, 1] > 0
-            if not undecided.any():
-                break
-            decided = unique_pairs(current.bodies[hit, 0], current.bodies[hit, 1])
+            decided = unique_pairs(*np.concatenate(found_tiles).T)
             again = undecided & ~_member(current.bodies, decided)
             if not again.any():
                 break
-            if attempt == DEPTH_SPLITS:
+            if attempt == RETRIES:
                 lost = unique_pairs(current.bodies[again, 0], current.bodies[again, 1])
                 stats.possibly_lost = len(lost)
                 warn_at_caller(
                     f"{len(lost)} candidate pairs could not be decided: their tiles hold more "
-                    f"than {LIST_CAPACITY} surface crossings per pixel even with boxes cut "
-                    f"{2 ** DEPTH_SPLITS} times thinner (first pair: bodies "
+                    f"than {capacity} surface crossings per pixel even in boxes cut "
+                    f"{2 ** (RETRIES - LARGER_LISTS)} times thinner (first pair: bodies "
                     f"{lost[0].tolist()}); see stats.possibly_lost", LossWarning)
                 break
             stats.retries += 1
-            current = split_depth(current, np.flatnonzero(again), self.budget_pixels)
+            # First with longer lists (few tiles overflow, so memory is no concern), then with
+            # the boxes cut in two along the view.
+            which = np.flatnonzero(again)
+            if attempt < LARGER_LISTS:
+                capacity *= 4
+                current = split_depth(current, which, self._budget(capacity), cut=False)
+            else:
+                current = split_depth(current, which, self._budget(capacity))
         t4 = time.perf_counter()
         stats.add_ms("gpu", (t4 - t3) * 1e3)
         both = np.concatenate(found_tiles)

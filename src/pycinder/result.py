@@ -116,16 +116,15 @@ class CollisionResult:
 
     def edge_vertices(self) -> np.ndarray:
         """Each record's penetrating edge as (len(records), 2) int64 vertex indices into the
-        penetrating body's own vertex array."""
+        penetrating body's own vertex array; -1 for records that are not edge samples."""
         if self.scene is None:
             raise ValueError("this result has no scene to look edges up in")
         rec = self.records
-        out = np.zeros((len(rec), 2), dtype=np.int64)
-        if (rec["edge"] < 0).any():
-            raise ValueError("edge indices are not encoded in these records")
+        out = np.full((len(rec), 2), -1, dtype=np.int64)
+        edge = rec["edge"] >= 0
         shape = self.scene.body_shape[rec["penetrating"]]
-        for k in np.unique(shape):
-            sel = shape == k
+        for k in np.unique(shape[edge]):
+            sel = edge & (shape == k)
             out[sel] = self.scene.shapes[k].topology.edges[rec["edge"][sel]]
         return out
 

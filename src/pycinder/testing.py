@@ -125,14 +125,24 @@ class _Body:
         return self._points
 
 
-def _deep(a: _Body, b: _Body, depth: float) -> bool:
-    """Whether some surface sample of ``b`` lies inside ``a`` at least ``depth`` from its surface."""
-    lo, hi = a.mesh.bounds
+def _deep(a: _Body, b: _Body, depth: float, lo: np.ndarray, hi: np.ndarray) -> bool:
+    """Whether some surface sample of ``b`` lies inside ``a`` at least ``depth`` from its surface.
+
+    ``lo, hi``: the box of the bodies' intersection, where any such point lies."""
+    a_lo, a_hi = a.mesh.bounds
     pts = b.points
-    pts = pts[((pts >= lo + depth) & (pts <= hi - depth)).all(axis=1)]
+    pts = pts[((pts >= np.maximum(lo, a_lo + depth)) & (pts <= np.minimum(hi, a_hi - depth)))
+              .all(axis=1)]
     if len(pts) == 0:
         return False
-    return bool((trimesh.proximity.signed_distance(a.mesh, pts) >= depth).any())
+    # Deep points tend to lie near the middle of the intersection: test those first, in batches,
+    # and stop at the first one found.
+    middle = 0.5 * (np.maximum(lo, a_lo) + np.minimum(hi, a_hi))
+    pts = pts[np.argsort(np.linalg.norm(pts - middle, axis=1))]
+    for start in range(0, len(pts), 256):
+        if (trimesh.proximity.signed_distance(a.mesh, pts[start:start + 256]) >= depth).any():
+            return True
+    return False
 
 
 def ground_truth(meshes: list, transforms: list | np.ndarray | None = None,
@@ -158,8 +168,12 @@ def ground_truth(meshes: list, transforms: list | np.ndarray | None = None,
     classes = np.zeros(len(pairs), dtype=np.int8)  # 0 separate, 1 must, 2 ambiguous
     for k in np.flatnonzero(near):
         a, b, t = bodies[pairs[k, 0]], bodies[pairs[k, 1]], tol[k]
-        if (a.solid ^ b.solid).volume() > 0.0:
-            classes[k] = 1 if (_deep(a, b, 2 * t) or _deep(b, a, 2 * t)) else 2
+        both = a.solid ^ b.solid
+        if both.volume() > 0.0:
+            box = np.asarray(both.bounding_box(), dtype=np.float64)
+            lo_i, hi_i = box[:3], box[3:]
+            classes[k] = 1 if (_deep(a, b, 2 * t, lo_i, hi_i) or _deep(b, a, 2 * t, lo_i, hi_i)) \
+                else 2
         elif a.solid.min_gap(b.solid, 2 * t) < t:
             classes[k] = 2
     return Truth(pairs[classes == 1], pairs[classes == 0], pairs[classes == 2])

@@ -406,9 +406,11 @@ def _pack(t: dict, budget_pixels: int, separated: int) -> TilePlan:
                     band_round[global_band][o], round_rows, ATLAS_WIDTH, separated)
 
 
-def split_depth(plan: TilePlan, which: np.ndarray, budget_pixels: int) -> TilePlan:
-    """Tiles ``which`` of ``plan``, each cut in two along the view at the middle of its box and
-    packed into a new atlas: each half lists only the crossings within its own half of the box.
+def split_depth(plan: TilePlan, which: np.ndarray, budget_pixels: int, cut: bool = True
+                ) -> TilePlan:
+    """Tiles ``which`` of ``plan``, each cut in two along the view at the middle of its box (or
+    not cut, with ``cut=False``), packed into a new atlas: each half lists only the crossings
+    within its own half of the box.
 
     Parameters
     ----------
@@ -419,6 +421,12 @@ def split_depth(plan: TilePlan, which: np.ndarray, budget_pixels: int) -> TilePl
         Most atlas pixels per round.
     """
     z0, z1 = plan.slab[which, 0], plan.slab[which, 1]
+    if not cut:
+        t = {"pair": plan.pair[which], "bodies": plan.bodies[which], "axes": plan.axes[which],
+             "origin": plan.origin[which], "pixel": plan.pixel[which],
+             "w": plan.window[which, 2], "h": plan.window[which, 3], "slab": plan.slab[which],
+             "flags": plan.flags[which] & ~FLAG_SKIP_IF_HIT}
+        return _pack(t, budget_pixels, 0)
     mid = 0.5 * (z0 + z1)
     t = {
         "pair": np.tile(plan.pair[which], 2), "bodies": np.tile(plan.bodies[which], (2, 1)),
@@ -426,6 +434,6 @@ def split_depth(plan: TilePlan, which: np.ndarray, budget_pixels: int) -> TilePl
         "pixel": np.tile(plan.pixel[which], 2), "w": np.tile(plan.window[which, 2], 2),
         "h": np.tile(plan.window[which, 3], 2),
         "slab": np.concatenate([np.stack([z0, mid], axis=1), np.stack([mid, z1], axis=1)]),
-        "flags": np.tile(plan.flags[which], 2),
+        "flags": np.tile(plan.flags[which] & ~FLAG_SKIP_IF_HIT, 2),
     }
     return _pack(t, budget_pixels, 0)

@@ -279,7 +279,8 @@ class FocusedPasses:
     # -- one frame --------------------------------------------------------------------------
 
     def run(self, plan: TilePlan, matrices: np.ndarray, body_shape: np.ndarray,
-            pack: ShapePack, n_pairs: int, *, records: bool = True) -> FocusedOutput:
+            pack: ShapePack, n_pairs: int, *, records: bool = True,
+            list_capacity: int | None = None) -> FocusedOutput:
         """Run passes F1-F4 for every tile and read back what they found.
 
         Parameters
@@ -295,7 +296,10 @@ class FocusedPasses:
             Candidate pairs (``plan.pair`` indexes them).
         records : bool
             Read back the records (False: only the per-tile counts).
+        list_capacity : int, optional
+            Crossings kept per pixel in this run (default: the one given at construction).
         """
+        self.run_capacity = int(list_capacity or self.capacity)
         t = len(plan)
         words = tile_words(plan, matrices)
         shapes = body_shape[plan.bodies].reshape(-1)                    # entry e = 2 * tile + side
@@ -322,7 +326,7 @@ class FocusedPasses:
         rows = max(plan.round_rows) if plan.round_rows else 1
         self._ensure_target(width, rows)
         self.pixels.ensure(PIXEL_BYTES * width * rows)
-        self.lists.ensure(ENTRY_BYTES * self.capacity * width * rows)
+        self.lists.ensure(ENTRY_BYTES * self.run_capacity * width * rows)
         self.active.ensure(4 * width * rows)
         reruns = 0
         while True:
@@ -374,14 +378,14 @@ class FocusedPasses:
         for r in range(n_rounds):
             block[r, :6] = (round_threads[r], 2 * bounds[r], 2 * (bounds[r + 1] - bounds[r]),
                             items, items, 2 * len(plan))
-            block[r, surface:surface + 5] = (width, plan.round_rows[r], self.capacity,
+            block[r, surface:surface + 5] = (width, plan.round_rows[r], self.run_capacity,
                                              caps["records"] if want_records else 0, 2 * len(plan))
         self.round_params.write(block)
         frame = np.zeros((4, PARAM_STRIDE // 4), dtype=np.uint32)
         frame[P_FINALIZE, :4] = (items, items, caps["tris"], 0)
         frame[P_CLIP, :4] = (caps["tris"], items, 0, 0)
-        frame[P_ATLAS, :4] = (width, self.target.height, self.capacity, 0)
-        frame[P_EDGES, :5] = (width, self.capacity, caps["records"] if want_records else 0,
+        frame[P_ATLAS, :4] = (width, self.target.height, self.run_capacity, 0)
+        frame[P_EDGES, :5] = (width, self.run_capacity, caps["records"] if want_records else 0,
                               items, 2 * len(plan))
         queue.write_buffer(self.frame_params, 0, frame)
 

@@ -252,24 +252,17 @@ class Scene:
         """(N, 3) body-space box maximum of every body."""
         return self._per_shape([s.hi for s in self.shapes])
 
+    @property
+    def radius(self) -> np.ndarray:
+        """(N,) radius of every body's body-space bounding sphere about its box's centre."""
+        return self._per_shape([s.radius for s in self.shapes])
+
     def world_boxes(self) -> tuple[np.ndarray, np.ndarray]:
-        """(N, 3) world box minimum and maximum of every body.
+        """(N, 3) world box minimum and maximum of every body (see
+        :func:`pycinder.broadphase.world_boxes`)."""
+        from ..broadphase import world_boxes
 
-        The intersection of two bounds that both contain the body: the world box of its
-        transformed body-space box, and that of its transformed bounding sphere (an ellipsoid
-        under scaling, whose box half-width along world axis i is the radius times the norm of
-        row i of the linear part).
-        """
-        from ..broadphase import box_corners
-
-        t = self.transforms
-        lo, hi = self.local_lo, self.local_hi
-        corners = np.einsum("nij,nkj->nki", t[:, :3, :3], box_corners(lo, hi)) + t[:, None, :3, 3]
-        radius = np.array([s.radius for s in self.shapes])[self.body_shape]
-        centre = np.einsum("nij,nj->ni", t[:, :3, :3], 0.5 * (lo + hi)) + t[:, :3, 3]
-        half = radius[:, None] * np.linalg.norm(t[:, :3, :3], axis=2)
-        return (np.maximum(corners.min(axis=1), centre - half),
-                np.minimum(corners.max(axis=1), centre + half))
+        return world_boxes(self.local_lo, self.local_hi, self.radius, self.transforms)
 
 
 def prepare_scene(bodies: Sequence[Any], transforms: Any = None, *,
