@@ -1,4 +1,4 @@
-"""Bad input gets a clear error naming the body and the problem."""
+"""Bad input gets a clear error naming the body and the problem; warnings point at the caller."""
 
 import warnings
 
@@ -15,7 +15,7 @@ from pycinder.gpu import device as gpu_device
 
 @pytest.fixture(scope="module")
 def det() -> pycinder.Detector:
-    return pycinder.Detector(128)
+    return pycinder.Detector()
 
 
 def box_arrays():
@@ -66,9 +66,9 @@ def test_zero_area_face_warns_and_strict_raises():
     v = np.array([[0, 0, 0], [1, 0, 0], [0.5, 0, 0], [0, 0, 1.0]])
     f = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]])
     with pytest.warns(pycinder.DegenerateFaceWarning, match="body 0.*zero area"):
-        pycinder.Detector(64).find_collisions([(v, f)])
+        pycinder.Detector().find_collisions([(v, f)])
     with pytest.raises(ValueError, match="body 0.*zero area"):
-        pycinder.Detector(64, strict=True).find_collisions([(v, f)])
+        pycinder.Detector(strict=True).find_collisions([(v, f)])
 
 
 @pytest.mark.parametrize("mesh", [(np.zeros((0, 3)), np.zeros((0, 3), int)),
@@ -82,9 +82,9 @@ def test_open_mesh_warns_and_strict_raises():
     box = trimesh.creation.box((1, 1, 1))
     open_box = trimesh.Trimesh(box.vertices, box.faces[:-2], process=False)
     with pytest.warns(pycinder.OpenMeshWarning, match=r"body 1 \('lid'\).*2 boundary edges|body 1 \('lid'\).*boundary edges"):
-        pycinder.Detector(64).find_collisions([box, open_box], names=["box", "lid"])
+        pycinder.Detector().find_collisions([box, open_box], names=["box", "lid"])
     with pytest.raises(ValueError, match=r"body 1 \('lid'\).*not a closed"):
-        pycinder.Detector(64, strict=True).find_collisions([box, open_box], names=["box", "lid"])
+        pycinder.Detector(strict=True).find_collisions([box, open_box], names=["box", "lid"])
 
 
 def test_inconsistent_winding_is_reported():
@@ -92,25 +92,37 @@ def test_inconsistent_winding_is_reported():
     faces = np.array(box.faces)
     faces[0] = faces[0, ::-1]
     with pytest.warns(pycinder.OpenMeshWarning, match="inconsistently wound"):
-        pycinder.Detector(64).find_collisions([(box.vertices, faces)])
+        pycinder.Detector().find_collisions([(box.vertices, faces)])
+
+
+def test_inside_out_mesh_is_reported():
+    box = trimesh.creation.box((1, 1, 1))
+    with pytest.warns(pycinder.OpenMeshWarning, match=r"body 0 \('inverted'\).*inside out") as w:
+        pycinder.Detector().find_collisions([(box.vertices, box.faces[:, ::-1])], names=["inverted"])
+    assert w[0].filename == __file__
+    with pytest.raises(ValueError, match="inside out"):
+        pycinder.Detector(strict=True).find_collisions([(box.vertices, box.faces[:, ::-1])])
 
 
 def test_too_many_bodies(det):
     box = box_arrays()
-    with pytest.raises(ValueError, match=r"65536 bodies.*65535"):
-        det.find_collisions([box] * 65536)
+    scene = pycinder.Detector(strategy="scene", resolution=64)
+    with pytest.raises(ValueError, match=r"65536 bodies is more than the 65535"):
+        scene.find_collisions([box] * 65536)
+    with pytest.raises(ValueError, match=r"16777216 bodies is more than the 16777215"):
+        det.find_collisions([box] * 2**24)
 
 
 def test_resolution_over_device_limit():
     limit = gpu_device.get_gpu().max_resolution
     with pytest.raises(ValueError, match=rf"{limit + 1}.*over this device's texture limit of {limit}"):
-        pycinder.Detector(limit + 1)
+        pycinder.Detector(strategy="scene", resolution=limit + 1)
 
 
 @pytest.mark.parametrize("bad", [0, -5, 1.5, True, "512"])
 def test_resolution_must_be_a_positive_integer(bad):
     with pytest.raises(ValueError, match="resolution"):
-        pycinder.Detector(bad)
+        pycinder.Detector(strategy="scene", resolution=bad)
 
 
 def test_no_adapter(monkeypatch):
@@ -140,7 +152,11 @@ def test_wrong_shapes_and_types(det):
         t[3, 0] = 1
         det.find_collisions([box_arrays()], [t])
     with pytest.raises(ValueError, match="self_interference must be one of"):
-        pycinder.Detector(64, self_interference="ignore")
+        pycinder.Detector(strategy="scene", self_interference="ignore")
+    with pytest.raises(ValueError, match=r"body 1\b.*transform is singular"):
+        det.find_collisions([box_arrays(), box_arrays()], [np.eye(4), np.diag([1.0, 0, 1, 1])])
+    with pytest.raises(ValueError, match="one name per body"):
+        det.find_collisions([box_arrays(), box_arrays()], names=["only one"])
 
 
 def test_valid_input_still_works_after_errors(det):

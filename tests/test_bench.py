@@ -1,4 +1,4 @@
-"""The benchmark harness: peers agree with exact geometry on a small scene, reports are written."""
+"""The benchmark harness: every system scored against exact geometry, reports written."""
 
 import json
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pycinder.benchmarks import peers, report, runner
-from pycinder.benchmarks.scenes import SphereField
+from pycinder.benchmarks.scenes import SphereField, SpreadPairs
 
 pytest.importorskip("fcl")
 
@@ -23,20 +23,34 @@ def test_aabb_candidates_match_brute_force():
 
 def test_run_scene_scores_every_system(tmp_path):
     scene = SphereField(12, 2, frames=2)
-    systems = [peers.Pycinder(512), peers.FCL(), peers.Trimesh()]
-    try:
-        systems.append(peers.Coal())
-    except ImportError:
-        pass
+    systems = [peers.Pycinder(), peers.FCL(), peers.Trimesh()]
+    systems += runner.make_peers(["coal", "warp"])
     entry = runner.run_scene(scene, systems)
     for name, acc in entry["accuracy"].items():
         assert acc["false"] == 0, name
         assert acc["recall"] == 1.0, name
+    assert acc["must"] > 0
     assert set(entry["median_ms"]) == {s.name for s in systems}
+    assert entry["pycinder_stats"]["candidates"] > 0
     results = {"machine": {"date": "today", "adapter": "test", "cpu": "cpu", "cores": 1,
                            "python": "3", "versions": {}, "command": "pycinder bench"},
-               "resolution": 512, "pycinder_options": {}, "scenes": {"spheres": entry},
-               "sweeps": {}}
+               "peers": [s.name for s in systems[1:]], "scenes": {"stairs": entry}, "sweeps": {}}
     paths = report.write(results, tmp_path)
-    assert json.loads(paths[0].read_text())["scenes"]["spheres"]["bodies"] == 12
-    assert "| spheres-12x320 |" in paths[1].read_text()
+    assert json.loads(paths[0].read_text())["scenes"]["stairs"]["bodies"] == 12
+    text = paths[1].read_text()
+    assert "| spheres-12x320 |" in text and "Stairs-250" in text
+    assert (tmp_path / "scenes.png").stat().st_size > 1000
+
+
+def test_spread_pairs_are_what_they_say():
+    """Half the pairs must be found, half are apart, whatever the extent."""
+    for extent in (10.0, 10000.0):
+        scene = SpreadPairs(extent, pairs=8, frames=1)
+        truth = runner.truth_for(scene, 0, tolerance=scene.params["tolerance"])
+        assert len(truth.overlap) == 4 and len(truth.separate) == 8 * 15 - 4
+
+
+def test_soak_keeps_memory_steady():
+    soak = runner.run_soak(frames=300, every=50)
+    assert soak["topology_builds"] == 3 and soak["pairs_found"] > 0
+    assert len(soak["samples"]) >= 6

@@ -36,18 +36,42 @@ def test_check_exit_codes(files, capsys):
 
 
 def test_check_json(files, capsys):
-    code = main(["check", "--json", "--resolution", "512", str(files / "box.stl"),
+    code = main(["check", "--json", "--tolerance", "0.005", str(files / "box.stl"),
                  str(files / "ball.obj")])
     data = json.loads(capsys.readouterr().out)
     assert code == 1 and data["collision"] is True
     assert [(p["a"], p["b"]) for p in data["pairs"]] == [("box.stl", "ball.obj")]
-    assert data["pairs"][0]["pixels"] > 0
+    assert data["pairs"][0]["samples"] > 0
+    assert data["strategy"] == "focused" and data["tolerance"] == [0.005, 0.005]
+    code = main(["check", "--json", "--strategy", "scene", "--resolution", "256",
+                 str(files / "box.stl"), str(files / "ball.obj")])
+    assert code == 1 and json.loads(capsys.readouterr().out)["resolution"] == 256
+    assert main(["check", "--resolution", "256", str(files / "box.stl")]) == 2
+    assert "--strategy scene" in capsys.readouterr().err
 
 
 def test_check_bad_file_is_exit_2(tmp_path, capsys):
     bad = tmp_path / "bad.stl"
     bad.write_text("solid nothing\nendsolid\n")
     assert main(["check", str(bad)]) == 2
+    unknown = tmp_path / "part.step"
+    unknown.write_text("ISO-10303-21;")
+    assert main(["check", str(unknown)]) == 2
+    assert "unknown mesh format '.step'" in capsys.readouterr().err
+    nan = tmp_path / "nan.obj"
+    nan.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\n")
+    assert main(["check", str(nan)]) == 2
+    assert "nan.obj: 1 vertices are NaN" in capsys.readouterr().err
+
+
+def test_check_open_mesh_names_the_cli_option(tmp_path, capsys):
+    box = trimesh.creation.box((1, 1, 1))
+    trimesh.Trimesh(box.vertices, box.faces[:-2]).export(tmp_path / "open.stl")
+    assert main(["check", str(tmp_path / "open.stl")]) == 0
+    err = capsys.readouterr().err
+    assert "not a closed" in err and "--strict" in err and "strict=True" not in err
+    assert main(["check", "--strict", str(tmp_path / "open.stl")]) == 2
+    assert "--strict" in capsys.readouterr().err
 
 
 def test_console_script_runs(files):
@@ -68,8 +92,8 @@ def test_debug_buffers_writes_the_papers_figures(tmp_path):
 def test_captured_buffers_follow_the_algorithm():
     """Hand-checked facts of Figures 9-13 on the three boxes."""
     boxes, _, view = three_boxes()
-    buf = BufferCapture(Detector(256, readback="full", self_interference="filter")).capture(
-        boxes, view=view)
+    buf = BufferCapture(Detector(strategy="scene", resolution=256, readback="full",
+                                 self_interference="filter")).capture(boxes, view=view)
     depth = buf["pass1_depth"]
     edge = depth > 0
     assert 0.02 < edge.mean() < 0.5                       # only edges are drawn (Figure 9b)

@@ -12,7 +12,7 @@ from pycinder.demos.run import run
                                       ("normals", "frames")])
 def test_demo_writes_its_output(tmp_path, name, out):
     target = tmp_path / out
-    summary = run(name, frames=4, out=str(target), resolution=256, quiet=True)
+    summary = run(name, frames=4, out=str(target), quiet=True)
     assert len(summary["counts"]) == 4 and len(summary["ms"]) == 4
     assert "median detection" in summary["summary"]
     if target.suffix:
@@ -22,8 +22,8 @@ def test_demo_writes_its_output(tmp_path, name, out):
 
 
 def test_same_seed_same_run():
-    a = run("stairs", frames=30, resolution=256, seed=3, quiet=True)
-    b = run("stairs", frames=30, resolution=256, seed=3, quiet=True)
+    a = run("stairs", frames=30, seed=3, quiet=True)
+    b = run("stairs", frames=30, seed=3, quiet=True)
     assert a["counts"] == b["counts"]
     assert np.array_equal(a["sim"].position, b["sim"].position)
 
@@ -43,7 +43,7 @@ def test_stairs_no_sphere_ends_a_frame_inside_a_step():
 
 
 def test_snow_frozen_flakes_lie_on_the_bunny_or_the_floor():
-    sim = snow.SnowSim(flakes=80, seed=2, resolution=512)
+    sim = snow.SnowSim(flakes=80, seed=2)
     for _ in range(70):
         sim.step()
     assert len(sim.frozen) >= 10
@@ -59,18 +59,18 @@ def test_snow_frozen_flakes_lie_on_the_bunny_or_the_floor():
 
 
 def test_snow_open_scan_warns_and_repair_closes_it():
-    open_sim = snow.SnowSim(flakes=10, seed=0, resolution=128, scan=True)
+    open_sim = snow.SnowSim(flakes=10, seed=0, scan=True)
     assert not open_sim.bunny.is_watertight
     open_sim.step()
     assert open_sim.warnings and "not a closed" in open_sim.warnings[0]
-    fixed = snow.SnowSim(flakes=10, seed=0, resolution=128, scan=True, close_holes=True)
+    fixed = snow.SnowSim(flakes=10, seed=0, scan=True, close_holes=True)
     assert fixed.bunny.is_watertight
     fixed.step()
     assert not fixed.warnings
 
 
 def test_normals_from_records_match_the_bunny_faces():
-    sim = normals.NormalsSim(spheres=24, seed=4, resolution=512)
+    sim = normals.NormalsSim(spheres=24, seed=4)
     for _ in range(90):
         sim.step()
     points = np.concatenate([p for p, _ in sim.contacts if len(p)])

@@ -143,17 +143,16 @@ def cmd_bench(args: argparse.Namespace) -> int:
     scenes = args.scenes or runner.DEFAULT_SCENES
     try:
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-    except ImportError:  # pragma: no cover
+    except ImportError:  # pragma: no cover - rich comes with the bench extra
         Progress = None
+    options = {"repeat": args.repeat, "peers": args.peers, "soak_frames": args.soak_frames}
     if Progress is not None:
         with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn()) as bar:
             task = bar.add_task("benchmarks", total=None)
-            results = runner.run(scenes, repeat=args.repeat, resolution=args.resolution,
-                                 peers=args.peers,
-                                 progress=lambda msg: bar.update(task, description=msg, advance=1))
+            results = runner.run(scenes, **options,
+                                 progress=lambda msg: bar.update(task, description=msg))
     else:
-        results = runner.run(scenes, repeat=args.repeat, resolution=args.resolution,
-                             peers=args.peers, progress=lambda msg: print(msg, flush=True))
+        results = runner.run(scenes, **options, progress=lambda msg: print(msg, flush=True))
     for p in report.write(results, args.out, stem=args.stem):
         print(f"wrote {p}")
     return 0
@@ -226,13 +225,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="snow-bunny with --scan: repair the holes first")
     p.set_defaults(func=cmd_demo)
 
-    p = sub.add_parser("bench", help="time pycinder against python-fcl, coal and trimesh")
+    p = sub.add_parser("bench", help="time pycinder against python-fcl, coal, trimesh and Warp")
     p.add_argument("scenes", nargs="*", metavar="SCENE",
-                   help="stairs, deforming, many, narrow, sweep-triangles, sweep-bodies, "
-                        "sweep-resolution, modes (default: all)")
+                   help="stairs, many, deforming, narrow, sweep-extent, sweep-bodies, "
+                        "sweep-triangles, sweep-tolerance, modes, soak (default: all)")
     p.add_argument("--repeat", type=int, default=5, help="frames timed per scene")
-    p.add_argument("--resolution", type=int, default=1024)
-    p.add_argument("--peers", nargs="*", default=["python-fcl", "coal", "trimesh"])
+    p.add_argument("--peers", nargs="*", default=["python-fcl", "coal", "trimesh", "warp"])
+    p.add_argument("--soak-frames", type=int, default=100_000,
+                   help="frames of the memory soak (scene 'soak')")
     p.add_argument("--out", default="benchmarks/results", metavar="DIR")
     p.add_argument("--stem", default="results", help="file name stem of the JSON and Markdown")
     p.set_defaults(func=cmd_bench)

@@ -107,7 +107,9 @@ class FocusedStrategy:
         for attempt in range(RETRIES + 1):
             out = self.passes.run(current, current.tile_from_body(scene.transforms),
                                   scene.body_shape, pack, len(pairs),
-                                  records=self.request.records != "none", list_capacity=capacity)
+                                  records=self.request.records != "none",
+                                  all_records=self.request.records == "all",
+                                  list_capacity=capacity)
             self._count(stats, current, out)
             hit = out.tile_counts[:, 0] > 0
             found_tiles.append(current.bodies[hit])

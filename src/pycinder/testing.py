@@ -36,7 +36,8 @@ def _manifold3d() -> Any:
     try:
         import manifold3d
     except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ImportError("exact ground truth needs manifold3d: pip install 'pycinder[test]'") from exc
+        raise ImportError("exact ground truth needs manifold3d: pip install 'pycinder[test]' (or "
+                          "'pycinder[bench]')") from exc
     return manifold3d
 
 

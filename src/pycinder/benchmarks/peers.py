@@ -1,6 +1,7 @@
 """The systems compared, each answering "which pairs collide in this frame?".
 
-* pycinder: one :class:`~pycinder.Detector` kept across frames.
+* pycinder: one :class:`~pycinder.Detector` kept across frames, asked for pairs only
+  (``records="none"``) like the others; ``pycinder-scene`` is the paper's whole-scene strategy.
 * python-fcl: ``BVHModel`` objects in a ``DynamicAABBTreeCollisionManager``; python-fcl cannot
   refit, so deforming meshes are rebuilt every frame.
 * coal: ``BVHModelOBBRSS`` refitted through ``beginReplaceModel``/``replaceSubModel``. Its Python
@@ -8,6 +9,8 @@
   world AABBs and each candidate goes through ``coal.collide``.
 * trimesh: ``trimesh.collision.CollisionManager`` (FCL underneath, with trimesh's own overhead);
   deforming meshes are re-added every frame.
+* warp: NVIDIA Warp's ``wp.Mesh`` BVHs, refitted every frame when bodies deform, with a
+  triangle-versus-BVH kernel (:mod:`.warp_peer`); its CPU device here, CUDA on a GPU.
 
 Every peer reports all colliding pairs, not just the first.
 """
@@ -18,24 +21,15 @@ from typing import Any
 
 import numpy as np
 
+from ..broadphase import sweep_and_prune
 from ..detector import Detector
 from .scenes import Scene
 
 
 def aabb_candidates(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Pairs (K, 2) whose boxes overlap; lo, hi : (N, 3). Sort-and-sweep on x, vectorised."""
-    order = np.argsort(lo[:, 0])
-    lo_s, hi_s = lo[order], hi[order]
-    out = []
-    # for each box, the boxes that start before it ends on x
-    ends = np.searchsorted(lo_s[:, 0], hi_s[:, 0], side="right")
-    for i in np.flatnonzero(ends > np.arange(len(order)) + 1):
-        j = np.arange(i + 1, ends[i])
-        ok = (lo_s[j, 1:] <= hi_s[i, 1:]).all(axis=1) & (hi_s[j, 1:] >= lo_s[i, 1:]).all(axis=1)
-        if ok.any():
-            a, b = order[i], order[j[ok]]
-            out.append(np.c_[np.minimum(a, b), np.maximum(a, b)])
-    return np.concatenate(out) if out else np.zeros((0, 2), dtype=np.int64)
+    """Pairs (K, 2) whose world boxes overlap; lo, hi : (N, 3). The peers get pycinder's own
+    vectorised sweep, so that no system pays for a slow broad phase."""
+    return sweep_and_prune(lo, hi)
 
 
 def world_aabbs(verts: list[np.ndarray], transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -45,6 +39,17 @@ def world_aabbs(verts: list[np.ndarray], transforms: np.ndarray) -> tuple[np.nda
         lo.append(w.min(axis=0))
         hi.append(w.max(axis=0))
     return np.array(lo), np.array(hi)
+
+
+def require(module: str, package: str) -> Any:
+    """Import an optional peer, or say which extra installs it."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise ImportError(f"the {package} peer needs {package}: pip install 'pycinder[bench]' "
+                          f"(from a clone: pip install '.[bench]')") from exc
 
 
 def as_pairs(found: set[tuple[int, int]]) -> np.ndarray:
@@ -63,9 +68,12 @@ class System:
 
 
 class Pycinder(System):
-    def __init__(self, resolution: int = 1024, **options: Any) -> None:
-        self.detector = Detector(resolution, **options)
-        self.name = "pycinder"
+    """pycinder with a request's options (default: the focused strategy, pairs only)."""
+
+    def __init__(self, name: str = "pycinder", **options: Any) -> None:
+        options.setdefault("records", "none")
+        self.detector = Detector(**options)
+        self.name = name
         self.last = None
 
     def step(self, scene: Scene, k: int) -> np.ndarray:
@@ -78,9 +86,7 @@ class FCL(System):
     name = "python-fcl"
 
     def __init__(self) -> None:
-        import fcl
-
-        self.fcl = fcl
+        fcl = self.fcl = require("fcl", "python-fcl")
         self.request = fcl.CollisionRequest(num_max_contacts=1, enable_contact=False)
 
     def _build(self, verts: list[np.ndarray], faces: list[np.ndarray], transforms: np.ndarray) -> None:
@@ -130,9 +136,7 @@ class Coal(System):
     name = "coal"
 
     def __init__(self) -> None:
-        import coal
-
-        self.coal = coal
+        self.coal = require("coal", "coal")
 
     def prepare(self, scene: Scene) -> None:
         coal = self.coal
@@ -195,4 +199,10 @@ class Trimesh(System):
         return as_pairs({tuple(sorted((int(a), int(b)))) for a, b in names})
 
 
-PEERS = {"python-fcl": FCL, "coal": Coal, "trimesh": Trimesh}
+def _warp() -> System:
+    from .warp_peer import Warp
+
+    return Warp()
+
+
+PEERS = {"python-fcl": FCL, "coal": Coal, "trimesh": Trimesh, "warp": _warp}

@@ -1,10 +1,16 @@
-"""Time pycinder and its peers on the same frames, interleaved, and score them against exact
-geometry. ``pycinder bench [SCENE...] [--repeat N] [--out DIR]``."""
+"""Time pycinder and its peers on the same frames, interleaved, and score every system against
+the same exact geometry. ``pycinder bench [SCENE...] [--repeat N] [--out DIR]``.
+
+Scoring (:func:`pycinder.testing.ground_truth`) uses pycinder's default tolerance per pair (1% of
+the smaller body's size) for every system: recall over the pairs that penetrate by at least two
+tolerances, and the pairs reported though at least one tolerance apart.
+"""
 
 from __future__ import annotations
 
 import datetime as _dt
 import importlib.metadata as md
+import os
 import platform
 import statistics
 import sys
@@ -16,11 +22,16 @@ import numpy as np
 
 from ..testing import ground_truth
 from .peers import PEERS, Pycinder, System
-from .scenes import SCENES, Scene, Stairs
+from .scenes import SCENES, Scene, SphereField, Stairs
 
-DEFAULT_SCENES = ["stairs", "deforming", "many", "narrow", "sweep-triangles", "sweep-bodies",
-                  "sweep-resolution", "modes"]
-DEFAULT_OPTIONS = {"readback": "compact", "self_interference": "prevent"}
+DEFAULT_SCENES = ["stairs", "many", "deforming", "narrow", "sweep-extent", "sweep-bodies",
+                  "sweep-triangles", "sweep-tolerance", "modes", "soak"]
+DEFAULT_PEERS = ["python-fcl", "coal", "trimesh", "warp"]
+TOLERANCE_SWEEP = (0.001, 0.0028, 0.005, 0.01)
+"""World tolerances of the Stairs tolerance sweep (the spheres are 0.16 across; pycinder's
+default tolerance for them is 0.0028)."""
+
+Progress = Callable[[str], None]
 
 
 def machine_info() -> dict[str, Any]:
@@ -34,13 +45,13 @@ def machine_info() -> dict[str, Any]:
 
     cpu = platform.processor()
     try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
     except OSError:
         pass
-    import os
     return {
         "date": _dt.date.today().isoformat(),
         "adapter": get_gpu().description,
@@ -48,83 +59,111 @@ def machine_info() -> dict[str, Any]:
         "cores": os.cpu_count(),
         "python": sys.version.split()[0],
         "versions": {n: version(n) for n in ("pycinder", "wgpu", "numpy", "trimesh", "python-fcl",
-                                             "coal", "manifold3d")},
+                                             "coal", "warp-lang", "manifold3d")},
         "command": "pycinder bench " + " ".join(sys.argv[2:]) if sys.argv[1:2] == ["bench"] else "",
     }
 
 
-def truth_for(scene: Scene, k: int):
+def truth_for(scene: Scene, k: int, tolerance: float | None = None):
     import trimesh
 
     verts, transforms = scene.frame(k)
     meshes = [trimesh.Trimesh(v, f, process=False) for v, f in zip(verts, scene.faces)]
-    return ground_truth(meshes, list(transforms))
+    return ground_truth(meshes, list(transforms), tolerance=tolerance)
+
+
+def make_peers(names: Sequence[str], progress: Progress | None = None) -> list[System]:
+    """The peers that can run here; one that cannot is reported and left out."""
+    out = []
+    for name in names:
+        try:
+            out.append(PEERS[name]())
+        except ImportError as exc:
+            if progress:
+                progress(f"left out {name}: {exc}")
+    return out
 
 
 def run_scene(scene: Scene, systems: Sequence[System], *, truth_frames: Sequence[int] = (0,),
-              advance: Callable[[], None] = lambda: None) -> dict[str, Any]:
+              tolerance: float | None = None) -> dict[str, Any]:
     """Time every system on every frame, rotating which goes first, and score the truth frames."""
+    scene.cached()
     for s in systems:
         s.prepare(scene)
         s.step(scene, 0)  # warm-up: pipelines, caches, first builds
     times: dict[str, list[float]] = {s.name: [] for s in systems}
     pairs: dict[str, dict[int, np.ndarray]] = {s.name: {} for s in systems}
-    for k in scene.iter_frames():
+    for k in range(scene.frames):
         order = list(systems[k % len(systems):]) + list(systems[:k % len(systems)])
         for s in order:
             t0 = time.perf_counter()
             found = s.step(scene, k)
             times[s.name].append((time.perf_counter() - t0) * 1e3)
             pairs[s.name][k] = found
-        advance()
-    accuracy: dict[str, dict[str, Any]] = {s.name: {"overlaps": 0, "found": 0, "false": 0}
-                                           for s in systems}
+    accuracy = {s.name: {"must": 0, "found": 0, "false": 0} for s in systems}
     for k in truth_frames:
-        truth = truth_for(scene, k)
+        truth = truth_for(scene, k, tolerance)
         for s in systems:
             score = truth.score(pairs[s.name][k])
             acc = accuracy[s.name]
-            acc["overlaps"] += score["overlaps"]
+            acc["must"] += score["overlaps"]
             acc["found"] += score["found"]
             acc["false"] += len(score["false"])
     for acc in accuracy.values():
-        acc["recall"] = acc["found"] / acc["overlaps"] if acc["overlaps"] else 1.0
+        acc["recall"] = acc["found"] / acc["must"] if acc["must"] else 1.0
     median = {n: statistics.median(t) for n, t in times.items()}
     out = {
         "scene": scene.name, "description": scene.description, "bodies": len(scene.faces),
         "triangles": scene.triangles, "frames": scene.frames, "params": scene.params,
         "median_ms": median, "times_ms": times, "accuracy": accuracy,
-        "speedup_vs": {n: median[n] / median["pycinder"] for n in median if n != "pycinder"},
+        "ratio": {n: median[n] / median["pycinder"] for n in median
+                  if n != "pycinder" and "pycinder" in median},
     }
-    py = next((s for s in systems if isinstance(s, Pycinder)), None)
-    if py is not None and py.last is not None:
-        st = py.last.stats
-        out["pycinder_stats"] = {"resolution": py.detector.resolution, "bytes_read": st.bytes_read,
-                                 "records": st.records, "wall_ms": st.wall_ms,
-                                 "gpu_ms": st.gpu_ms}
+    py = next((s for s in systems if s.name == "pycinder"), None)
+    if isinstance(py, Pycinder) and py.last is not None:
+        out["pycinder_stats"] = _stats_of(py, scene)
     return out
 
 
-def run_modes(frames: int, resolution: int) -> list[dict[str, Any]]:
-    """Readback and self-interference modes on a sparse and a dense scene (issue: readback)."""
-    from .scenes import SphereField
+def _stats_of(py: Pycinder, scene: Scene) -> dict[str, Any]:
+    """Where pycinder's time goes: one more frame with GPU timestamps (not timed above)."""
+    from ..detector import Detector
 
+    profiled = Detector(py.detector.request.replace(profile=True))
+    bodies, transforms = scene.bodies(0)
+    profiled.find_collisions(bodies, transforms)
+    st = profiled.find_collisions(bodies, transforms).stats
+    keys = ("candidates", "separated", "tiles", "pixels", "triangles", "samples", "rounds",
+            "retries", "bytes_read", "tolerance")
+    return {"wall_ms": st.wall_ms, "gpu_ms": st.gpu_ms, **{k: getattr(st, k) for k in keys}}
+
+
+def run_tolerance_sweep(frames: int, peers: Sequence[System]) -> list[dict[str, Any]]:
+    """Stairs at several tolerances: pycinder's time against the peers' (which have none)."""
+    rows = []
+    for tol in TOLERANCE_SWEEP:
+        scene = Stairs(250, frames)
+        entry = run_scene(scene, [Pycinder(tolerance=tol)] + list(peers), tolerance=tol)
+        entry["params"] = {**entry["params"], "tolerance": tol}
+        rows.append(entry)
+    return rows
+
+
+def run_modes(frames: int) -> list[dict[str, Any]]:
+    """The scene strategy's readback and self-interference modes on a sparse and a dense scene."""
     rows = []
     for scene in (Stairs(50, frames), SphereField(80, 3, frames)):
         kind = "sparse" if scene.name.startswith("stairs") else "dense"
+        scene.cached()
         truths = {k: truth_for(scene, k) for k in range(scene.frames)}
-        configs = [("readback", {"readback": "full"}), ("readback", {"readback": "compact"})]
-        configs += [("readback", {"readback": "mipmap", "mipmap_levels": k}) for k in (1, 2, 3, 4)]
-        configs += [("readback", {"readback": "adaptive"})]
-        configs += [("self_interference", {"self_interference": m, "readback": "compact"})
-                    for m in ("filter", "prevent", "offset")]
-        for group, options in configs:
-            if group == "readback":
-                options = {"self_interference": "prevent", **options}
-            system = Pycinder(resolution, **options)
+        configs = [{"readback": m} for m in ("full", "compact", "adaptive")]
+        configs += [{"readback": "mipmap", "mipmap_levels": k} for k in (2, 4)]
+        configs += [{"self_interference": m} for m in ("filter", "prevent", "offset")]
+        for options in configs:
+            system = Pycinder(strategy="scene", resolution=1024, records="found", **options)
             system.step(scene, 0)
             times, bytes_read, missed, false, lost, self_px = [], [], 0, 0, 0, 0
-            for k in scene.iter_frames():
+            for k in range(scene.frames):
                 t0 = time.perf_counter()
                 found = system.step(scene, k)
                 times.append((time.perf_counter() - t0) * 1e3)
@@ -135,43 +174,95 @@ def run_modes(frames: int, resolution: int) -> list[dict[str, Any]]:
                 score = truths[k].score(found)
                 missed += len(score["missed"])
                 false += len(score["false"])
-            rows.append({"scene": kind, "scene_name": scene.name, "group": group,
-                         "options": options, "median_ms": statistics.median(times),
+            rows.append({"scene": kind, "scene_name": scene.name, "options": options,
+                         "median_ms": statistics.median(times),
                          "median_bytes": int(statistics.median(bytes_read)),
                          "missed_pairs": missed, "false_pairs": false,
-                         "overlaps": int(sum(len(t.overlap) for t in truths.values())),
+                         "must": int(sum(len(t.overlap) for t in truths.values())),
                          "possibly_lost": lost, "self_interference_pixels": self_px,
                          "frames": scene.frames})
     return rows
 
 
-def run(scenes: Sequence[str], *, repeat: int = 5, resolution: int = 1024,
-        peers: Sequence[str] = ("python-fcl", "coal", "trimesh"), progress: Any = None
-        ) -> dict[str, Any]:
-    """Run the named scenes; ``repeat`` frames each."""
-    results: dict[str, Any] = {"machine": machine_info(), "resolution": resolution,
-                               "pycinder_options": DEFAULT_OPTIONS, "scenes": {}, "sweeps": {}}
+def rss_bytes() -> int:
+    """Resident set size of this process (Linux), 0 where it cannot be read."""
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError):
+        return 0
+
+
+def run_soak(frames: int = 100_000, every: int = 1000, progress: Progress | None = None
+             ) -> dict[str, Any]:
+    """The loop users write: three small bodies passed as fresh (vertices, faces) arrays every
+    frame, one moving. Resident memory is sampled every ``every`` frames."""
+    import trimesh
+
+    from ..detector import Detector
+
+    det = Detector()
+    shapes = [trimesh.creation.box((1, 1, 1)), trimesh.creation.icosphere(subdivisions=2),
+              trimesh.creation.cylinder(radius=0.4, height=1.0)]
+    transforms = np.tile(np.eye(4), (3, 1, 1))
+    transforms[1, 0, 3], transforms[2, 1, 3] = 1.2, 1.2
+    samples, hits = [], 0
+    start = time.perf_counter()
+    for k in range(frames):
+        transforms[1, 0, 3] = 1.2 + 0.3 * np.sin(k * 0.01)
+        bodies = [(np.array(s.vertices), np.array(s.faces)) for s in shapes]
+        hits += len(det.find_collisions(bodies, transforms).pairs)
+        if k % every == 0 or k == frames - 1:
+            samples.append((k, rss_bytes()))
+            if progress and k % (every * 10) == 0:
+                progress(f"soak: frame {k} of {frames}")
+    rss = np.array([r for _, r in samples], dtype=np.float64)
+    settled = rss[len(rss) // 10:]  # after start-up
+    return {"frames": frames, "samples": samples, "pairs_found": hits,
+            "seconds": time.perf_counter() - start,
+            "rss_start_mib": float(settled[0] / 2**20) if len(settled) else 0.0,
+            "rss_end_mib": float(rss[-1] / 2**20),
+            "rss_growth_mib": float((settled.max() - settled[0]) / 2**20) if len(settled) else 0.0,
+            "topology_builds": det.shapes.topologies.builds,
+            "cache_bytes": det.shapes.nbytes + det.shapes.topologies.nbytes}
+
+
+def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAULT_PEERS,
+        soak_frames: int = 100_000, progress: Progress | None = None) -> dict[str, Any]:
+    """Run the named scenes, ``repeat`` frames each."""
+    unknown = [n for n in scenes if n not in SCENES and n not in ("modes", "soak")]
+    if unknown:
+        raise ValueError(f"unknown scene {unknown[0]!r}; choose from "
+                         f"{', '.join(sorted(SCENES) + ['modes', 'soak'])}")
+    say = progress or (lambda msg: None)
+    results: dict[str, Any] = {"machine": machine_info(), "scenes": {}, "sweeps": {}}
+    peer_systems = make_peers(peers, say)
+    results["peers"] = [p.name for p in peer_systems]
     for name in scenes:
+        say(name)
         if name == "modes":
-            if progress:
-                progress("modes")
-            results["modes"] = run_modes(repeat, resolution)
+            results["modes"] = run_modes(repeat)
             continue
-        if name not in SCENES:
-            raise ValueError(f"unknown scene {name!r}; choose from {sorted(SCENES) + ['modes']}")
-        scene_list = SCENES[name](repeat)
+        if name == "soak":
+            results["soak"] = run_soak(soak_frames, progress=say)
+            continue
+        if name == "sweep-tolerance":
+            results["sweeps"][name] = run_tolerance_sweep(repeat, make_peers(["python-fcl"]))
+            continue
         entries = []
-        resolutions = (256, 512, 1024, 2048) if name == "sweep-resolution" else (resolution,)
-        for scene in scene_list:
-            for res in resolutions:
-                if progress:
-                    progress(f"{name}: {scene.name} @ {res}")
-                systems: list[System] = [Pycinder(res, **DEFAULT_OPTIONS)]
-                if name != "sweep-resolution" or res == resolutions[0]:
-                    systems += [PEERS[p]() for p in peers]
-                entry = run_scene(scene, systems)
-                entry["resolution"] = res
-                entries.append(entry)
+        for scene in SCENES[name](repeat):
+            say(f"{name}: {scene.name}")
+            systems: list[System] = [Pycinder()]
+            tolerance = None
+            if name == "sweep-extent":
+                tolerance = scene.params["tolerance"]
+                systems = [Pycinder(tolerance=tolerance),
+                           Pycinder("pycinder-scene", strategy="scene", resolution=1024)]
+                systems += make_peers(["python-fcl"])
+            else:
+                # Fresh peers per scene: they keep per-scene state.
+                systems += make_peers([p.name for p in peer_systems])
+            entries.append(run_scene(scene, systems, tolerance=tolerance))
         if name.startswith("sweep"):
             results["sweeps"][name] = entries
         else:

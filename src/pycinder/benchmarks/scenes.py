@@ -34,6 +34,13 @@ class Scene:
         verts, transforms = self.frame(k)
         return list(zip(verts, self.faces)), transforms
 
+    def cached(self) -> Scene:
+        """This scene with its frames made once and kept, so that timing never includes making
+        them (deforming scenes compute every vertex of every frame)."""
+        frames = [self.frame(k) for k in range(self.frames)]
+        self.frame = lambda k: frames[k]  # type: ignore[method-assign]
+        return self
+
     @property
     def triangles(self) -> int:
         return int(sum(len(f) for f in self.faces))
@@ -158,12 +165,43 @@ class SphereField(Drifting):
         self.drift = rng.normal(scale=0.2, size=(count, 3))
 
 
+class SpreadPairs(Drifting):
+    """``pairs`` pairs of spheres (radius 0.5) spread through a cube ``extent`` wide: half of
+    them 4 tolerances deep into each other, half 2 tolerances apart. The same pairs at any
+    extent: time and answers should not change with it."""
+
+    def __init__(self, extent: float, pairs: int = 64, tolerance: float = 0.005, frames: int = 5,
+                 seed: int = 4) -> None:
+        ball = trimesh.creation.icosphere(subdivisions=3, radius=0.5)
+        n = 2 * pairs
+        super().__init__(f"spread-{extent:g}", f"{pairs} sphere pairs spread over {extent:g}",
+                         [np.asarray(ball.faces)] * n, [np.asarray(ball.vertices)] * n, frames,
+                         params={"extent": extent, "pairs": pairs, "tolerance": tolerance})
+        rng = np.random.default_rng(seed)
+        # Pair centres on a jittered grid filling the cube, so pairs never meet each other.
+        side = int(np.ceil(pairs ** (1 / 3)))
+        cell = max(extent / side, 3.0)
+        grid = np.stack(np.meshgrid(*[np.arange(side)] * 3, indexing="ij"), -1).reshape(-1, 3)
+        centres = (grid[rng.permutation(len(grid))[:pairs]] + 0.5) * cell
+        direction = rng.normal(size=(pairs, 3))
+        direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+        # Icosphere vertices lie on the sphere, faces inside it: meshes touch slightly inside
+        # the radius; the offsets below are measured on the meshes (exact truth scores them).
+        gap = np.where(np.arange(pairs) % 2 == 0, -4 * tolerance, 2 * tolerance)
+        half = 0.5 * (1.0 + gap)[:, None] * direction
+        self.base = np.tile(np.eye(4), (n, 1, 1))
+        self.base[0::2, :3, 3] = centres - half
+        self.base[1::2, :3, 3] = centres + half
+        self.drift = np.zeros((n, 3))
+
+
 def sweep_scenes(frames: int) -> dict[str, list[Scene]]:
     """The three sweeps: triangles per body, body count at fixed total, resolution (one scene)."""
     return {
         "triangles-per-body": [SphereField(20, s, frames) for s in (1, 2, 3, 4, 5)],
         "bodies-at-fixed-total": [SphereField(c, s, frames)
                                   for c, s in ((5, 5), (20, 4), (80, 3), (320, 2), (1280, 1))],
+        "extent": [SpreadPairs(e, frames=frames) for e in (10.0, 100.0, 1000.0, 10000.0)],
     }
 
 
@@ -174,5 +212,6 @@ SCENES = {
     "narrow": lambda frames: [NarrowPhase(max(frames, 4))],
     "sweep-triangles": lambda frames: sweep_scenes(frames)["triangles-per-body"],
     "sweep-bodies": lambda frames: sweep_scenes(frames)["bodies-at-fixed-total"],
-    "sweep-resolution": lambda frames: [SphereField(80, 3, frames)],
+    "sweep-extent": lambda frames: sweep_scenes(frames)["extent"],
+    "sweep-tolerance": lambda frames: [Stairs(250, frames)],
 }

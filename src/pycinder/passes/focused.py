@@ -4,8 +4,8 @@
     F1 cull       (compute)  per tile, side and cluster: keep the cluster's faces and/or edges
     F2 clip       (compute, indirect)  kept faces into their tile's window, clipped watertight
     F3 crossings  (render, indirect)   every clipped face once: per-pixel ray crossings
-    F4 edge test  (compute, indirect)  kept edges sampled and tested against the other body
-    F5 surface test (compute)          every listed surface point tested against the other body
+    F5 surface test (compute, indirect) every listed surface point tested against the other body
+    F4 edge test  (compute, indirect)  kept edges sampled and tested, unless F5 found the pair
 
 F1 to F5 run once per round of the atlas (one round unless the memory budget is exceeded), all
 in one submission; one readback brings back the counters, the per-tile hit counts and the first
@@ -41,7 +41,7 @@ C_TOTAL_TRIS, C_TOTAL_FACE_ITEMS, C_TOTAL_EDGE_ITEMS = 11, 12, 13
 ROW = 32768
 """Workgroups per row of an indirect dispatch (``tiles.wgsl``)."""
 
-PASS_NAMES = ("F1 cull", "F2 clip", "F3 crossings", "F4 edge test", "F5 surface test")
+PASS_NAMES = ("F1 cull", "F2 clip", "F3 crossings", "F5 surface test", "F4 edge test")
 MAX_PROFILED_ROUNDS = 8
 
 SPECULATIVE_RECORDS = 4096
@@ -279,7 +279,7 @@ class FocusedPasses:
     # -- one frame --------------------------------------------------------------------------
 
     def run(self, plan: TilePlan, matrices: np.ndarray, body_shape: np.ndarray,
-            pack: ShapePack, n_pairs: int, *, records: bool = True,
+            pack: ShapePack, n_pairs: int, *, records: bool = True, all_records: bool = False,
             list_capacity: int | None = None) -> FocusedOutput:
         """Run passes F1-F4 for every tile and read back what they found.
 
@@ -296,10 +296,13 @@ class FocusedPasses:
             Candidate pairs (``plan.pair`` indexes them).
         records : bool
             Read back the records (False: only the per-tile counts).
+        all_records : bool
+            Test every edge of every tile (otherwise tiles of pairs already found are skipped).
         list_capacity : int, optional
             Crossings kept per pixel in this run (default: the one given at construction).
         """
         self.run_capacity = int(list_capacity or self.capacity)
+        self.all_records = all_records
         t = len(plan)
         words = tile_words(plan, matrices)
         shapes = body_shape[plan.bodies].reshape(-1)                    # entry e = 2 * tile + side
@@ -385,8 +388,8 @@ class FocusedPasses:
         frame[P_FINALIZE, :4] = (items, items, caps["tris"], 0)
         frame[P_CLIP, :4] = (caps["tris"], items, 0, 0)
         frame[P_ATLAS, :4] = (width, self.target.height, self.run_capacity, 0)
-        frame[P_EDGES, :5] = (width, self.run_capacity, caps["records"] if want_records else 0,
-                              items, 2 * len(plan))
+        frame[P_EDGES, :6] = (width, self.run_capacity, caps["records"] if want_records else 0,
+                              items, 2 * len(plan), 0 if self.all_records else 1)
         queue.write_buffer(self.frame_params, 0, frame)
 
         b = self
@@ -450,19 +453,19 @@ class FocusedPasses:
             rpass.set_bind_group(0, crossings)
             rpass.draw_indirect(self.args, 24)
             rpass.end()
-            cpass = encoder.begin_compute_pass(label=f"F4 edge test, round {r}", **self._timestamps(r, 3))
-            cpass.set_pipeline(self.edge_test)
-            cpass.set_bind_group(0, edges)
-            cpass.dispatch_workgroups_indirect(self.args, 12)
-            cpass.end()
             cpass = encoder.begin_compute_pass(label=f"F5 surface test, round {r}",
-                                               **self._timestamps(r, 4))
+                                               **self._timestamps(r, 3))
             cpass.set_pipeline(self.after_crossings)
             cpass.set_bind_group(0, finalize3)
             cpass.dispatch_workgroups(1)
             cpass.set_pipeline(self.surface_test)
             cpass.set_bind_group(0, surface)
             cpass.dispatch_workgroups_indirect(self.args, 40)
+            cpass.end()
+            cpass = encoder.begin_compute_pass(label=f"F4 edge test, round {r}", **self._timestamps(r, 4))
+            cpass.set_pipeline(self.edge_test)
+            cpass.set_bind_group(0, edges)
+            cpass.dispatch_workgroups_indirect(self.args, 12)
             cpass.end()
         t = len(plan)
         speculative = min(SPECULATIVE_RECORDS, caps["records"]) if want_records else 0

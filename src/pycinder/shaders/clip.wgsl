@@ -110,6 +110,12 @@ fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     if ((!back && lo.z > t.slab.y) || (back && hi.z < t.slab.x)) {
         return;  // wholly on the far side of the box: crosses no ray the count looks along
     }
+    // A face covers no pixel centre (x + 0.5, y + 0.5) outside its box: a face smaller than a
+    // pixel usually holds none, and then crosses no ray at all.
+    let first_centre = ceil(lo.xy - 0.5);
+    if (any(first_centre > floor(hi.xy - 0.5))) {
+        return;
+    }
     let area = cross2(p[1].xy - p[0].xy, p[2].xy - p[0].xy);
     if (area == 0.0) {
         return;  // seen edge-on: covers no pixel centre

@@ -16,7 +16,7 @@ struct Params {
     record_cap: u32,    // 0: count hits without writing records
     item_cap: u32,
     pair_offset: u32,   // where the per-pair hit flags start in tile_counts
-    _p0: u32,
+    early_out: u32,     // 1: skip tiles whose pair is already found (records "found" or "none")
     _p1: u32,
     _p2: u32,
 };
@@ -54,6 +54,9 @@ fn edge_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) 
     }
     let tile_index = item.x;
     let t = tiles[tile_index];
+    if (params.early_out != 0u && atomicLoad(&tile_counts[params.pair_offset + t.info.w]) != 0u) {
+        return;  // pass F5 or an earlier tile already found this pair
+    }
     let e = info.edge_start + lid;
     let a = tile_point(t, side, position(edges[2u * e]));
     let b = tile_point(t, side, position(edges[2u * e + 1u]));
