@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
-# Make sure wgpu finds an adapter. On a machine without one, install Mesa's CPU Vulkan driver
-# (lavapipe) from Debian when running as root; otherwise say what to install.
+# Make sure wgpu finds a good adapter. Vulkan (or Metal/D3D12) is preferred: on a machine that
+# offers only OpenGL, Mesa's CPU Vulkan driver (lavapipe) is installed from Debian when running as
+# root; otherwise this says what to install and carries on with OpenGL, which pycinder also runs
+# on. With no adapter at all it fails with the same advice.
 set -u
 py="${1:-.venv/bin/python}"
 probe() {
+  # Prints the backend of the adapter wgpu picks by default ("Vulkan", "OpenGL", ...).
   XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}" "$py" - <<'PY' 2>/dev/null
 import sys, wgpu
 try:
@@ -12,15 +15,26 @@ except Exception:
     a = None
 if a is None:
     sys.exit(1)
-print(f"adapter: {a.info['device']} ({a.info['backend_type']})")
+print(a.info["backend_type"], "-", a.info["device"])
 PY
 }
-probe && exit 0
+found=$(probe) || found=""
+case "$found" in
+  Vulkan*|Metal*|D3D12*) echo "adapter: $found"; exit 0 ;;
+esac
 if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then
-  echo "no WebGPU adapter found: installing mesa-vulkan-drivers (lavapipe)"
+  echo "adapter: ${found:-none}; installing mesa-vulkan-drivers (lavapipe, Mesa's CPU Vulkan driver)"
   export DEBIAN_FRONTEND=noninteractive
   apt-get update -qq >/dev/null && apt-get install -y -qq mesa-vulkan-drivers >/dev/null
-  probe && exit 0
+  found=$(probe) || found=""
+  case "$found" in
+    Vulkan*) echo "adapter: $found"; exit 0 ;;
+  esac
+fi
+if [ -n "$found" ]; then
+  echo "adapter: $found (no Vulkan driver: for the faster Vulkan path install Mesa's CPU driver," \
+       "sudo apt-get install mesa-vulkan-drivers)"
+  exit 0
 fi
 echo "error: no WebGPU adapter found. Install a GPU driver with Vulkan, or Mesa's CPU driver:" >&2
 echo "  sudo apt-get install mesa-vulkan-drivers" >&2

@@ -52,5 +52,6 @@ def test_spread_pairs_are_what_they_say():
 
 def test_soak_keeps_memory_steady():
     soak = runner.run_soak(frames=300, every=50)
+    assert soak["rss_end_mib"] < 1024
     assert soak["topology_builds"] == 3 and soak["pairs_found"] > 0
     assert len(soak["samples"]) >= 6

@@ -184,47 +184,20 @@ def run_modes(frames: int) -> list[dict[str, Any]]:
     return rows
 
 
-def rss_bytes() -> int:
-    """Resident set size of this process (Linux), 0 where it cannot be read."""
-    try:
-        with open("/proc/self/statm") as f:
-            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
-    except (OSError, ValueError):
-        return 0
-
-
 def run_soak(frames: int = 100_000, every: int = 1000, progress: Progress | None = None
              ) -> dict[str, Any]:
-    """The loop users write: three small bodies passed as fresh (vertices, faces) arrays every
-    frame, one moving. Resident memory is sampled every ``every`` frames."""
-    import trimesh
+    """The memory soak (:mod:`.soak`) in a fresh process, so that its resident memory is its
+    own and not that of the scenes before it."""
+    import json
+    import subprocess
 
-    from ..detector import Detector
-
-    det = Detector()
-    shapes = [trimesh.creation.box((1, 1, 1)), trimesh.creation.icosphere(subdivisions=2),
-              trimesh.creation.cylinder(radius=0.4, height=1.0)]
-    transforms = np.tile(np.eye(4), (3, 1, 1))
-    transforms[1, 0, 3], transforms[2, 1, 3] = 1.2, 1.2
-    samples, hits = [], 0
-    start = time.perf_counter()
-    for k in range(frames):
-        transforms[1, 0, 3] = 1.2 + 0.3 * np.sin(k * 0.01)
-        bodies = [(np.array(s.vertices), np.array(s.faces)) for s in shapes]
-        hits += len(det.find_collisions(bodies, transforms).pairs)
-        if k % every == 0 or k == frames - 1:
-            samples.append((k, rss_bytes()))
-            if progress and k % (every * 10) == 0:
-                progress(f"soak: frame {k} of {frames}")
-    rss = np.array([r for _, r in samples], dtype=np.float64)
-    settled = rss[len(rss) // 10:]  # after start-up
-    return {"frames": frames, "samples": samples, "pairs_found": hits,
-            "seconds": time.perf_counter() - start,
-            "rss_start_mib": float(settled[0] / 2**20) if len(settled) else 0.0,
-            "rss_end_mib": float(rss[-1] / 2**20),
-            "rss_growth_mib": float((settled.max() - settled[0]) / 2**20) if len(settled) else 0.0,
-            "topology_builds": det.shapes.topologies.builds,
-            "cache_bytes": det.shapes.nbytes + det.shapes.topologies.nbytes}
+    if progress:
+        progress(f"soak: {frames} frames in a fresh process")
+    out = subprocess.run([sys.executable, "-m", "pycinder.benchmarks.soak", "--frames",
+                          str(frames), "--every", str(every)], capture_output=True, text=True)
+    if out.returncode != 0:
+        raise RuntimeError(f"the soak failed: {out.stderr.strip()[-2000:]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAULT_PEERS,

@@ -91,6 +91,29 @@ def tile_words(plan: TilePlan, matrices: np.ndarray) -> np.ndarray:
     return out
 
 
+class _Stages:
+    """Compute stages of a round. Normally consecutive stages share one compute pass (each
+    dispatch is its own usage scope, so later ones see earlier ones' writes, indirect arguments
+    included), saving a pass's fixed cost; when profiling, each stage gets its own timed pass."""
+
+    def __init__(self, encoder: wgpu.GPUCommandEncoder, passes: FocusedPasses, r: int) -> None:
+        self.encoder, self.passes, self.round = encoder, passes, r
+        self.current: wgpu.GPUComputePassEncoder | None = None
+
+    def compute(self, k: int, name: str) -> wgpu.GPUComputePassEncoder:
+        if self.current is not None and not self.passes.profile:
+            return self.current
+        self.end()
+        self.current = self.encoder.begin_compute_pass(
+            label=f"{name}, round {self.round}", **self.passes._timestamps(self.round, k))
+        return self.current
+
+    def end(self) -> None:
+        if self.current is not None:
+            self.current.end()
+            self.current = None
+
+
 @dataclass
 class FocusedOutput:
     """What one frame of the focused passes found.
@@ -429,22 +452,22 @@ class FocusedPasses:
                 (b.round_params.buffer, r * ROUND_STRIDE + PARAM_STRIDE, 32), b.active.buffer])
             encoder.clear_buffer(self.counters, 0, 16)
             encoder.clear_buffer(self.pixels.buffer, 0, PIXEL_BYTES * width * plan.round_rows[r])
-            cpass = encoder.begin_compute_pass(label=f"F1 cull, round {r}", **self._timestamps(r, 0))
+            stages = _Stages(encoder, self, r)
+            cpass = stages.compute(0, "F1 cull")
             cpass.set_pipeline(self.cull)
             cpass.set_bind_group(0, cull)
             cpass.dispatch_workgroups(*_groups(-(-int(round_threads[r]) // 64)))
             cpass.set_pipeline(self.after_cull)
             cpass.set_bind_group(0, finalize)
             cpass.dispatch_workgroups(1)
-            cpass.end()
-            cpass = encoder.begin_compute_pass(label=f"F2 clip, round {r}", **self._timestamps(r, 1))
+            cpass = stages.compute(1, "F2 clip")
             cpass.set_pipeline(self.clip)
             cpass.set_bind_group(0, clip)
             cpass.dispatch_workgroups_indirect(self.args, 0)
             cpass.set_pipeline(self.after_clip)
             cpass.set_bind_group(0, finalize2)
             cpass.dispatch_workgroups(1)
-            cpass.end()
+            stages.end()
             rpass = encoder.begin_render_pass(
                 label=f"F3 crossings, round {r}",
                 color_attachments=[{"view": self.target_view, "load_op": "load",
@@ -453,20 +476,18 @@ class FocusedPasses:
             rpass.set_bind_group(0, crossings)
             rpass.draw_indirect(self.args, 24)
             rpass.end()
-            cpass = encoder.begin_compute_pass(label=f"F5 surface test, round {r}",
-                                               **self._timestamps(r, 3))
+            cpass = stages.compute(3, "F5 surface test")
             cpass.set_pipeline(self.after_crossings)
             cpass.set_bind_group(0, finalize3)
             cpass.dispatch_workgroups(1)
             cpass.set_pipeline(self.surface_test)
             cpass.set_bind_group(0, surface)
             cpass.dispatch_workgroups_indirect(self.args, 40)
-            cpass.end()
-            cpass = encoder.begin_compute_pass(label=f"F4 edge test, round {r}", **self._timestamps(r, 4))
+            cpass = stages.compute(4, "F4 edge test")
             cpass.set_pipeline(self.edge_test)
             cpass.set_bind_group(0, edges)
             cpass.dispatch_workgroups_indirect(self.args, 12)
-            cpass.end()
+            stages.end()
         t = len(plan)
         speculative = min(SPECULATIVE_RECORDS, caps["records"]) if want_records else 0
         head = 4 * COUNTERS + 8 * t
