@@ -1,4 +1,5 @@
-"""CollisionManager against trimesh's FCL-backed CollisionManager on the same scenes."""
+"""CollisionManager as a drop-in for trimesh's: behaviour from trimesh's documentation, answers
+from exact geometry and python-fcl, and contacts against analytic pairs."""
 
 import numpy as np
 import pytest
@@ -8,10 +9,22 @@ import pycinder
 from pycinder.testing import ground_truth, random_scene
 
 fcl = pytest.importorskip("fcl")
+TrimeshManager = trimesh.collision.CollisionManager
+T = trimesh.transformations.translation_matrix
+R = trimesh.transformations.rotation_matrix
+
+
+def both(**objects):
+    """The same objects in pycinder's manager and trimesh's."""
+    ours, theirs = pycinder.CollisionManager(), TrimeshManager()
+    for name, (mesh, transform) in objects.items():
+        ours.add_object(name, mesh, transform)
+        theirs.add_object(name, mesh, transform)
+    return ours, theirs
 
 
 def clear_scene(seed: int):
-    """A random scene with no pair inside the tolerance band, so FCL and truth agree exactly."""
+    """A random scene with no pair in the tolerance band, so FCL and the truth agree."""
     for s in range(seed, seed + 50):
         meshes, transforms = random_scene(10, s, density=0.2)
         truth = ground_truth(meshes, transforms)
@@ -21,42 +34,211 @@ def clear_scene(seed: int):
 
 
 @pytest.mark.parametrize("seed", [100, 200])
-def test_internal_matches_fcl(seed):
+def test_internal_names_match_trimesh(seed):
     meshes, transforms, truth = clear_scene(seed)
-    ours, theirs = pycinder.CollisionManager(), trimesh.collision.CollisionManager()
-    for i, (m, t) in enumerate(zip(meshes, transforms)):
-        ours.add_object(f"obj{i}", m, t)
-        theirs.add_object(f"obj{i}", m, t)
+    ours, theirs = both(**{f"obj{i}": (m, t) for i, (m, t) in enumerate(zip(meshes, transforms))})
     hit, names = ours.in_collision_internal(return_names=True)
-    fhit, fnames = theirs.in_collision_internal(return_names=True)
-    assert hit == fhit
-    assert names == fnames
-    assert ours.in_collision_internal() == fhit
+    assert (hit, names) == theirs.in_collision_internal(return_names=True)
+    assert ours.in_collision_internal() is hit is True
+    assert names == {(f"obj{i}", f"obj{j}") for i, j in truth.overlap.tolist()}
 
 
-def test_single_other_transform_and_remove():
+def test_touching_and_overlapping_boxes():
     box = trimesh.creation.box((1, 1, 1))
-    ball = trimesh.creation.icosphere(radius=0.3)
-    ours, theirs = pycinder.CollisionManager(), trimesh.collision.CollisionManager()
+    ours, theirs = both(a=(box, np.eye(4)), b=(box, T((1.2, 0, 0))))
+    assert ours.in_collision_internal() is False is theirs.in_collision_internal()
     for m in (ours, theirs):
-        m.add_object("box", box)
-        m.add_object("ball", ball, trimesh.transformations.translation_matrix((3, 0, 0)))
-    probe = trimesh.creation.icosphere(radius=0.25)
-    at = trimesh.transformations.translation_matrix((0.6, 0, 0))
-    assert ours.in_collision_single(probe, at, return_names=True) == \
-        theirs.in_collision_single(probe, at, return_names=True) == (True, {"box"})
-    assert ours.in_collision_internal() is False
-    ours.set_transform("ball", trimesh.transformations.translation_matrix((0.5, 0.4, 0)))
+        m.set_transform("b", T((0.9, 0.3, 0.2)))
     hit, names, data = ours.in_collision_internal(return_names=True, return_data=True)
-    assert hit and names == {("ball", "box")}
-    assert data and all(d.names == {"ball", "box"} for d in data)
+    assert (hit, names) == (True, {("a", "b")}) == theirs.in_collision_internal(return_names=True)
+    assert len(data) == 1 and data[0].names == {"a", "b"}
+    c = data[0]
+    assert c.pair == ("a", "b") and np.allclose(c.normal, [1, 0, 0], atol=np.sin(np.radians(10)))
+    assert c.depth == pytest.approx(0.1, abs=0.01 + 0.1 * 0.1 + 0.02)
+    assert 0 <= c.index("a") < 12 and 0 <= c.index("b") < 12
+
+
+def test_a_body_inside_another_collides():
+    """FCL tests surfaces, so a body wholly inside another is no collision to trimesh's manager;
+    it is one here."""
+    big, small = trimesh.creation.torus(2.0, 0.8), trimesh.creation.torus(2.0, 0.1)
+    ours, theirs = both(big=(big, np.eye(4)), small=(small, np.eye(4)))
+    assert ground_truth([big, small]).overlap.tolist() == [[0, 1]]
+    assert theirs.in_collision_internal() is False
+    assert ours.in_collision_internal(return_names=True) == (True, {("big", "small")})
+    assert ours.min_distance_internal() < 0
+
+
+def test_non_convex_container():
+    """A ball in an open-topped box made of five slabs (one closed, non-convex solid)."""
+    import manifold3d as m3d
+
+    outer = m3d.Manifold.cube((2.0, 2.0, 2.0), center=True)
+    inner = m3d.Manifold.cube((1.6, 1.6, 1.8), center=True).translate((0, 0, 0.3))
+    mesh = (outer - inner).to_mesh()
+    cup = trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.5)
+    ours = pycinder.CollisionManager()
+    ours.add_object("cup", cup)
+    for z, expected in ((0.0, False), (-0.35, True), (1.6, False)):
+        truth = ground_truth([cup, ball], [np.eye(4), T((0, 0, z))])
+        assert (len(truth.overlap) == 1) == expected
+        assert ours.in_collision_single(ball, T((0, 0, z))) is expected, z
+
+
+def test_set_transform_round_trips_and_errors():
+    box, ball = trimesh.creation.box((1, 1, 1)), trimesh.creation.icosphere(radius=0.3)
+    ours = pycinder.CollisionManager()
+    ours.add_object("box", box)
+    obj = ours.add_object("ball", ball, T((3, 0, 0)).astype(np.float32))  # float32 is fine
+    assert obj.name == "ball" and obj.transform.dtype == np.float64
+    assert ours.in_collision_internal() is False
+    ours.set_transform("ball", T((0.5, 0.4, 0)))
+    assert ours.in_collision_internal(return_names=True) == (True, {("ball", "box")})
+    ours.set_transform("ball", T((3, 0, 0)))
+    assert ours.in_collision_internal() is False
+    ours.add_object("ball", ball, T((0.6, 0, 0)))  # same name: replaced
+    assert ours.in_collision_internal(return_names=True) == (True, {("ball", "box")})
     ours.remove_object("ball")
     assert ours.in_collision_internal() is False
-    with pytest.raises(ValueError, match="not in collision manager"):
-        ours.remove_object("ball")
-    with pytest.raises(ValueError, match="not in collision manager"):
-        ours.set_transform("nothing", np.eye(4))
+    for call in (lambda: ours.remove_object("ball"), lambda: ours.set_transform("x", np.eye(4)),
+                 lambda: ours.min_distance_internal("x")):
+        with pytest.raises(ValueError, match="not in collision manager!"):
+            call()
+    with pytest.raises(ValueError, match=r"transform must be \(4,4\)!"):
+        ours.add_object("bad", box, np.eye(3))
 
+
+def test_single_and_other_as_trimesh():
+    box = trimesh.creation.box((1, 1, 1))
+    ball = trimesh.creation.icosphere(radius=0.3)
+    ours, theirs = both(box=(box, np.eye(4)), ball=(ball, T((3, 0, 0))))
+    probe = trimesh.creation.icosphere(radius=0.25)
+    at = T((0.6, 0, 0))
+    for m in (ours, theirs):
+        assert m.in_collision_single(probe, at) is True
+        assert m.in_collision_single(probe, at, return_names=True) == (True, {"box"})
+        hit, data = m.in_collision_single(probe, at, return_data=True)
+        assert hit and data and all(d.names == {"box", "__external"} for d in data)
+    # Same names in both managers: the pairs are (this name, other name).
+    other_ours, other_theirs = both(box=(probe, at))
+    assert ours.in_collision_other(other_ours, return_names=True) == \
+        theirs.in_collision_other(other_theirs, return_names=True) == (True, {("box", "box")})
+    hit, names, data = ours.in_collision_other(other_ours, return_names=True, return_data=True)
+    assert data and all(d.names == {"box"} for d in data)
+    assert pycinder.CollisionManager().in_collision_internal() is False
+
+
+def test_many_probes_in_one_query():
+    """700 copies of one probe against one large box: every probe found, in one query, and the
+    same answer as trimesh's manager outside the tolerance band."""
+    probe = trimesh.creation.icosphere(subdivisions=1, radius=0.05)
+    ours, theirs = pycinder.CollisionManager(), TrimeshManager()
+    centres = np.random.default_rng(0).uniform(-1.2, 1.2, (700, 3))
+    for k, c in enumerate(centres):
+        ours.add_object(f"p{k}", probe, T(c))
+        theirs.add_object(f"p{k}", probe, T(c))
+    box = trimesh.creation.box((2, 2, 2))
+    hit, names = ours.in_collision_single(box, return_names=True)
+    _, fcl_names = theirs.in_collision_single(box, return_names=True)
+    # Signed distance of each centre to the box; the probe's surface lies 0.04 to 0.05 from it.
+    outside = np.maximum(np.abs(centres) - 1, 0)
+    inside = np.minimum(np.max(np.abs(centres) - 1, axis=1), 0)
+    box_distance = np.linalg.norm(outside, axis=1) + inside
+    tol = 0.01 * np.linalg.norm(probe.extents)
+    must = {f"p{k}" for k in np.flatnonzero(box_distance < 0.04 - 2 * tol)}
+    apart = {f"p{k}" for k in np.flatnonzero(box_distance > 0.05 + tol)}
+    assert hit and must <= names and not (names & apart)
+    assert len(must) > 300
+    assert names ^ fcl_names <= set(ours._objs) - must - apart
+    assert ours._detectors["none"].find_collisions  # one detector per records mode, reused
+
+
+def _fcl_distance(a, ta, b, tb):
+    """python-fcl's signed distance, built as trimesh builds it."""
+    m = TrimeshManager()
+    m.add_object("a", a, ta)
+    return m.min_distance_single(b, tb)
+
+
+@pytest.mark.parametrize("gap", [0.3, 0.05, -0.05, -0.2])
+def test_distances_agree_with_fcl(gap):
+    """Separated: python-fcl's exact distance; overlapping: negative, the penetration depth."""
+    a, b = trimesh.creation.icosphere(3, 0.5), trimesh.creation.box((0.6, 0.6, 0.6))
+    tb = T((0.5 + 0.3 + gap, 0.0, 0.0))
+    ours = pycinder.CollisionManager(tolerance=0.005)
+    ours.add_object("sphere", a)
+    d, name, data = ours.min_distance_single(b, tb, return_name=True, return_data=True)
+    expected = _fcl_distance(a, np.eye(4), b, tb)
+    assert name == "sphere" and data.names == {"sphere", "__external"}
+    assert d == pytest.approx(expected, abs=0.005)
+    if gap > 0:
+        assert np.linalg.norm(data.point("sphere") - data.point("__external")) == \
+            pytest.approx(d, abs=1e-6)
+    ours.add_object("box", b, tb)
+    assert ours.min_distance_internal(return_names=True)[1] == ("box", "sphere")
+    assert ours.min_distance_internal(name="box") == pytest.approx(d, abs=1e-9)
+
+
+def test_overlapping_non_convex_distance_is_negative():
+    """python-fcl reports 0 for overlapping non-convex meshes; here it is minus the depth."""
+    torus = trimesh.creation.torus(1.0, 0.3, major_sections=64, minor_sections=32)
+    ours, theirs = both(t1=(torus, np.eye(4)), t2=(torus, T((2.5, 0, 0))))
+    assert theirs.min_distance_internal() == pytest.approx(0.0)
+    d = ours.min_distance_internal()
+    assert d == pytest.approx(-0.1, abs=0.03)
+    for m in (ours, theirs):
+        m.set_transform("t2", T((2.7, 0, 0)))
+    assert ours.min_distance_internal() == pytest.approx(theirs.min_distance_internal(), abs=1e-9)
     other = pycinder.CollisionManager()
-    other.add_object("probe", probe, at)
-    assert ours.in_collision_other(other, return_names=True) == (True, {("box", "probe")})
+    other.add_object("t1", torus, T((0, 0, 2)))
+    d, names, data = ours.min_distance_other(other, return_names=True, return_data=True)
+    assert names == ("t1", "t1") and data.names == {"t1"}
+    assert d == pytest.approx(2.0 - 0.6, abs=0.01)
+
+
+ANALYTIC = {
+    # name: meshes, transforms, true normal (from the first into the second), true depth
+    "sphere-box": ([trimesh.creation.box((2, 2, 2)), trimesh.creation.icosphere(4, 0.5)],
+                   [np.eye(4), T((0, 1.45, 0))], (0, 1, 0), 0.05),
+    "sphere-sphere": ([trimesh.creation.icosphere(4, 0.5), trimesh.creation.icosphere(4, 0.5)],
+                      [np.eye(4), T((0.9, 0, 0))], (1, 0, 0), 0.1),
+    "box-edge-on-slab": ([trimesh.creation.box((4, 0.5, 4)), trimesh.creation.box((1, 1, 1))],
+                         [np.eye(4), T((0, 0.25 + np.sqrt(0.5) - 0.05, 0)) @ R(np.pi / 4, (0, 0, 1))],
+                         (0, 1, 0), 0.05),
+    "capsule-on-slab": ([trimesh.creation.box((4, 0.5, 4)),
+                         trimesh.creation.capsule(height=1.0, radius=0.2, count=[32, 32])],
+                        [np.eye(4), T((0, 0.25 + 0.2 - 0.04, 0))], (0, 1, 0), 0.04),
+    "boxes-face-to-face": ([trimesh.creation.box((1, 1, 1)), trimesh.creation.box((1, 1, 1))],
+                           [np.eye(4), T((0.93, 0.2, 0.1))], (1, 0, 0), 0.07),
+}
+
+
+@pytest.mark.parametrize("name", list(ANALYTIC))
+def test_contact_accuracy_against_analytic_pairs(name):
+    """One contact per region; normal within 10 degrees, depth within 10% plus a tolerance."""
+    meshes, transforms, normal, depth = ANALYTIC[name]
+    tol = 0.005
+    ours = pycinder.CollisionManager(tolerance=tol)
+    ours.add_object("first", meshes[0], transforms[0])
+    ours.add_object("second", meshes[1], transforms[1])
+    hit, data = ours.in_collision_internal(return_data=True)
+    assert hit and len(data) == 1
+    c = data[0]
+    n = np.asarray(normal, float) * (1 if c.pair == ("first", "second") else -1)
+    angle = np.degrees(np.arccos(np.clip(np.dot(c.normal, n), -1, 1)))
+    assert angle < 10, angle
+    assert abs(c.depth - depth) < 0.1 * depth + tol, c.depth
+    world = [m.copy().apply_transform(t) for m, t in zip(meshes, transforms)]
+    inside = [trimesh.proximity.signed_distance(w, [c.point])[0] for w in world]
+    assert min(inside) > -tol  # the point is on the intersection
+
+
+def test_scene_to_collision():
+    scene = trimesh.Scene()
+    scene.add_geometry(trimesh.creation.box((1, 1, 1)), node_name="box")
+    scene.add_geometry(trimesh.creation.icosphere(radius=0.3), node_name="ball",
+                       transform=T((0.6, 0, 0)))
+    manager, objects = pycinder.scene_to_collision(scene)
+    assert set(objects) == {"box", "ball"}
+    assert manager.in_collision_internal(return_names=True) == (True, {("ball", "box")})

@@ -10,8 +10,8 @@ array([[0, 1]])
 
 from .detector import Detector, find_collisions
 from .errors import ClippedBodyWarning, DegenerateFaceWarning, LossWarning, OpenMeshWarning
-from .gpu.device import NoAdapterError
-from .manager import CollisionManager
+from .gpu.device import NoAdapterError, share_default_device
+from .manager import CollisionManager, ContactData, DistanceData, scene_to_collision
 from .records import RECORD_DTYPE
 from .request import DEFAULT_RELATIVE_TOLERANCE, MAX_BODIES, CollisionRequest
 from .result import CollisionResult, Stats
@@ -21,7 +21,8 @@ __version__ = "0.2.0"
 
 __all__ = [
     "DEFAULT_RELATIVE_TOLERANCE", "MAX_BODIES", "RECORD_DTYPE", "ClippedBodyWarning",
-    "CollisionManager", "CollisionRequest", "CollisionResult", "DegenerateFaceWarning",
+    "CollisionManager", "CollisionRequest", "CollisionResult", "ContactData",
+    "DegenerateFaceWarning", "DistanceData",
     "Detector", "LossWarning", "NoAdapterError", "OpenMeshWarning", "Stats", "View",
-    "find_collisions",
+    "find_collisions", "scene_to_collision", "share_default_device",
 ]

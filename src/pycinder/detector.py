@@ -13,6 +13,8 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
+
 from .focused import FocusedStrategy
 from .gpu.device import get_gpu
 from .request import CollisionRequest
@@ -60,6 +62,7 @@ class Detector:
 
     def find_collisions(self, bodies: Sequence[Any], transforms: Any = None, *,
                         names: Sequence[str | None] | None = None,
+                        groups: Any = None,
                         view: View | Sequence[View] | None = None) -> CollisionResult:
         """Find every pair of interfering bodies.
 
@@ -71,6 +74,9 @@ class Detector:
             World-from-body matrices (default: identity).
         names : sequence of str, optional
             Body names for error messages.
+        groups : (N,) int, optional
+            Only pairs of bodies in different groups are tested (one probe against many
+            bodies, or two sets against each other); default: every pair.
         view : View or sequence of View, optional
             Scene strategy only: the views to render through (default: one fitted view).
 
@@ -87,11 +93,18 @@ class Detector:
                               cache=self.shapes, max_bodies=self.request.max_bodies)
         stats = Stats(strategy=self.request.strategy, adapter=self.gpu.description,
                       bodies=len(scene))
+        if groups is not None:
+            groups = np.asarray(groups)
+            if groups.shape != (len(scene),) or not np.issubdtype(groups.dtype, np.integer):
+                raise ValueError(f"groups must be {len(scene)} whole numbers, one per body; "
+                                 f"got shape {groups.shape} of {groups.dtype}")
         stats.add_ms("validate", (time.perf_counter() - t0) * 1e3)
         if isinstance(self.strategy, SceneStrategy):
             result = self.strategy.run(scene, stats, view)
+            if groups is not None:
+                result = result.across(groups)
         else:
-            result = self.strategy.run(scene, stats)
+            result = self.strategy.run(scene, stats, groups)
         stats.wall_ms["total"] = (time.perf_counter() - t0) * 1e3
         return result
 

@@ -1,66 +1,198 @@
-"""A drop-in for ``trimesh.collision.CollisionManager`` backed by CInDeR.
+"""A drop-in for ``trimesh.collision.CollisionManager``.
 
-Method names, arguments and return values follow trimesh's class, so code written for it runs
-unchanged; ``return_data=True`` gives :class:`ContactData` built from the collision pixels.
+Swap the import and keep the code: the same methods, arguments, return types, name ordering and
+errors as trimesh's class (which runs python-fcl). What backs each answer:
+
+* **Collisions** (``in_collision_*``): pycinder's GPU query, one per call (``in_collision_single``
+  and ``in_collision_other`` test only the pairs across the two sides), within the tolerance
+  contract of :mod:`pycinder.request`. Unlike FCL's surface tests, a body wholly inside another
+  is a collision.
+* **Contacts** (``return_data=True``): one :class:`ContactData` per contact region of each
+  colliding pair, reduced from the GPU's records (:mod:`pycinder.contacts`). ``normal`` follows
+  python-fcl: it points from the contact's first object into its second (``ContactData.pair``;
+  trimesh's ``names`` is a set), ``depth`` is the penetration along it, ``point`` lies on the
+  intersection, ``index(name)`` is a face of that object at the contact (-1 where unknown).
+* **Distances** (``min_distance_*``): python-fcl, built as trimesh builds it (``Convex`` for
+  convex meshes, ``BVHModel`` otherwise), for exact distances between separated objects. For
+  overlapping objects the distance is negative, the penetration depth: python-fcl's EPA where
+  both meshes are convex (as trimesh), pycinder's contact depth otherwise (where python-fcl
+  reports 0, or nothing for a body inside another). Needs python-fcl: ``pip install
+  'pycinder[distance]'``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import sys
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from .contacts import Contacts, reduce_contacts
 from .detector import Detector
 from .result import CollisionResult
-from .view import View
 
 EXTERNAL = "__external"
+"""The name trimesh gives the probe of ``in_collision_single`` and ``min_distance_single``."""
+
+NO_DISTANCE = sys.float_info.max
+"""What trimesh (python-fcl) returns as the distance when there is no pair to measure."""
+
+
+def _fcl() -> Any:
+    try:
+        import fcl
+    except ImportError as exc:
+        raise ImportError("CollisionManager.min_distance_* needs python-fcl: pip install "
+                          "'pycinder[distance]' (from a clone: pip install '.[distance]')") from exc
+    return fcl
+
+
+def _as_trimesh(mesh: Any) -> Any:
+    import trimesh
+
+    if isinstance(mesh, trimesh.Trimesh):
+        return mesh
+    vertices, faces = mesh
+    return trimesh.Trimesh(np.asarray(vertices, np.float64), np.asarray(faces), process=False)
+
+
+def _transform(transform: Any) -> np.ndarray:
+    t = np.eye(4) if transform is None else np.asarray(transform, dtype=np.float64)
+    if t.shape != (4, 4):
+        raise ValueError("transform must be (4,4)!")
+    return t
 
 
 class ContactData:
-    """One collision pixel, shaped like trimesh's ``ContactData``.
+    """One contact region of a colliding pair, shaped like trimesh's ``ContactData``.
 
-    names : the two object names, penetrating first
-    point : (3,) float world-space point on the penetrating edge
-    depth : float, always 0.0 (CInDeR does not measure penetration depth)
+    Attributes
+    ----------
+    names : set of str
+        The two object names.
+    pair : (str, str)
+        The names in order: ``normal`` points from the first object into the second.
+    point : (3,) float
+        A point on the intersection of the two objects.
+    normal : (3,) float
+        Unit contact normal.
+    depth : float
+        Penetration depth along the normal.
     """
 
-    def __init__(self, names: tuple[str, str], point: np.ndarray, edge: int) -> None:
-        self.names = set(names)
-        self._names = names
+    def __init__(self, pair: tuple[str, str], point: np.ndarray, normal: np.ndarray,
+                 depth: float, faces: tuple[int, int]) -> None:
+        self.pair = pair
+        self.names = set(pair)
+        self._inds = {pair[0]: int(faces[0]), pair[1]: int(faces[1])}
         self.point = point
-        self.depth = 0.0
-        self.edge = edge
+        self.normal = normal
+        self.depth = float(depth)
 
     def index(self, name: str) -> int:
-        """The edge index of the contact on ``name`` (-1 for the penetrated object)."""
-        return self.edge if name == self._names[0] else -1
+        """The face of object ``name`` at the contact (-1 where unknown)."""
+        return self._inds[name]
 
     def __repr__(self) -> str:
-        return f"ContactData(names={self._names}, point={self.point.tolist()})"
+        return (f"ContactData(pair={self.pair}, point={np.round(self.point, 6).tolist()}, "
+                f"normal={np.round(self.normal, 6).tolist()}, depth={self.depth:.6g})")
+
+
+class DistanceData:
+    """What a distance query found, shaped like trimesh's ``DistanceData``.
+
+    Attributes
+    ----------
+    names : set of str
+    distance : float
+        Distance between the objects; negative: they overlap by that much.
+    """
+
+    def __init__(self, pair: tuple[str, str], distance: float, points: Sequence[np.ndarray],
+                 faces: Sequence[int]) -> None:
+        self.names = set(pair)
+        self.distance = float(distance)
+        self._points = {pair[0]: np.asarray(points[0]), pair[1]: np.asarray(points[1])}
+        self._inds = {pair[0]: int(faces[0]), pair[1]: int(faces[1])}
+
+    def point(self, name: str) -> np.ndarray:
+        """The closest point on object ``name`` (for overlapping objects: its deepest point
+        inside the other)."""
+        return self._points[name]
+
+    def index(self, name: str) -> int:
+        """The closest face of object ``name`` (-1 where unknown)."""
+        return self._inds[name]
+
+
+@dataclass
+class CollisionObject:
+    """What :meth:`CollisionManager.add_object` returns (trimesh returns python-fcl's object)."""
+
+    name: str
+    mesh: Any
+    transform: np.ndarray
+    _fcl: Any = field(default=None, repr=False)
+    _trimesh: Any = field(default=None, repr=False)
+
+    @property
+    def trimesh(self) -> Any:
+        """The mesh as a ``trimesh.Trimesh`` (made once from a (vertices, faces) pair)."""
+        if self._trimesh is None:
+            self._trimesh = _as_trimesh(self.mesh)
+        return self._trimesh
+
+    def world_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """(3,), (3,) world box of the object at its transform."""
+        corners = self.trimesh.bounding_box.vertices
+        w = corners @ self.transform[:3, :3].T + self.transform[:3, 3]
+        return w.min(axis=0), w.max(axis=0)
+
+
+def _answer(hit: bool, names: Any, data: Any, return_names: bool, return_data: bool) -> Any:
+    if return_names and return_data:
+        return hit, names, data
+    if return_names:
+        return hit, names
+    if return_data:
+        return hit, data
+    return hit
 
 
 class CollisionManager:
-    """Collision checks among named meshes, with trimesh's method names.
+    """Collision and distance checks among named meshes, with trimesh's method names.
 
-    Keywords (``tolerance``, ``strategy``, ...) configure the :class:`Detector` it owns.
+    Parameters
+    ----------
+    **options
+        Options of :class:`~pycinder.CollisionRequest` (``tolerance``, ...) for its detectors.
     """
 
-    def __init__(self, *, view: View | list[View] | None = None, **detector_options: Any) -> None:
-        self._detector = Detector(**detector_options)
-        self._view = view
-        self._objs: dict[str, dict[str, Any]] = {}
+    def __init__(self, **options: Any) -> None:
+        options.pop("records", None)
+        self._options = options
+        self._detectors: dict[str, Detector] = {}
+        self._objs: dict[str, CollisionObject] = {}
+        Detector(**options)  # check the options now, not at the first query
 
-    # -- trimesh's interface --------------------------------------------------------------------
+    # -- objects --------------------------------------------------------------------------------
 
-    def add_object(self, name: str, mesh: Any, transform: np.ndarray | None = None) -> str:
-        """Add (or replace) the object ``name`` with ``mesh`` at ``transform`` ((4, 4) float)."""
-        transform = np.eye(4) if transform is None else np.asarray(transform, dtype=np.float64)
-        if transform.shape != (4, 4):
-            raise ValueError("transform must be (4,4)!")
-        self._objs[name] = {"mesh": mesh, "transform": transform}
-        return name
+    def add_object(self, name: str, mesh: Any, transform: np.ndarray | None = None
+                   ) -> CollisionObject:
+        """Add an object, or replace the one of the same name.
+
+        Parameters
+        ----------
+        name : str
+        mesh : trimesh.Trimesh or (vertices, faces)
+        transform : (4, 4) float, optional
+            World from object (float32 is fine).
+        """
+        obj = CollisionObject(name, mesh, _transform(transform))
+        self._objs[name] = obj
+        return obj
 
     def remove_object(self, name: str) -> None:
         if name not in self._objs:
@@ -70,80 +202,232 @@ class CollisionManager:
     def set_transform(self, name: str, transform: np.ndarray) -> None:
         if name not in self._objs:
             raise ValueError(f"{name} not in collision manager!")
-        transform = np.asarray(transform, dtype=np.float64)
-        if transform.shape != (4, 4):
-            raise ValueError("transform must be (4,4)!")
-        self._objs[name]["transform"] = transform
+        self._objs[name].transform = _transform(transform)
 
-    def in_collision_internal(self, return_names: bool = False, return_data: bool = False):
-        """Whether any two managed objects collide.
+    # -- collisions -----------------------------------------------------------------------------
 
-        Returns ``is_collision``, plus a set of sorted name pairs if ``return_names``, plus a list
-        of :class:`ContactData` if ``return_data``.
-        """
+    def in_collision_internal(self, return_names: bool = False, return_data: bool = False
+                              ) -> Any:
+        """Whether any two objects collide; optionally the set of sorted name pairs and the
+        contacts."""
         names = list(self._objs)
-        result = self._query([self._objs[n] for n in names], names)
+        result = self._query([self._objs[n] for n in names], names, None, return_data)
         pairs = {tuple(sorted((names[i], names[j]))) for i, j in result.pairs.tolist()}
         data = self._contacts(result, names) if return_data else []
-        return self._answer(bool(pairs), pairs, data, return_names, return_data)
+        return _answer(bool(pairs), pairs, data, return_names, return_data)
 
     def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None,
-                            return_names: bool = False, return_data: bool = False):
-        """Whether ``mesh`` at ``transform`` collides with any managed object.
-
-        With ``return_names``, also the set of names of the objects it collides with.
-        """
+                            return_names: bool = False, return_data: bool = False) -> Any:
+        """Whether ``mesh`` at ``transform`` collides with any object; optionally the set of
+        their names and the contacts. One query, whatever the number of objects."""
         names = list(self._objs)
-        t = np.eye(4) if transform is None else np.asarray(transform, dtype=np.float64)
-        entries = [self._objs[n] for n in names] + [{"mesh": mesh, "transform": t}]
-        result = self._query(entries, names + [EXTERNAL])
-        ext = len(names)
-        hits = result.pairs[(result.pairs == ext).any(axis=1)]
-        colliding = {names[int(i)] for i in hits[hits != ext].tolist()}
-        data = []
-        if return_data:
-            data = [c for c in self._contacts(result, names + [EXTERNAL]) if EXTERNAL in c.names]
-        return self._answer(bool(colliding), colliding, data, return_names, return_data)
+        probe = CollisionObject(EXTERNAL, mesh, _transform(transform))
+        groups = np.r_[np.zeros(len(names), np.int64), 1]
+        result = self._query([self._objs[n] for n in names] + [probe], names + [EXTERNAL],
+                             groups, return_data)
+        found = {names[i] for i, j in result.pairs.tolist()}
+        data = self._contacts(result, names + [EXTERNAL]) if return_data else []
+        return _answer(bool(found), found, data, return_names, return_data)
 
     def in_collision_other(self, other_manager: CollisionManager, return_names: bool = False,
-                           return_data: bool = False):
-        """Whether any object of this manager collides with any object of ``other_manager``.
-
-        With ``return_names``, also the set of (this name, other name) pairs.
-        """
+                           return_data: bool = False) -> Any:
+        """Whether any object of this manager collides with any of ``other_manager``; optionally
+        the set of (this name, other name) pairs and the contacts."""
         mine, theirs = list(self._objs), list(other_manager._objs)
-        entries = [self._objs[n] for n in mine] + [other_manager._objs[n] for n in theirs]
-        result = self._query(entries, [f"a:{n}" for n in mine] + [f"b:{n}" for n in theirs])
+        objs = [self._objs[n] for n in mine] + [other_manager._objs[n] for n in theirs]
+        groups = np.r_[np.zeros(len(mine), np.int64), np.ones(len(theirs), np.int64)]
+        result = self._query(objs, mine + theirs, groups, return_data)
         k = len(mine)
-        pairs = result.pairs[(result.pairs[:, 0] < k) & (result.pairs[:, 1] >= k)]
-        found = {(mine[i], theirs[j - k]) for i, j in pairs.tolist()}
-        data = []
-        if return_data:
-            everyone = mine + theirs
-            data = [c for c in self._contacts(result, everyone)
-                    if (everyone.index(c._names[0]) < k) != (everyone.index(c._names[1]) < k)]
-        return self._answer(bool(found), found, data, return_names, return_data)
+        found = {(mine[i], theirs[j - k]) for i, j in result.pairs.tolist()}
+        data = self._contacts(result, mine + theirs) if return_data else []
+        return _answer(bool(found), found, data, return_names, return_data)
 
-    # -- helpers --------------------------------------------------------------------------------
+    # -- distances ------------------------------------------------------------------------------
 
-    def _query(self, entries: Iterable[dict[str, Any]], labels: list[str]) -> CollisionResult:
-        entries = list(entries)
-        return self._detector.find_collisions(
-            [e["mesh"] for e in entries], [e["transform"] for e in entries] or None,
-            view=self._view, names=labels)
+    def min_distance_internal(self, name: str | None = None, return_names: bool = False,
+                              return_data: bool = False) -> Any:
+        """Smallest distance between two objects (from object ``name``, if given); negative when
+        objects overlap. Optionally the sorted names and a :class:`DistanceData`."""
+        names = list(self._objs)
+        if name is not None and name not in self._objs:
+            raise ValueError(f"{name} not in collision manager!")
+        groups = None
+        if name is not None:
+            groups = np.array([0 if n == name else 1 for n in names], np.int64)
+        objs = [self._objs[n] for n in names]
+        distance, pair, data = self._min_distance(objs, names, groups)
+        if pair is None:
+            return _answer(distance, (None, None), None, return_names, return_data)
+        return _answer(distance, tuple(sorted(pair)), data, return_names, return_data)
+
+    def min_distance_single(self, mesh: Any, transform: np.ndarray | None = None,
+                            return_name: bool = False, return_data: bool = False) -> Any:
+        """Smallest distance between ``mesh`` at ``transform`` and any object; negative when it
+        overlaps one. Optionally the closest object's name and a :class:`DistanceData`."""
+        names = list(self._objs)
+        probe = CollisionObject(EXTERNAL, mesh, _transform(transform))
+        groups = np.r_[np.zeros(len(names), np.int64), 1]
+        distance, pair, data = self._min_distance([self._objs[n] for n in names] + [probe],
+                                                  names + [EXTERNAL], groups)
+        closest = None if pair is None else (pair[0] if pair[1] == EXTERNAL else pair[1])
+        return _answer(distance, closest, data, return_name, return_data)
+
+    def min_distance_other(self, other_manager: CollisionManager, return_names: bool = False,
+                           return_data: bool = False) -> Any:
+        """Smallest distance between an object of this manager and one of ``other_manager``;
+        optionally the (this name, other name) pair and a :class:`DistanceData`."""
+        mine, theirs = list(self._objs), list(other_manager._objs)
+        objs = [self._objs[n] for n in mine] + [other_manager._objs[n] for n in theirs]
+        groups = np.r_[np.zeros(len(mine), np.int64), np.ones(len(theirs), np.int64)]
+        # Other managers' objects keep their own names; label them apart in the query.
+        labels = mine + [f"\0{n}" for n in theirs]
+        distance, pair, data = self._min_distance(objs, labels, groups)
+        if pair is None:
+            return _answer(distance, (None, None), None, return_names, return_data)
+        first, second = sorted(pair, key=lambda s: s.startswith("\0"))
+        names = (first, second[1:])
+        if data is not None:
+            data = DistanceData(names, data.distance, [data.point(first), data.point(second)],
+                                [data.index(first), data.index(second)])
+        return _answer(distance, names, data, return_names, return_data)
+
+    # -- inside ---------------------------------------------------------------------------------
+
+    def _detector(self, records: str) -> Detector:
+        if records not in self._detectors:
+            self._detectors[records] = Detector(**self._options, records=records)
+        return self._detectors[records]
+
+    def _query(self, objs: Sequence[CollisionObject], labels: list[str],
+               groups: np.ndarray | None, contacts: bool) -> CollisionResult:
+        det = self._detector("all" if contacts else "none")
+        return det.find_collisions([o.mesh for o in objs],
+                                   np.array([o.transform for o in objs]).reshape(-1, 4, 4),
+                                   names=labels, groups=groups)
 
     @staticmethod
     def _contacts(result: CollisionResult, names: list[str]) -> list[ContactData]:
-        points = result.points()
-        return [ContactData((names[r["penetrating"]], names[r["penetrated"]]), p, int(r["edge"]))
-                for r, p in zip(result.records, points)]
+        c = reduce_contacts(result)
+        return [ContactData((names[a], names[b]), c.point[k], c.normal[k], c.depth[k],
+                            tuple(c.face[k]))
+                for k, (a, b) in enumerate(c.pair.tolist())]
+
+    def _min_distance(self, objs: Sequence[CollisionObject], labels: list[str],
+                      groups: np.ndarray | None
+                      ) -> tuple[float, tuple[str, str] | None, DistanceData | None]:
+        """Overlapping pairs first (the most negative signed distance), else python-fcl's exact
+        distance over the pairs its broad phase leaves."""
+        fcl = _fcl()
+        if len(objs) < 2:
+            return NO_DISTANCE, None, None
+        result = self._query(objs, labels, groups, contacts=True)
+        if len(result.pairs):
+            return self._deepest(result, objs, labels, reduce_contacts(result))
+        for o in objs:
+            self._fcl_object(o)
+        request = fcl.DistanceRequest(enable_nearest_points=True, enable_signed_distance=True)
+        best: tuple[float, Any, int, int] | None = None
+        for i, j in _pairs_by_box_distance(objs, groups):
+            if best is not None and _box_distance(objs[i], objs[j]) >= best[0]:
+                break
+            res = fcl.DistanceResult()
+            d = fcl.distance(objs[i]._fcl, objs[j]._fcl, request, res)
+            if best is None or d < best[0]:
+                best = (d, res, i, j)
+        if best is None:
+            return NO_DISTANCE, None, None
+        d, res, i, j = best
+        pair = (labels[i], labels[j])
+        return d, pair, DistanceData(pair, d, res.nearest_points, (res.b1, res.b2))
+
+    def _deepest(self, result: CollisionResult, objs: Sequence[CollisionObject],
+                 labels: list[str], contacts: Contacts
+                 ) -> tuple[float, tuple[str, str], DistanceData]:
+        """The most negative signed distance among colliding pairs: python-fcl's EPA where both
+        meshes are convex, the contacts' depth otherwise."""
+        fcl = _fcl()
+        best: tuple[float, tuple[str, str], DistanceData] | None = None
+        for a, b in result.pairs.tolist():
+            pair = (labels[a], labels[b])
+            oa, ob = objs[a], objs[b]
+            if oa.trimesh.is_convex and ob.trimesh.is_convex:
+                self._fcl_object(oa)
+                self._fcl_object(ob)
+                res = fcl.DistanceResult()
+                d = fcl.distance(oa._fcl, ob._fcl, fcl.DistanceRequest(
+                    enable_nearest_points=True, enable_signed_distance=True), res)
+                data = DistanceData(pair, d, res.nearest_points, (res.b1, res.b2))
+            else:
+                mine = np.flatnonzero((contacts.pair == [a, b]).all(axis=1))
+                if not len(mine):
+                    continue
+                k = mine[np.argmax(contacts.depth[mine])]
+                d = -float(contacts.depth[k])
+                points = [np.where(np.isnan(p), contacts.point[k], p) for p in contacts.deepest[k]]
+                data = DistanceData(pair, d, points, tuple(contacts.face[k]))
+            if best is None or d < best[0]:
+                best = (d, pair, data)
+        if best is None:  # pairs found without contacts (records dropped): report touching
+            a, b = result.pairs[0]
+            pair = (labels[a], labels[b])
+            return 0.0, pair, DistanceData(pair, 0.0, [np.zeros(3), np.zeros(3)], (-1, -1))
+        return best
 
     @staticmethod
-    def _answer(hit: bool, names: Any, data: list, return_names: bool, return_data: bool):
-        if return_names and return_data:
-            return hit, names, data
-        if return_names:
-            return hit, names
-        if return_data:
-            return hit, data
-        return hit
+    def _fcl_object(obj: CollisionObject) -> Any:
+        """python-fcl's object for ``obj``, built once, as trimesh builds it."""
+        fcl = _fcl()
+        if obj._fcl is None:
+            mesh = obj.trimesh
+            if mesh.is_convex:
+                counts = np.full((len(mesh.faces), 1), 3, dtype=np.int64)
+                geom = fcl.Convex(mesh.vertices, len(mesh.faces),
+                                  np.hstack([counts, mesh.faces]).ravel())
+            else:
+                geom = fcl.BVHModel()
+                geom.beginModel(len(mesh.vertices), len(mesh.faces))
+                geom.addSubModel(mesh.vertices, mesh.faces)
+                geom.endModel()
+            obj._fcl = fcl.CollisionObject(geom, fcl.Transform())
+        t = obj.transform
+        obj._fcl.setTransform(fcl.Transform(t[:3, :3], t[:3, 3]))
+        return obj._fcl
+
+
+def _box_distance(a: CollisionObject, b: CollisionObject) -> float:
+    (la, ha), (lb, hb) = a.world_box(), b.world_box()
+    gap = np.maximum(np.maximum(la - hb, lb - ha), 0.0)
+    return float(np.linalg.norm(gap))
+
+
+def _pairs_by_box_distance(objs: Sequence[CollisionObject], groups: np.ndarray | None
+                           ) -> Iterable[tuple[int, int]]:
+    """Pairs in order of their boxes' distance, a lower bound of theirs: a search can stop once
+    a box distance exceeds the best distance found."""
+    boxes = [o.world_box() for o in objs]
+    lo = np.array([b[0] for b in boxes])
+    hi = np.array([b[1] for b in boxes])
+    i, j = np.triu_indices(len(objs), 1)
+    if groups is not None:
+        keep = groups[i] != groups[j]
+        i, j = i[keep], j[keep]
+    gap = np.maximum(np.maximum(lo[i] - hi[j], lo[j] - hi[i]), 0.0)
+    order = np.argsort(np.linalg.norm(gap, axis=1), kind="stable")
+    return zip(i[order].tolist(), j[order].tolist())
+
+
+def scene_to_collision(scene: Any, **options: Any) -> tuple[CollisionManager, dict[str, Any]]:
+    """A :class:`CollisionManager` of a ``trimesh.Scene``'s geometry nodes, as trimesh's
+    ``trimesh.collision.scene_to_collision``.
+
+    Returns
+    -------
+    manager : CollisionManager
+    objects : dict of node name to CollisionObject
+    """
+    manager = CollisionManager(**options)
+    objects = {}
+    for node in scene.graph.nodes_geometry:
+        transform, geometry = scene.graph[node]
+        objects[node] = manager.add_object(node, scene.geometry[geometry], transform)
+    return manager, objects

@@ -128,6 +128,15 @@ class CollisionResult:
             out[sel] = self.scene.shapes[k].topology.edges[rec["edge"][sel]]
         return out
 
+    def across(self, groups: np.ndarray) -> CollisionResult:
+        """This result restricted to pairs of bodies in different groups ((N,) int)."""
+        keep = groups[self.pairs[:, 0]] != groups[self.pairs[:, 1]]
+        rec = self.records
+        rec = rec[groups[rec["penetrating"]] != groups[rec["penetrated"]]]
+        self.stats.records = len(rec)
+        return CollisionResult(self.pairs[keep], rec, self.stats, self.views, self.tiles,
+                               self.scene)
+
     def pair_names(self, names: Sequence[Any]) -> set[tuple[Any, Any]]:
         """The pairs as a set of sorted name tuples, as trimesh's ``return_names`` gives them."""
         return {tuple(sorted((names[i], names[j]))) for i, j in self.pairs.tolist()}

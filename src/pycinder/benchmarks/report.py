@@ -131,6 +131,30 @@ def markdown(results: dict[str, Any]) -> str:
                          f"{r['false_pairs']} | {r['possibly_lost']} | "
                          f"{r['self_interference_pixels']} |")
         lines.append("")
+    if results.get("manager"):
+        lines += ["## CollisionManager against trimesh's (python-fcl)", "",
+                  "200 random primitives, a probe, and a second manager of 50 objects; median ms "
+                  "per call, in the same run.", "",
+                  "| call | pycinder ms | trimesh ms | trimesh / pycinder | answers (pycinder; "
+                  "trimesh) |", "|---|---|---|---|---|"]
+        for r in results["manager"]:
+            med, ans = r["median_ms"], r["answers"]
+            lines.append(f"| `{r['call']}` | {_fmt(med['pycinder'])} | {_fmt(med['trimesh'])} | "
+                         f"{r['ratio']:.2f} | {ans['pycinder']}; {ans['trimesh']} |")
+        lines.append("")
+    if results.get("contacts"):
+        lines += ["## Contact accuracy against analytic pairs", "",
+                  "The deepest contact of each pair; normal error in degrees, depth and its error "
+                  "(true depth in the first column). pycinder at tolerance 0.005.", "",
+                  "| pair | true depth | pycinder contacts | pycinder normal error | pycinder depth | "
+                  "python-fcl contacts | python-fcl normal error | python-fcl depth |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for r in results["contacts"]:
+            p, f = r["pycinder"], r["python-fcl"]
+            lines.append(f"| {r['pair']} | {r['true_depth']:.3f} | {p['contacts']} | "
+                         f"{p['normal_error_deg']:.1f} | {p['depth']:.4f} | {f['contacts']} | "
+                         f"{f['normal_error_deg']:.1f} | {f['depth']:.4f} |")
+        lines.append("")
     soak = results.get("soak")
     if soak:
         lines += ["## Memory over a long loop", "",

@@ -25,7 +25,7 @@ from .peers import PEERS, Pycinder, System
 from .scenes import SCENES, Scene, SphereField, Stairs
 
 DEFAULT_SCENES = ["stairs", "many", "deforming", "narrow", "sweep-extent", "sweep-bodies",
-                  "sweep-triangles", "sweep-tolerance", "modes", "soak"]
+                  "sweep-triangles", "sweep-tolerance", "manager", "contacts", "modes", "soak"]
 DEFAULT_PEERS = ["python-fcl", "coal", "trimesh", "warp"]
 TOLERANCE_SWEEP = (0.001, 0.0028, 0.005, 0.01)
 """World tolerances of the Stairs tolerance sweep (the spheres are 0.16 across; pycinder's
@@ -200,13 +200,124 @@ def run_soak(frames: int = 100_000, every: int = 1000, progress: Progress | None
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def run_manager(repeat: int) -> list[dict[str, Any]]:
+    """CollisionManager calls against trimesh's (python-fcl) on the same objects, interleaved:
+    200 random primitives, a probe, a second manager of 50 objects."""
+    import trimesh
+
+    from ..manager import CollisionManager
+    from ..testing import random_scene
+
+    meshes, transforms = random_scene(200, 7, density=0.15)
+    others, other_t = random_scene(50, 8, density=0.15)
+    probe = trimesh.creation.icosphere(subdivisions=3, radius=2.0)
+    managers = {"pycinder": (CollisionManager(), CollisionManager()),
+                "trimesh": (trimesh.collision.CollisionManager(),
+                            trimesh.collision.CollisionManager())}
+    for first, second in managers.values():
+        for i, (m, t) in enumerate(zip(meshes, transforms)):
+            first.add_object(f"a{i}", m, t)
+        for i, (m, t) in enumerate(zip(others, other_t)):
+            second.add_object(f"b{i}", m, t)
+    calls = {
+        "in_collision_internal(return_names=True)":
+            lambda m, o: m.in_collision_internal(return_names=True),
+        "in_collision_internal(return_data=True)":
+            lambda m, o: m.in_collision_internal(return_data=True),
+        "in_collision_single(probe, return_names=True)":
+            lambda m, o: m.in_collision_single(probe, return_names=True),
+        "in_collision_other(return_names=True)":
+            lambda m, o: m.in_collision_other(o, return_names=True),
+        "min_distance_single(probe far away)":
+            lambda m, o: m.min_distance_single(probe, trimesh.transformations.translation_matrix(
+                (0, 0, 40)), return_name=True),
+        "min_distance_other": lambda m, o: m.min_distance_other(o, return_names=True),
+    }
+    rows = []
+    for call, fn in calls.items():
+        times: dict[str, list[float]] = {name: [] for name in managers}
+        answers: dict[str, Any] = {}
+        for name, (first, second) in managers.items():
+            answers[name] = fn(first, second)  # warm-up
+        for k in range(repeat):
+            for name in (list(managers) if k % 2 == 0 else list(managers)[::-1]):
+                first, second = managers[name]
+                t0 = time.perf_counter()
+                fn(first, second)
+                times[name].append((time.perf_counter() - t0) * 1e3)
+        med = {n: statistics.median(t) for n, t in times.items()}
+        rows.append({"call": call, "median_ms": med, "ratio": med["trimesh"] / med["pycinder"],
+                     "answers": {n: _summary(a) for n, a in answers.items()}})
+    return rows
+
+
+def _summary(answer: Any) -> str:
+    """A short text of a manager call's answer, to put the two side by side."""
+    if not isinstance(answer, tuple):
+        return f"{answer:.4g}" if isinstance(answer, float) else str(answer)
+    parts = []
+    for x in answer:
+        if isinstance(x, (set, list)):
+            parts.append(f"{len(x)} items")
+        elif isinstance(x, float):
+            parts.append(f"{x:.4g}")
+        else:
+            parts.append(str(x))
+    return ", ".join(parts)
+
+
+def run_contact_accuracy() -> list[dict[str, Any]]:
+    """Contact normal and depth against analytic pairs, pycinder and python-fcl (through
+    trimesh's manager) on the same pairs."""
+    import trimesh
+
+    from ..manager import CollisionManager
+
+    T = trimesh.transformations.translation_matrix
+    R = trimesh.transformations.rotation_matrix
+    cases = {
+        "sphere-box": ([trimesh.creation.box((2, 2, 2)), trimesh.creation.icosphere(4, 0.5)],
+                       [np.eye(4), T((0, 1.45, 0))], (0, 1, 0), 0.05),
+        "sphere-sphere": ([trimesh.creation.icosphere(4, 0.5),
+                           trimesh.creation.icosphere(4, 0.5)],
+                          [np.eye(4), T((0.9, 0, 0))], (1, 0, 0), 0.1),
+        "box-edge-on-slab": ([trimesh.creation.box((4, 0.5, 4)), trimesh.creation.box((1, 1, 1))],
+                             [np.eye(4), T((0, 0.25 + np.sqrt(0.5) - 0.05, 0))
+                              @ R(np.pi / 4, (0, 0, 1))], (0, 1, 0), 0.05),
+        "capsule-on-slab": ([trimesh.creation.box((4, 0.5, 4)),
+                             trimesh.creation.capsule(height=1.0, radius=0.2, count=[32, 32])],
+                            [np.eye(4), T((0, 0.25 + 0.2 - 0.04, 0))], (0, 1, 0), 0.04),
+        "boxes-face-to-face": ([trimesh.creation.box((1, 1, 1)), trimesh.creation.box((1, 1, 1))],
+                               [np.eye(4), T((0.93, 0.2, 0.1))], (1, 0, 0), 0.07),
+    }
+    rows = []
+    for name, (meshes, transforms, normal, depth) in cases.items():
+        row: dict[str, Any] = {"pair": name, "true_depth": depth}
+        for system, manager in (("pycinder", CollisionManager(tolerance=0.005)),
+                                ("python-fcl", trimesh.collision.CollisionManager())):
+            manager.add_object("first", meshes[0], transforms[0])
+            manager.add_object("second", meshes[1], transforms[1])
+            _, data = manager.in_collision_internal(return_data=True)
+            c = max(data, key=lambda d: d.depth)
+            # Both normals point from the contact's first object into its second; trimesh keeps
+            # that order only in its private face-index dict.
+            first = c.pair[0] if hasattr(c, "pair") else list(c._inds)[0]
+            n = np.asarray(normal, float) * (1 if first == "first" else -1)
+            angle = float(np.degrees(np.arccos(np.clip(np.dot(c.normal, n), -1, 1))))
+            row[system] = {"contacts": len(data), "normal_error_deg": angle,
+                           "depth": float(c.depth), "depth_error": float(c.depth - depth)}
+        rows.append(row)
+    return rows
+
+
 def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAULT_PEERS,
         soak_frames: int = 100_000, progress: Progress | None = None) -> dict[str, Any]:
     """Run the named scenes, ``repeat`` frames each."""
-    unknown = [n for n in scenes if n not in SCENES and n not in ("modes", "soak")]
+    extra = ("modes", "soak", "manager", "contacts")
+    unknown = [n for n in scenes if n not in SCENES and n not in extra]
     if unknown:
         raise ValueError(f"unknown scene {unknown[0]!r}; choose from "
-                         f"{', '.join(sorted(SCENES) + ['modes', 'soak'])}")
+                         f"{', '.join(sorted(SCENES) + list(extra))}")
     say = progress or (lambda msg: None)
     results: dict[str, Any] = {"machine": machine_info(), "scenes": {}, "sweeps": {}}
     peer_systems = make_peers(peers, say)
@@ -218,6 +329,12 @@ def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAUL
             continue
         if name == "soak":
             results["soak"] = run_soak(soak_frames, progress=say)
+            continue
+        if name == "manager":
+            results["manager"] = run_manager(repeat)
+            continue
+        if name == "contacts":
+            results["contacts"] = run_contact_accuracy()
             continue
         if name == "sweep-tolerance":
             results["sweeps"][name] = run_tolerance_sweep(repeat, make_peers(["python-fcl"]))

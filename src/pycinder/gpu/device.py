@@ -62,22 +62,12 @@ def _request_adapter() -> wgpu.GPUAdapter:
     return adapter
 
 
-@lru_cache(maxsize=1)
-def get_gpu() -> Gpu:
-    """The shared adapter and device, created on first use.
+WANTED_FEATURES = ("depth32float-stencil8", "timestamp-query")
+"""Used when the adapter has them: a 32-bit float depth buffer gives the scene strategy's depth
+comparisons the most precision; timestamps let ``profile=True`` time each pass."""
 
-    Set ``WGPU_BACKEND_TYPE`` (Vulkan, Metal, D3D12, OpenGL) to choose a backend.
-    """
-    adapter = _request_adapter()
-    wanted = []
-    # A 32-bit float depth buffer gives the ray-casting comparisons the most precision.
-    depth_format = "depth24plus-stencil8"
-    if "depth32float-stencil8" in adapter.features:
-        wanted.append("depth32float-stencil8")
-        depth_format = "depth32float-stencil8"
-    timestamps = "timestamp-query" in adapter.features
-    if timestamps:
-        wanted.append("timestamp-query")
+
+def _limits(adapter: wgpu.GPUAdapter) -> dict[str, int]:
     storage = adapter.limits["max-storage-buffers-per-shader-stage"]
     if storage < STORAGE_BUFFERS_NEEDED:
         info = adapter.info
@@ -85,12 +75,57 @@ def get_gpu() -> Gpu:
             f"the WebGPU adapter {info['device']} ({info['backend_type']}) offers "
             f"{storage} storage buffers per shader stage; pycinder needs "
             f"{STORAGE_BUFFERS_NEEDED}. {INSTALL_HINT}")
-    limits = {"max-texture-dimension-2d": adapter.limits["max-texture-dimension-2d"],
-              "max-storage-buffer-binding-size": adapter.limits["max-storage-buffer-binding-size"],
-              "max-buffer-size": adapter.limits["max-buffer-size"],
-              "max-storage-buffers-per-shader-stage": STORAGE_BUFFERS_NEEDED}
-    device = adapter.request_device_sync(required_features=wanted, required_limits=limits)
-    return Gpu(adapter, device, depth_format, timestamps)
+    return {"max-texture-dimension-2d": adapter.limits["max-texture-dimension-2d"],
+            "max-storage-buffer-binding-size": adapter.limits["max-storage-buffer-binding-size"],
+            "max-buffer-size": adapter.limits["max-buffer-size"],
+            "max-storage-buffers-per-shader-stage": STORAGE_BUFFERS_NEEDED}
+
+
+def _suits(device: wgpu.GPUDevice, limits: dict[str, int]) -> bool:
+    return all(device.limits[k] >= v for k, v in limits.items())
+
+
+_share_default = False
+
+
+def share_default_device() -> None:
+    """Make pycinder render on wgpu's default device (``wgpu.get_default_device()``, the device
+    pygfx renders with), so that both can use each other's buffers.
+
+    Call it before either library creates that device: it adds pycinder's needs (features and
+    limits) to the device's configuration. Without it pycinder uses a device of its own, so that
+    importing pygfx later still works (pygfx configures the default device when imported).
+    """
+    global _share_default
+    adapter = _request_adapter()
+    wanted = {f for f in WANTED_FEATURES if f in adapter.features}
+    wgpu.preconfigure_default_device("pycinder", adapter=adapter, required_features=wanted,
+                                     required_limits=_limits(adapter))
+    _share_default = True
+    get_gpu.cache_clear()
+
+
+@lru_cache(maxsize=1)
+def get_gpu() -> Gpu:
+    """The device pycinder renders with, created on first use (see :func:`share_default_device`).
+
+    Set ``WGPU_BACKEND_TYPE`` (Vulkan, Metal, D3D12, OpenGL) to choose a backend.
+    """
+    if _share_default:
+        device = wgpu.get_default_device()
+        limits = _limits(device.adapter)
+        if not _suits(device, limits):
+            raise RuntimeError(
+                "wgpu's default device was created before pycinder could configure it; call "
+                "pycinder.share_default_device() before anything creates it")
+    else:
+        adapter = _request_adapter()
+        limits = _limits(adapter)
+        wanted = [f for f in WANTED_FEATURES if f in adapter.features]
+        device = adapter.request_device_sync(required_features=wanted, required_limits=limits)
+    depth_format = "depth32float-stencil8" if "depth32float-stencil8" in device.features \
+        else "depth24plus-stencil8"
+    return Gpu(device.adapter, device, depth_format, "timestamp-query" in device.features)
 
 
 @lru_cache(maxsize=None)

@@ -136,7 +136,7 @@ def check_transforms(transforms: Any, n: int, names: Sequence[str | None]) -> np
         raise ValueError(f"transforms must be (N, 4, 4) numbers: {exc}") from exc
     if t.shape != (n, 4, 4):
         raise ValueError(f"transforms must have shape ({n}, 4, 4), one per body; got {t.shape}")
-    finite = np.isfinite(t).reshape(n, -1).all(axis=1)
+    finite = np.isfinite(t).reshape(n, 16).all(axis=1)
     if not finite.all():
         i = int(np.flatnonzero(~finite)[0])
         raise ValueError(f"{body_label(i, names[i])}: transform contains NaN or infinite values")
