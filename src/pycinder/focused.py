@@ -208,13 +208,16 @@ def face_normals_world(scene: Scene, body: np.ndarray, face: np.ndarray) -> np.n
 
 def _world_normals(scene: Scene, body: np.ndarray, local_of) -> np.ndarray:
     out = np.zeros((len(body), 3), dtype=np.float32)
+    if len(body) == 0:
+        return out
+    # Normals transform with the inverse transpose of the linear part: once per body.
+    bodies, which = np.unique(body, return_inverse=True)
+    inv_t = np.linalg.inv(scene.transforms[bodies, :3, :3]).transpose(0, 2, 1)
     shape = scene.body_shape[body]
     for k in np.unique(shape):
         sel = shape == k
         local = np.asarray(local_of(scene.shapes[k], sel), dtype=np.float64)
-        # Normals transform with the inverse transpose of the linear part.
-        inv_t = np.linalg.inv(scene.transforms[body[sel], :3, :3]).transpose(0, 2, 1)
-        world = np.einsum("nij,nj->ni", inv_t, local)
+        world = np.einsum("nij,nj->ni", inv_t[which[sel]], local)
         out[sel] = world / np.maximum(np.linalg.norm(world, axis=1, keepdims=True), 1e-30)
     return out
 

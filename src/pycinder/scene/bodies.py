@@ -49,6 +49,7 @@ class Shape:
     source: np.ndarray | None = field(default=None, repr=False)
     """A copy of the vertices as given (their own dtype), for a cheap comparison next time."""
     _normals: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+    _face_normals: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def centre(self) -> np.ndarray:
@@ -63,7 +64,9 @@ class Shape:
 
     def face_normals(self) -> np.ndarray:
         """Unit face normals (F, 3) float32 of this pose."""
-        return face_normals(self.vertices, self.topology.faces)[0]
+        if self._face_normals is None:
+            self._face_normals = face_normals(self.vertices, self.topology.faces)[0]
+        return self._face_normals
 
     def normals(self) -> tuple[np.ndarray, np.ndarray]:
         """Vertex normals (V, 3) and edge normals (E, 3) of this pose, float32."""
