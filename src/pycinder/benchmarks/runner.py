@@ -350,6 +350,9 @@ def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAUL
                            Pycinder("pycinder-scene", strategy="scene", resolution=1024)]
                 systems += make_peers(["python-fcl"])
             else:
+                if name in ("stairs", "many", "deforming", "narrow"):
+                    # The paper's whole-scene strategy on the same frames, for the default's case.
+                    systems.append(Pycinder("pycinder-scene", strategy="scene", resolution=1024))
                 # Fresh peers per scene: they keep per-scene state.
                 systems += make_peers([p.name for p in peer_systems])
             entries.append(run_scene(scene, systems, tolerance=tolerance))

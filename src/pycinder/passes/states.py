@@ -53,6 +53,11 @@ from typing import Literal
 Primitive = Literal["edges", "faces"]
 
 
+def write_mask(color_writes: str) -> int:
+    """The WebGPU colour write mask of a subset of "rgba" (R=1, G=2, B=4, A=8)."""
+    return sum({"r": 1, "g": 2, "b": 4, "a": 8}[c] for c in color_writes)
+
+
 @dataclass(frozen=True)
 class PassState:
     """Fixed-function state of one pass."""
@@ -71,9 +76,7 @@ class PassState:
 
     @property
     def write_mask(self) -> int:
-        """The WebGPU colour write mask (R=1, G=2, B=4, A=8)."""
-        bits = {"r": 1, "g": 2, "b": 4, "a": 8}
-        return sum(bits[c] for c in self.color_writes)
+        return write_mask(self.color_writes)
 
 
 PASSES: dict[int, PassState] = {
@@ -142,14 +145,16 @@ STENCIL_MASK = 0xFF
 # F2      (compute) faces per cluster -       -            -        -       triangles clipped to tiles
 # F3      clipped faces of both       none    none         none     none    per pixel: winding outside
 #         bodies, all tiles                                                 the box, crossings inside
+# F5      (compute) listed crossings  -       -            -        -       records, per-tile counts
 # F4      (compute) edges per cluster -       -            -        -       records, per-tile counts
 # ======  ==========================  ======  ===========  =======  ======  =======================
 #
 # F3 is the only rasterised pass. It has no depth or stencil attachment: a face crossing a pixel's
 # ray in front of the tile's box (for tiles counting towards the back: behind it) adds +1 (front
 # face) or -1 (back face) to that body's winding at the pixel, as passes 2 and 3 do; a face crossing
-# it within the box's depth range is listed with its depth and facing. F4 then counts, for an edge
-# sample at depth z, the listed crossings of the other body between z and the counting side.
+# it within the box's depth range is listed with its depth, facing and face. F5 then tests every
+# listed crossing (a point exactly on one body's surface) and F4 every edge sample at depth z by
+# counting the other body's listed crossings between z and the counting side.
 
 
 @dataclass(frozen=True)
@@ -165,8 +170,7 @@ class FocusedPassState:
 
     @property
     def write_mask(self) -> int:
-        return 0 if not self.color_writes else sum({"r": 1, "g": 2, "b": 4, "a": 8}[c]
-                                                   for c in self.color_writes)
+        return write_mask(self.color_writes)
 
 
 FOCUSED_CROSSINGS = FocusedPassState(
