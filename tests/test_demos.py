@@ -1,4 +1,9 @@
-"""The paper's demos (section 5), run headless, checked against exact geometry."""
+"""The paper's demos (section 5): the simulations checked against exact geometry, and the frames
+checked for what a person would see (not blank, round spheres, the staircase in view, as many
+marks as the overlay says)."""
+
+import itertools
+import sys
 
 import numpy as np
 import pytest
@@ -8,17 +13,51 @@ from pycinder.demos import normals, snow, stairs
 from pycinder.demos.run import run
 
 
+def needs_pygfx():
+    return pytest.importorskip("pygfx", reason="the demos draw with pygfx (the demo extra)")
+
+
+def read_frames(target):
+    """The frames a run wrote to an .mp4, a .gif or a folder of PNGs, as (H, W, 3) uint8."""
+    if target.suffix == ".mp4":
+        import imageio.v2 as imageio
+
+        with imageio.get_reader(target) as reader:
+            return [np.asarray(f)[..., :3] for f in reader]
+    from PIL import Image, ImageSequence
+
+    if target.suffix == ".gif":
+        with Image.open(target) as gif:
+            return [np.asarray(f.convert("RGB")) for f in ImageSequence.Iterator(gif)]
+    return [np.asarray(Image.open(p).convert("RGB")) for p in sorted(target.glob("*.png"))]
+
+
+def assert_not_blank(image):
+    """The scene is drawn: in the middle of the frame (the text and legend sit in its corners),
+    a good part of the pixels differ from the background, a vertical gradient (each row's most
+    common colour)."""
+    assert image.shape == (480, 640, 3)
+    middle = image[120:360, 160:480].astype(int)
+    background = np.median(middle, axis=1, keepdims=True)
+    away = np.abs(middle - background).max(axis=2) > 24
+    assert away.mean() > 0.05, away.mean()
+
+
 @pytest.mark.parametrize("name,out", [("stairs", "stairs.mp4"), ("snow-bunny", "snow.gif"),
                                       ("normals", "frames")])
-def test_demo_writes_its_output(tmp_path, name, out):
+def test_demo_writes_frames_that_are_not_blank(tmp_path, name, out):
+    needs_pygfx()
     target = tmp_path / out
     summary = run(name, frames=4, out=str(target), quiet=True)
     assert len(summary["counts"]) == 4 and len(summary["ms"]) == 4
     assert "median detection" in summary["summary"]
-    if target.suffix:
-        assert target.stat().st_size > 1000
-    else:
-        assert len(list(target.glob("*.png"))) == 4
+    frames = read_frames(target)
+    assert len(frames) == 4
+    assert_not_blank(frames[-1])
+    # pygfx drew on the device the detector computed on.
+    import wgpu
+
+    assert summary["sim"].detector.gpu.device is wgpu.get_default_device()
 
 
 def test_same_seed_same_run():
@@ -28,18 +67,21 @@ def test_same_seed_same_run():
     assert np.array_equal(a["sim"].position, b["sim"].position)
 
 
-def test_stairs_no_sphere_ends_a_frame_inside_a_step():
+def test_stairs_spheres_bounce_down_every_step_and_never_end_inside_one():
     sim = stairs.StairsSim(spheres=50, seed=1)  # the default speed and resolution
     boxes = stairs.step_boxes()
     hits = 0
-    for _ in range(200):
+    for _ in range(120):  # the default frame count
         info = sim.step()
         hits += info["pairs"]
+        assert len(info["marks"]) == info["pairs"]
         centres = sim.position[sim.active]
         inside = ((centres[:, None, :] > boxes[None, :, 0]) &
                   (centres[:, None, :] < boxes[None, :, 1])).all(axis=2)
         assert not inside.any(), f"frame {sim.frame_index}: a sphere centre is inside a step"
-    assert hits > 50  # the spheres did bounce on the steps
+    # The first volley, shot from the top, has bounced on all 11 steps.
+    assert sim.descents >= 45, sim.descents
+    assert hits > 400
 
 
 def test_snow_frozen_flakes_lie_on_the_bunny_or_the_floor():
@@ -72,7 +114,8 @@ def test_snow_open_scan_warns_and_repair_closes_it():
 def test_normals_from_records_match_the_bunny_faces():
     sim = normals.NormalsSim(spheres=24, seed=4)
     for _ in range(90):
-        sim.step()
+        info = sim.step()
+        assert len(info["marks"]) == len(info["normals"]) == info["pairs"]
     points = np.concatenate([p for p, _ in sim.contacts if len(p)])
     got = np.concatenate([n for p, n in sim.contacts if len(p)])
     assert len(points) > 20 and sim.bounces > 3
@@ -82,3 +125,159 @@ def test_normals_from_records_match_the_bunny_faces():
     # An edge's normal is the mean of its two faces: within half the dihedral angle of either.
     assert np.median(angle) < 20, np.median(angle)
     assert np.percentile(angle, 90) < 45, np.percentile(angle, 90)
+
+
+def test_normals_edges_are_coloured_by_the_encoded_normals():
+    sim = normals.NormalsSim(spheres=2, seed=0)
+    lines = sim.edges
+    mesh_edges = sim.bunny.edges_unique
+    assert len(lines.segments) == len(mesh_edges)
+    # Colour 0.5 + 0.5 n, n the mean of the edge's two face normals (what encode="normal" uses).
+    n = lines.colours * 2 - 1
+    mid = lines.segments.mean(axis=1)
+    _, _, tri = trimesh.proximity.closest_point(sim.bunny, mid)
+    cos = np.einsum("ij,ij->i", n / np.linalg.norm(n, axis=1, keepdims=True),
+                    sim.bunny.face_normals[tri])
+    assert np.median(cos) > 0.95
+
+
+# -- what a person sees --------------------------------------------------------------------
+
+
+def silhouette(display, layers):
+    """Pixels where ``layers`` change the rendered frame, as an (H, W) bool mask."""
+    empty = display.render()
+    display.update(layers)
+    shown = display.render()
+    return np.abs(shown.astype(int) - empty.astype(int)).max(axis=2) > 6
+
+
+@pytest.mark.parametrize("demo", [stairs, normals])
+def test_a_sphere_looks_round(demo):
+    needs_pygfx()
+    from pycinder.demos.display import Display, Layer
+
+    display = Display(demo.LOOK)
+    distance = np.linalg.norm(np.subtract(demo.LOOK.eye, demo.LOOK.target))
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=distance * 0.06)
+    where = np.eye(4)
+    where[:3, 3] = demo.LOOK.target
+    mask = silhouette(display, {"probe": Layer(ball, where[None], np.array([0.9, 0.5, 0.2]))})
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    height, width = rows[-1] - rows[0] + 1, cols[-1] - cols[0] + 1
+    assert height > 60  # big enough to measure to a few percent
+    assert abs(width / height - 1) < 0.03, (width, height)
+    # Its outline is a circle: every boundary pixel at the same distance from the centre.
+    y, x = np.nonzero(mask)
+    cy, cx = y.mean(), x.mean()
+    edge = mask & ~np.pad(mask[1:-1, 1:-1] & mask[:-2, 1:-1] & mask[2:, 1:-1] &
+                          mask[1:-1, :-2] & mask[1:-1, 2:], 1)
+    ey, ex = np.nonzero(edge)
+    r = np.hypot(ey - cy, ex - cx)
+    assert r.std() / r.mean() < 0.03, (r.mean(), r.std())
+    assert abs(mask.sum() / (np.pi * r.mean() ** 2) - 1) < 0.05
+
+
+def test_the_whole_staircase_is_in_view():
+    needs_pygfx()
+    from pycinder.demos.display import Display
+
+    display = Display(stairs.LOOK)
+    box = stairs.SCENE_BOX
+    corners = np.array(list(itertools.product(*box.T)))
+    xy, inside = display.project(corners)
+    assert inside.all(), xy
+    # What is drawn: the steps touch no edge of the frame.
+    sim = stairs.StairsSim(spheres=1)
+    mask = silhouette(display, {"steps": sim.layers()["steps"]})
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    assert rows[0] > 2 and cols[0] > 2 and rows[-1] < 477 and cols[-1] < 637, \
+        (rows[0], rows[-1], cols[0], cols[-1])
+    # and fill a good part of it
+    assert cols[-1] - cols[0] > 0.7 * 640
+
+
+def test_overlay_count_equals_the_marks_drawn(tmp_path):
+    needs_pygfx()
+    from scipy import ndimage
+
+    from pycinder.demos.overlay import MARK_EDGE, MARK_FILL, MARK_HALF
+
+    out = tmp_path / "frames"
+    result = run("stairs", frames=16, out=str(out), quiet=True)
+    frames = read_frames(out)
+    assert sum(len(m) for m in result["marks"]) > 10
+    for k, (image, marks, lines) in enumerate(zip(frames, result["marks"], result["lines"])):
+        # The text says how many marks there are; there is one per colliding sphere-step pair.
+        assert lines[-1] == f"sphere-step contacts: {len(marks)}", (k, lines[-1])
+        assert len(marks) == result["counts"][k]
+        # The frame shows exactly those marks: each mark's square is where it should be, and the
+        # purple outlines form one blob per group of touching marks, plus the legend's mark.
+        edge = (image == MARK_EDGE).all(axis=2)
+        fill = (image == MARK_FILL).all(axis=2)
+        for x, y in np.round(marks).astype(int):
+            square = (slice(y - MARK_HALF, y + MARK_HALF + 1),
+                      slice(x - MARK_HALF, x + MARK_HALF + 1))
+            assert (edge[square] | fill[square]).mean() > 0.9, (k, x, y)
+        _, blobs = ndimage.label(edge, structure=np.ones((3, 3)))
+        groups = _touching_groups(np.round(marks).astype(int), 2 * MARK_HALF + 1)
+        assert blobs == groups + 1, (k, blobs, groups)
+
+
+def _touching_groups(centres, size):
+    """How many groups squares of ``size`` pixels at ``centres`` (n, 2) form when touching
+    squares (8-connected) join."""
+    n = len(centres)
+    parent = list(range(n))
+
+    def root(i):
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    for i, j in itertools.combinations(range(n), 2):
+        if np.abs(centres[i] - centres[j]).max() <= size:
+            parent[root(i)] = root(j)
+    return len({root(i) for i in range(n)})
+
+
+def test_window_without_a_display_says_so(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(sys, "platform", "linux")
+    with pytest.raises(RuntimeError, match="needs a display"):
+        run("stairs", frames=1, window=True)
+
+
+def test_missing_pygfx_says_what_to_install(monkeypatch):
+    from pycinder.demos.device import import_pygfx
+
+    monkeypatch.setitem(sys.modules, "pygfx", None)
+    with pytest.raises(ImportError, match=r"pip install 'pycinder\[demo\]'"):
+        import_pygfx()
+
+
+def test_example_writes_a_labelled_montage(tmp_path, capsys):
+    pytest.importorskip("PIL")
+    from PIL import Image
+    from scipy import ndimage
+
+    from pycinder.cli import main
+    from pycinder.debug import id_colours
+    from pycinder.montage import PANEL_OUTLINE
+
+    assert main(["example", "--out", str(tmp_path)]) == 0
+    assert "montage.png" in capsys.readouterr().out
+    assert len(list(tmp_path.glob("0*.png"))) == 6  # the buffers one by one, as before
+    montage = np.asarray(Image.open(tmp_path / "montage.png").convert("RGB"))
+    # Six framed panels, three a row ...
+    labels, n = ndimage.label((montage == PANEL_OUTLINE).all(axis=2), structure=np.ones((3, 3)))
+    boxes = [b for b in ndimage.find_objects(labels)
+             if b[0].stop - b[0].start > 100 and b[1].stop - b[1].start > 100]
+    assert len(boxes) == 6, boxes
+    assert len({b[0].start for b in boxes}) == 2 and len({b[1].start for b in boxes}) == 3
+    # ... showing the boxes' colours, which the legend explains.
+    below = max(b[0].stop for b in boxes)
+    for colour in id_colours(np.arange(1, 4)):
+        assert (montage[:below] == colour).all(axis=2).sum() > 50
+        assert (montage[below:] == colour).all(axis=2).sum() > 50

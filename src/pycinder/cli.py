@@ -119,9 +119,10 @@ def cmd_debug_buffers(args: argparse.Namespace) -> int:
 
 
 def cmd_example(args: argparse.Namespace) -> int:
-    """Check the paper's three-box scene and write its debug buffers."""
+    """Check the paper's three-box scene, write its debug buffers and their montage."""
     from .debug import three_boxes, write_debug_buffers
     from .detector import Detector
+    from .montage import write_montage
 
     boxes, names, view = three_boxes()
     result = Detector().find_collisions(boxes, names=names)
@@ -134,6 +135,8 @@ def cmd_example(args: argparse.Namespace) -> int:
           f"{st.wall_ms['total']:.1f} ms")
     for p in write_debug_buffers(None, args.out, resolution=args.resolution):
         print(f"  wrote {p}")
+    montage = write_montage(Path(args.out) / "montage.png", resolution=args.resolution)
+    print(f"  wrote {montage} (Figures 9-13 with a legend)")
     return 0
 
 
@@ -159,25 +162,26 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
+    """Run a demo: headless for ``--frames`` frames (default 120), or in a window until it is
+    closed (or for ``--frames`` frames when given)."""
     from .demos.run import run
 
-    bar = None
+    options = {"out": args.out, "window": args.window, "tolerance": args.tolerance,
+               "seed": args.seed, "spheres": args.spheres, "scan": args.scan,
+               "close_holes": args.close_holes}
+    if args.window:
+        run(args.name, frames=args.frames, **options)
+        return 0
+    frames = args.frames or 120
     try:
         from rich.progress import Progress
-        bar = Progress(transient=True)
-    except ImportError:  # pragma: no cover
-        pass
-    if bar is not None and not args.window:
-        with bar:
-            task = bar.add_task(args.name, total=args.frames)
-            run(args.name, frames=args.frames, out=args.out, window=args.window,
-                tolerance=args.tolerance, seed=args.seed, spheres=args.spheres, scan=args.scan,
-                close_holes=args.close_holes,
-                progress=lambda k, n: bar.update(task, completed=k))
-    else:
-        run(args.name, frames=args.frames, out=args.out, window=args.window,
-            tolerance=args.tolerance, seed=args.seed, spheres=args.spheres, scan=args.scan,
-            close_holes=args.close_holes)
+    except ImportError:  # pragma: no cover - rich comes with the demo extra
+        run(args.name, frames=frames, **options)
+        return 0
+    with Progress(transient=True) as bar:
+        task = bar.add_task(args.name, total=frames)
+        run(args.name, frames=frames, progress=lambda k, n: bar.update(task, completed=k),
+            **options)
     return 0
 
 
@@ -211,9 +215,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("demo", help="the paper's demos: stairs, snow-bunny, normals")
     p.add_argument("name", choices=["stairs", "snow-bunny", "normals"])
-    p.add_argument("--frames", type=int, default=120)
+    p.add_argument("--frames", type=int, default=None,
+                   help="frames to run (default 120 headless; a window runs until closed)")
     p.add_argument("--out", metavar="FILE.mp4|FILE.gif|DIR", help="write the frames here")
-    p.add_argument("--window", action="store_true", help="open an interactive window")
+    p.add_argument("--window", action="store_true",
+                   help="open an interactive window (drag to orbit, scroll to zoom)")
     p.add_argument("--tolerance", type=float, default=None,
                    help="detection tolerance in world units (default: 1%% of the smaller body of "
                         "each pair)")
@@ -237,7 +243,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--stem", default="results", help="file name stem of the JSON and Markdown")
     p.set_defaults(func=cmd_bench)
 
-    p = sub.add_parser("example", help="check the built-in three-box scene and write its buffers")
+    p = sub.add_parser("example", help="check the built-in three-box scene and write its buffers "
+                                       "and a labelled montage of them (montage.png)")
     p.add_argument("--out", default="out/buffers", metavar="DIR")
     p.add_argument("--resolution", type=int, default=512)
     p.set_defaults(func=cmd_example)

@@ -1,6 +1,13 @@
 """Edges coloured by normals (paper 5.3): spheres bounce off the bunny using the surface normal
 read straight from the collision records (``Detector(encode="normal")``), with no CPU lookup of
-the mesh. No response when a sphere already moves away from the plane."""
+the mesh.
+
+With ``encode="normal"`` the detector carries, for every edge of a body, the normal it encodes
+(the mean of the edge's two face normals) into the records of that edge. The display shows
+exactly those normals: each edge of the bunny is drawn in the colour 0.5 + 0.5 n of its encoded
+normal n (x red, y green, z blue), over a dark surface. A sphere takes the colour of the last
+normal it bounced off; it gets no response when it already moves away from the plane.
+"""
 
 from __future__ import annotations
 
@@ -10,15 +17,44 @@ import numpy as np
 import trimesh
 
 from ..detector import Detector
-from ..view import View
+from ..scene import prepare_scene
+from .display import Layer, Lines, fit_look
+from .marks import pair_points
 from .snow import load_bunny
 
 RADIUS = 0.04
 DT = 1.0 / 60.0
+FPS = 30
+"""Videos play at half speed: the bounces are quick."""
 RESTITUTION = 0.9
+LOOK = fit_look(np.array([[-0.3, -0.22, -0.24], [0.3, 0.6, 0.24]]), (0.2, 0.4, 1.0), fov=40.0,
+                margin=0.03, background=("#1c1f26", "#3a4150"), sun=(0.3, 1.0, 0.6),
+                shadow_extent=2.5)
+"""The bunny, with room below it for the legend."""
+SURFACE_COLOUR = (0.16, 0.17, 0.2)
+EDGE_INSET = 0.0015
+"""The surface is drawn this far (world units) inside the bunny, so its edges lie on top."""
+
+
+def normal_colours(normals: np.ndarray) -> np.ndarray:
+    """Colours (n, 3) in [0, 1] of unit normals (n, 3): 0.5 + 0.5 n."""
+    return np.clip(0.5 + 0.5 * np.asarray(normals, float), 0, 1)
 
 
 class NormalsSim:
+    """The normals simulation: ``step()`` advances one frame.
+
+    Attributes
+    ----------
+    position, velocity : (spheres, 3) float
+    colour : (spheres, 3) float
+        Each sphere's colour: the last normal it bounced off (grey before its first bounce).
+    bounces : int
+        Reflections so far.
+    contacts : list of ((m, 3), (m, 3)) float
+        Per frame, the record points on the bunny's edges inside spheres and their normals.
+    """
+
     def __init__(self, spheres: int = 24, seed: int = 0, tolerance: float | None = None) -> None:
         self.rng = np.random.default_rng(seed)
         self.bunny, self.note = load_bunny()
@@ -33,6 +69,8 @@ class NormalsSim:
         self.detector = Detector(tolerance=tolerance, encode="normal", records="all")
         self.bounces = 0
         self.contacts: list[tuple[np.ndarray, np.ndarray]] = []  # (points, normals) per frame
+        self.surface = self._inset_surface()
+        self.edges = self.edge_lines()
 
     def _shoot(self, i: int) -> None:
         d = self.rng.normal(size=3)
@@ -44,13 +82,22 @@ class NormalsSim:
         self.velocity[i] = v / np.linalg.norm(v) * self.rng.uniform(0.6, 1.0)
 
     def step(self) -> dict:
+        """Advance one frame: move, detect, bounce off the normals read from the records.
+
+        Returns
+        -------
+        dict
+            ``result``, ``ms`` (detection time), ``pairs`` (spheres touching the bunny with a
+            normal from its edges), ``marks`` ((pairs, 3) one contact point per such sphere) and
+            ``normals`` ((pairs, 3) the normal each bounced off).
+        """
         self.position += self.velocity * DT
         far = np.linalg.norm(self.position - self.centre, axis=1) > 1.0
         for i in np.flatnonzero(far):
             self._shoot(i)
         balls = np.tile(np.eye(4), (self.n, 1, 1))
         balls[:, :3, 3] = self.position
-        # Only spheres near the bunny go to the detector (the view is fitted to the bunny).
+        # Only spheres near the bunny go to the detector.
         near = np.flatnonzero((np.abs(self.position - self.centre) < 0.5 - RADIUS).all(axis=1))
         bodies = [self.bunny] + [self.ball] * len(near)
         transforms = np.concatenate([np.eye(4)[None], balls[near]])
@@ -60,25 +107,41 @@ class NormalsSim:
         rec = result.records
         # The bunny's edges carry its normals; spheres are only ever the penetrated body (5.3.1).
         mine = rec[(rec["penetrating"] == 0) & (rec["penetrated"] > 0)]
-        self.contacts.append((result.points()[(rec["penetrating"] == 0) & (rec["penetrated"] > 0)],
-                              mine["normal"]))
-        for j in np.unique(mine["penetrated"]):
+        self.contacts.append((np.asarray(mine["point"], float), mine["normal"]))
+        touched = np.unique(mine["penetrated"]).astype(np.int64)
+        normals = np.zeros((len(touched), 3))
+        for k, j in enumerate(touched):
             n = mine["normal"][mine["penetrated"] == j].mean(axis=0)
             n /= np.linalg.norm(n)
+            normals[k] = n
             i = near[j - 1]
             vn = float(self.velocity[i] @ n)
-            self.colour[i] = 0.5 + 0.5 * n
+            self.colour[i] = normal_colours(n)
             if vn < 0:  # moving into the plane: reflect
                 self.velocity[i] -= (1 + RESTITUTION) * vn * n
                 self.bounces += 1
-        return {"result": result, "ms": ms, "pairs": len(np.unique(mine["penetrated"]))}
+        pairs = np.c_[np.zeros(len(touched), np.int64), touched]
+        marks = pair_points(mine, pairs, transforms[touched, :3, 3])
+        return {"result": result, "ms": ms, "pairs": len(touched), "marks": marks,
+                "normals": normals}
 
-    def scene_for_display(self) -> tuple[list, np.ndarray, np.ndarray]:
+    def _inset_surface(self) -> trimesh.Trimesh:
+        normals = np.asarray(self.bunny.vertex_normals)
+        return trimesh.Trimesh(self.bunny.vertices - EDGE_INSET * normals, self.bunny.faces,
+                               process=False)
+
+    def edge_lines(self) -> Lines:
+        """The bunny's edges, each coloured by the normal the detector encodes for it."""
+        shape = prepare_scene([self.bunny]).shapes[0]
+        edges = shape.topology.edges
+        segments = np.asarray(shape.vertices, float)[edges]
+        return Lines(segments, normal_colours(shape.normals()[1]), thickness=1.6)
+
+    def layers(self) -> dict[str, Layer | Lines]:
+        """What the display shows: the dark surface, its coloured edges, the spheres."""
         balls = np.tile(np.eye(4), (self.n, 1, 1))
         balls[:, :3, 3] = self.position
-        colours = np.vstack([[0.85, 0.8, 0.75], self.colour])
-        return [self.bunny] + [self.ball] * self.n, np.concatenate([np.eye(4)[None], balls]), colours
-
-
-def display_view() -> View:
-    return View.look_at(eye=(0.2, 0.9, 1.6), target=(0, 0.25, 0), fov_y=45.0, near=0.3, far=10.0)
+        return {"surface": Layer(self.surface, np.eye(4)[None], np.array(SURFACE_COLOUR),
+                                 shadows=False),
+                "edges": self.edges,
+                "spheres": Layer(self.ball, balls, self.colour.copy())}

@@ -1,139 +1,235 @@
-"""``pycinder demo {stairs,snow-bunny,normals}``: run a demo headless or in a window."""
+"""``pycinder demo {stairs,snow-bunny,normals}``: run a demo headless or in a window.
+
+Each frame the simulation steps (detection and response), the display shows its layers, and an
+overlay marks one contact per colliding pair (the paper's purple squares), says how many it drew
+and explains the marks in a legend.
+"""
 
 from __future__ import annotations
 
 import sys
 import time
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from .render import FrameWriter, Renderer, display_available, mark_points, overlay, summary
+from .display import Display, Look
+from .output import FrameWriter, display_available, summary
+from .overlay import LegendEntry, composite, overlay_layer
 
 DEMOS = ("stairs", "snow-bunny", "normals")
+NORMAL_LENGTH = 0.06
+"""World length of the normal line drawn from a mark in the normals demo."""
 
 
-def make_sim(name: str, *, seed: int, tolerance: float | None, spheres: int | None = None,
-             scan: bool = False, close_holes: bool = False) -> tuple[Any, Any, str]:
-    """The simulation, its display view and a title."""
+@dataclass
+class Demo:
+    """A simulation and how to show it.
+
+    Attributes
+    ----------
+    name : str
+    sim : StairsSim or SnowSim or NormalsSim
+        Has ``step() -> dict`` and ``layers() -> dict``.
+    look : Look
+    title : str
+    fps : int
+        Playback rate of written videos.
+    counted : str
+        What one mark stands for, in the text panel: "<counted> N".
+    legend : list of LegendEntry
+    """
+
+    name: str
+    sim: Any
+    look: Look
+    title: str
+    fps: int
+    counted: str
+    legend: list[LegendEntry] = field(default_factory=list)
+
+
+def make_demo(name: str, *, seed: int = 0, tolerance: float | None = None,
+              spheres: int | None = None, scan: bool = False, close_holes: bool = False) -> Demo:
+    """The demo ``name`` (one of :data:`DEMOS`), its simulation set up."""
     if name == "stairs":
         from . import stairs
 
         sim = stairs.StairsSim(spheres or 50, seed, tolerance)
-        return sim, stairs.display_view(), f"Stairs, {sim.spheres} spheres"
+        return Demo(name, sim, stairs.LOOK, f"Stairs: {sim.spheres} spheres, {stairs.STEPS} steps",
+                    stairs.FPS, "sphere-step contacts",
+                    [LegendEntry("a sphere touching a step: one mark per colliding pair")])
     if name == "snow-bunny":
         from . import snow
 
-        sim = snow.SnowSim(spheres or 150, seed, tolerance, scan=scan,
-                           close_holes=close_holes)
-        return sim, snow.display_view(), f"Snow Bunny ({sim.note})"
+        sim = snow.SnowSim(spheres or 150, seed, tolerance, scan=scan, close_holes=close_holes)
+        return Demo(name, sim, snow.LOOK, f"Snow Bunny: {sim.note}", snow.FPS, "flakes landing",
+                    [LegendEntry("a flake landing on the bunny or the floor: one mark per "
+                                 "colliding pair"),
+                     LegendEntry("frozen flake (no longer checked)", "swatch",
+                                 tuple(int(round(255 * c)) for c in snow.FROZEN_COLOUR))])
     if name == "normals":
         from . import normals
 
         sim = normals.NormalsSim(spheres or 24, seed, tolerance)
-        return sim, normals.display_view(), "Edges coloured by normals"
+        return Demo(name, sim, normals.LOOK, "Edges coloured by normals", normals.FPS,
+                    "spheres touching the bunny",
+                    [LegendEntry("a sphere touching the bunny: one mark per colliding pair,",
+                                 "normal"),
+                     LegendEntry("  with the normal read from its records (the bounce)", "none")])
     raise ValueError(f"unknown demo {name!r}; choose from {DEMOS}")
 
 
-def display_scene(name: str, sim: Any, info: dict) -> tuple[list, np.ndarray, np.ndarray]:
-    if name == "stairs":
-        from .stairs import colours
+def draw_overlay(demo: Demo, display: Display, info: dict, lines: list[str]
+                 ) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """The overlay of one frame.
 
-        return info["bodies"], info["transforms"], colours(len(info["bodies"]))
-    return sim.scene_for_display()
+    Parameters
+    ----------
+    demo : Demo
+    display : Display
+        Its camera places the marks.
+    info : dict
+        What ``sim.step()`` returned: ``marks`` (M, 3), optionally ``normals`` (M, 3).
+    lines : list of str
+        The text panel's first lines; the count of marks drawn is added.
+
+    Returns
+    -------
+    layer : (H, W, 4) uint8
+        RGBA overlay.
+    drawn : (m, 2) float
+        Pixel centres of the marks drawn (those inside the frame), m <= M.
+    lines : list of str
+        The text panel as drawn.
+    """
+    marks = np.asarray(info["marks"], float).reshape(-1, 3)
+    xy, inside = display.project(marks)
+    drawn = xy[inside]
+    count = f"{demo.counted}: {len(drawn)}"
+    if not inside.all():
+        count += f" (+{int((~inside).sum())} outside the frame)"
+    lines = lines + [count]
+    ends = None
+    if "normals" in info:
+        ends = display.project(marks + NORMAL_LENGTH * np.asarray(info["normals"]))[0][inside]
+    legend = list(demo.legend)
+    if demo.name == "normals":
+        legend.append(LegendEntry("edge colour: its encoded normal n as 0.5 + 0.5 n",
+                                  "image", image=display.normal_ball()))
+        legend.append(LegendEntry("  (x red, y green, z blue; the ball shows this view)", "none"))
+    layer = overlay_layer(display.size, lines=lines, legend=legend, marks=drawn, normal_ends=ends,
+                          legend_right=demo.look.legend_right)
+    return layer, drawn, lines
 
 
 def run(name: str, *, frames: int = 120, out: str | None = None, window: bool = False,
-        tolerance: float | None = None, seed: int = 0, spheres: int | None = None, scan: bool = False,
-        close_holes: bool = False, size: tuple[int, int] = (640, 480), quiet: bool = False,
-        progress: Any = None) -> dict[str, Any]:
-    """Run ``frames`` frames; write them to ``out`` (.mp4, .gif or a folder) and return a summary."""
+        tolerance: float | None = None, seed: int = 0, spheres: int | None = None,
+        scan: bool = False, close_holes: bool = False, size: tuple[int, int] = (640, 480),
+        quiet: bool = False, progress: Any = None) -> dict[str, Any]:
+    """Run ``frames`` frames; write them to ``out`` (.mp4, .gif or a folder) and return a summary.
+
+    Returns
+    -------
+    dict
+        ``sim``, ``counts`` (contacts per frame), ``ms`` (detection time per frame),
+        ``summary`` (one line), and when frames were drawn ``marks`` (per frame, the (m, 2)
+        pixel centres of the marks drawn) and ``lines`` (per frame, the text panel).
+    """
     if window:
         if not display_available():
             raise RuntimeError("--window needs a display (no DISPLAY or WAYLAND_DISPLAY is set); "
                                "run headless with --out FILE.mp4 instead")
         return run_window(name, frames=frames, tolerance=tolerance, seed=seed, spheres=spheres,
-                          scan=scan, close_holes=close_holes)
-    sim, view, title = make_sim(name, seed=seed, tolerance=tolerance, spheres=spheres, scan=scan,
-                                close_holes=close_holes)
-    renderer = Renderer(sim.detector, *size) if out else None
-    writer = FrameWriter(out)
-    counts, times = [], []
+                          scan=scan, close_holes=close_holes, size=size)
+    display = None
+    if out:
+        from .device import shared_device
+
+        shared_device()  # before the simulation's detector takes a device of its own
+    demo = make_demo(name, seed=seed, tolerance=tolerance, spheres=spheres, scan=scan,
+                     close_holes=close_holes)
+    if out:
+        display = Display(demo.look, size)
+    writer = FrameWriter(out, fps=demo.fps)
+    counts, times, marks, panels = [], [], [], []
     t_start = time.perf_counter()
     for k in range(frames):
-        info = sim.step()
+        info = demo.sim.step()
         counts.append(info["pairs"])
         times.append(info["ms"])
-        if renderer is not None:
-            bodies, transforms, colours = display_scene(name, sim, info)
-            image = renderer.render(bodies, transforms, colours, view)
-            marks = info["marks"] if "marks" in info else info["result"].points()
-            mark_points(image, view, marks)
-            image = overlay(image, [title, f"frame {k + 1}/{frames}",
-                                    f"collisions {info['pairs']}",
-                                    f"detection {info['ms']:.1f} ms"])
-            writer.add(image)
+        if display is not None:
+            display.update(demo.sim.layers())
+            image = display.render()
+            layer, drawn, lines = draw_overlay(
+                demo, display, info,
+                [demo.title, f"frame {k + 1}/{frames}, detection {info['ms']:.1f} ms"])
+            writer.add(composite(image, layer))
+            marks.append(drawn)
+            panels.append(lines)
         if progress:
             progress(k + 1, frames)
     writer.close()
     extra = {"wall s": round(time.perf_counter() - t_start, 1)}
     if out:
         extra["wrote"] = out
-    if name == "snow-bunny":
-        extra["frozen flakes"] = len(sim.frozen)
-        if sim.warnings:
-            extra["warning"] = sim.warnings[0]
-    if name == "normals":
-        extra["bounces"] = sim.bounces
+    extra.update(_extra(demo))
     text = summary(name, counts, times, extra)
     if not quiet:
         print(text)
-    return {"sim": sim, "counts": counts, "ms": times, "summary": text}
+    result = {"sim": demo.sim, "counts": counts, "ms": times, "summary": text}
+    if display is not None:
+        result.update(marks=marks, lines=panels)
+    return result
 
 
-def run_window(name: str, frames: int | None = None, **kwargs: Any) -> dict[str, Any]:
-    """An interactive window through rendercanvas: the arrow keys turn the display camera, and in
-    the snow-bunny demo the a and d keys turn the bunny. Closes after ``frames`` frames if given."""
-    from rendercanvas.auto import RenderCanvas, loop
+def _extra(demo: Demo) -> dict[str, Any]:
+    sim = demo.sim
+    if demo.name == "stairs":
+        return {"descents (a sphere on all 11 steps)": sim.descents}
+    if demo.name == "snow-bunny":
+        extra = {"frozen flakes": len(sim.frozen)}
+        if sim.warnings:
+            extra["warning"] = sim.warnings[0]
+        return extra
+    return {"bounces": sim.bounces}
 
-    sim, view, title = make_sim(name, **kwargs)
-    renderer = Renderer(sim.detector, 640, 480)
-    canvas = RenderCanvas(title=f"pycinder - {title}", size=(640, 480))
-    context = canvas.get_context("bitmap")
-    state = {"yaw": 0.0, "counts": [], "ms": []}
+
+def run_window(name: str, frames: int | None = None, size: tuple[int, int] = (640, 480),
+               **kwargs: Any) -> dict[str, Any]:
+    """An interactive window through rendercanvas: drag to orbit the camera, scroll to zoom;
+    in the snow-bunny demo the a and d keys turn the bunny. Closes after ``frames`` frames if
+    given, else when closed."""
+    from .device import shared_device
+
+    shared_device()
+    demo = make_demo(name, **kwargs)
+    display = Display(demo.look, size, window=True, title=f"pycinder - {demo.title}")
+    from rendercanvas.auto import loop
+
+    state: dict[str, list] = {"counts": [], "ms": []}
 
     def on_key(event: dict) -> None:
-        if event.get("key") == "ArrowLeft":
-            state["yaw"] -= 0.1
-        elif event.get("key") == "ArrowRight":
-            state["yaw"] += 0.1
         if name == "snow-bunny" and event.get("key") in ("a", "d"):
-            sim.angle += 0.2 if event["key"] == "d" else -0.2
+            demo.sim.angle += 0.2 if event["key"] == "d" else -0.2
 
-    canvas.add_event_handler(on_key, "key_down")
+    display.renderer.add_event_handler(on_key, "key_down")
 
-    @canvas.request_draw
-    def draw() -> None:
+    def animate() -> None:
         if frames is not None and len(state["counts"]) >= frames:
-            canvas.close()
+            display.canvas.close()
             return
-        info = sim.step()
+        info = demo.sim.step()
         state["counts"].append(info["pairs"])
         state["ms"].append(info["ms"])
-        bodies, transforms, colours = display_scene(name, sim, info)
-        rot = np.eye(4)
-        c, s = np.cos(state["yaw"]), np.sin(state["yaw"])
-        rot[[0, 0, 2, 2], [0, 2, 0, 2]] = [c, s, -s, c]
-        from ..view import View
+        display.update(demo.sim.layers())
+        layer, _, _ = draw_overlay(demo, display, info, [
+            demo.title, f"detection {info['ms']:.1f} ms (drag to orbit, scroll to zoom)"])
+        display.draw_window(layer)
 
-        v = View(view.view @ rot, view.projection)
-        image = renderer.render(bodies, transforms, colours, v)
-        mark_points(image, v, info["marks"] if "marks" in info else info["result"].points())
-        image = overlay(image, [title, f"collisions {info['pairs']}", f"{info['ms']:.1f} ms"])
-        context.set_bitmap(np.dstack([image, np.full(image.shape[:2], 255, np.uint8)]))
-        canvas.request_draw()
-
+    display.canvas.request_draw(animate)
     loop.run()
-    text = summary(name, state["counts"], state["ms"])
+    text = summary(name, state["counts"], state["ms"], _extra(demo))
     print(text, file=sys.stderr)
-    return {"sim": sim, "counts": state["counts"], "ms": state["ms"], "summary": text}
+    return {"sim": demo.sim, "counts": state["counts"], "ms": state["ms"], "summary": text}

@@ -17,11 +17,20 @@ import trimesh
 from ..detector import Detector
 from ..scene import OpenMeshWarning
 from ..testing import bunny, sample_mesh_path
-from ..view import View
+from .display import Layer, Look
+from .marks import pair_points
 
 FLAKE_SIZE = 0.025
 FLOOR = (2.4, 0.1, 2.4)
 DT = 1.0 / 30.0
+FPS = 30
+LOOK = Look(eye=(1.05, 0.95, 1.75), target=(0.0, 0.24, 0.0), fov=42.0,
+            keep_in_view=np.array([[-0.45, 0.0, -0.45], [0.45, 0.62, 0.45]]),
+            background=("#a9bbd1", "#33425b"), sun=(0.5, 1.0, 0.35), shadow_extent=3.0)
+BUNNY_COLOUR = (0.80, 0.70, 0.58)
+FLOOR_COLOUR = (0.42, 0.52, 0.47)
+FLAKE_COLOUR = (1.0, 1.0, 1.0)
+FROZEN_COLOUR = (0.78, 0.88, 1.0)
 
 
 def flake_mesh(size: float = FLAKE_SIZE) -> trimesh.Trimesh:
@@ -104,6 +113,15 @@ class SnowSim:
         self.velocity = np.vstack([self.velocity, v])
 
     def step(self) -> dict:
+        """Advance one frame: spawn, fall, detect, freeze the flakes that hit.
+
+        Returns
+        -------
+        dict
+            ``result``, ``ms`` (detection time), ``pairs`` (colliding flake-bunny and
+            flake-floor pairs), ``frozen_now``, ``marks`` ((pairs, 3) one contact point per
+            such pair), ``frozen_at``.
+        """
         self._spawn()
         self.angle += self.spin * DT
         self.position += self.velocity * DT
@@ -133,28 +151,22 @@ class SnowSim:
         keep[list(stuck)] = False
         keep &= self.position[:, 1] > -0.5
         self.position, self.velocity = self.position[keep], self.velocity[keep]
-        rec = result.records
-        flake_px = (rec["penetrating"] >= 2) | (rec["penetrated"] >= 2)
+        marks = pair_points(result.records, hits, transforms[hits[:, 1], :3, 3])
         return {"result": result, "ms": ms, "pairs": len(hits), "frozen_now": len(stuck),
-                "marks": result.points()[flake_px], "frozen_at": [flakes[k] for k in stuck]}
+                "marks": marks, "frozen_at": [flakes[k] for k in stuck]}
 
     def frozen_world(self) -> np.ndarray:
         bt = self.bunny_transform()
         return np.array([bt @ f.transform if f.on_bunny else f.transform for f in self.frozen]
                         ).reshape(-1, 4, 4)
 
-    def scene_for_display(self) -> tuple[list, np.ndarray, np.ndarray]:
+    def layers(self) -> dict[str, Layer]:
+        """What the display shows: the bunny, the floor, falling and frozen flakes."""
         flakes = np.tile(np.eye(4), (len(self.position), 1, 1))
         flakes[:, :3, 3] = self.position
-        frozen = self.frozen_world()
-        bodies = [self.bunny, self.floor] + [self.flake] * len(flakes) + [self.big_flake] * len(frozen)
-        transforms = np.concatenate([self.bunny_transform()[None], self.floor_t[None], flakes, frozen])
-        colours = np.ones((len(bodies), 3))
-        colours[0] = [0.8, 0.7, 0.6]
-        colours[1] = [0.45, 0.55, 0.5]
-        colours[2 + len(flakes):] = [0.75, 0.85, 1.0]
-        return bodies, transforms, colours
-
-
-def display_view() -> View:
-    return View.look_at(eye=(0.9, 1.0, 1.6), target=(0, 0.25, 0), fov_y=45.0, near=0.3, far=10.0)
+        return {"bunny": Layer(self.bunny, self.bunny_transform()[None], np.array(BUNNY_COLOUR)),
+                "floor": Layer(self.floor, self.floor_t[None], np.array(FLOOR_COLOUR), flat=True),
+                "flakes": Layer(self.flake, flakes, np.array(FLAKE_COLOUR), flat=True,
+                                shadows=False),
+                "frozen": Layer(self.big_flake, self.frozen_world(), np.array(FROZEN_COLOUR),
+                                flat=True, shadows=False)}
