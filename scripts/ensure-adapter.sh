@@ -22,6 +22,11 @@ found=$(probe) || found=""
 case "$found" in
   Vulkan*|Metal*|D3D12*) echo "adapter: $found"; exit 0 ;;
 esac
+if [ -n "$found" ] && [ -n "${WGPU_BACKEND_TYPE:-}" ]; then
+  # The backend was chosen on purpose (WGPU_BACKEND_TYPE=OpenGL): take it as it is.
+  echo "adapter: $found (WGPU_BACKEND_TYPE=$WGPU_BACKEND_TYPE)"
+  exit 0
+fi
 if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then
   echo "adapter: ${found:-none}; installing mesa-vulkan-drivers (lavapipe, Mesa's CPU Vulkan driver)"
   export DEBIAN_FRONTEND=noninteractive

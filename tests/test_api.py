@@ -68,6 +68,15 @@ def test_options_are_checked_once_when_the_request_is_made():
     assert det.request.tolerance == 0.01 and det.request.records == "none"
     with pytest.raises(ValueError, match="view applies to strategy='scene'"):
         det.find_collisions([trimesh.creation.box()], view=View.fit(np.eye(3)))
+    with pytest.raises(ValueError, match="records must be one of"):
+        det.find_collisions([trimesh.creation.box()], records="some")
+    # NumPy scalars are numbers too.
+    assert pycinder.CollisionRequest(tolerance=np.float32(0.5)).tolerance == 0.5
+    assert pycinder.CollisionRequest(tolerance=np.int64(2)).tolerance == 2.0
+    with pytest.raises(TypeError, match="leave 'records' out"):
+        pycinder.CollisionManager(records="all")
+    with pytest.raises(ValueError, match="tolerance must be a positive number"):
+        pycinder.CollisionManager(tolerance=-1)
 
 
 @pytest.mark.parametrize("strategy", ["focused", "scene"])

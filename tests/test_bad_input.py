@@ -1,7 +1,5 @@
 """Bad input gets a clear error naming the body and the problem; warnings point at the caller."""
 
-import warnings
-
 import numpy as np
 import pytest
 import trimesh

@@ -2,13 +2,11 @@
 
 import json
 
+import fcl  # noqa: F401  (the test extra brings python-fcl, the first peer)
 import numpy as np
-import pytest
 
 from pycinder.benchmarks import peers, report, runner
 from pycinder.benchmarks.scenes import SphereField, SpreadPairs
-
-pytest.importorskip("fcl")
 
 
 def test_aabb_candidates_match_brute_force():
@@ -51,7 +49,10 @@ def test_spread_pairs_are_what_they_say():
 
 
 def test_soak_keeps_memory_steady():
+    """Fresh (vertices, faces) arrays every frame: three topology builds, then no growth (the
+    old id-keyed cache grew about 0.1 MiB a frame, 30 MiB over these frames)."""
     soak = runner.run_soak(frames=300, every=50)
     assert soak["rss_end_mib"] < 1024
+    assert soak["rss_growth_mib"] < 8, soak["samples"]
     assert soak["topology_builds"] == 3 and soak["pairs_found"] > 0
     assert len(soak["samples"]) >= 6

@@ -9,7 +9,7 @@ from pycinder import broadphase
 from pycinder.broadphase import sweep_and_prune
 from pycinder.scene import prepare_scene
 from pycinder.testing import random_rotation, random_scene
-from pycinder.tiles import MAX_TILE, PROBE, plan_tiles
+from pycinder.tiles import FLAG_SKIP_IF_HIT, MAX_TILE, PROBE, plan_tiles
 
 
 def brute(lo, hi):
@@ -88,8 +88,11 @@ def test_atlas_tiles_never_overlap_and_cover_their_windows(budget):
     assert np.allclose(np.linalg.det(plan.axes), 1.0)
     assert np.allclose(plan.pixel, 0.004)
     # The probes come first: the pieces after them are skipped once their pair is found.
-    probes = plan.flags & 8 == 0
-    assert (w[probes] <= max(PROBE[0], MAX_TILE[0])).all()
+    probes = plan.flags & FLAG_SKIP_IF_HIT == 0
+    assert probes.any() and (~probes).any()
+    assert (w[probes] <= PROBE[0]).all() and (h[probes] <= PROBE[1]).all()
+    assert not (probes[1:] & ~probes[:-1]).any(), "a probe comes after a skippable piece"
+    assert plan.round[probes].max() <= plan.round[~probes].min()
 
 
 def test_apart_oriented_boxes_need_no_tile():

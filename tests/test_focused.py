@@ -7,6 +7,7 @@ import trimesh
 
 import pycinder
 from pycinder.benchmarks.scenes import ManyBodies
+from pycinder.contacts import reduce_contacts
 from pycinder.passes.focused import FocusedPasses
 from pycinder.testing import bunny as load_bunny
 from pycinder.testing import ground_truth, nested_scene, random_scene
@@ -170,6 +171,7 @@ def test_memory_rounds_give_the_same_answer():
     tight = pycinder.Detector(memory_budget=2**20).find_collisions(meshes, transforms)
     assert tight.stats.rounds > roomy.stats.rounds
     assert tight.pairs.tolist() == roomy.pairs.tolist()
+    assert_matches_truth(tight.pairs, ground_truth(meshes, transforms), context="tight budget")
 
 
 def test_full_pixel_lists_are_retried_in_thinner_boxes():
@@ -184,6 +186,20 @@ def test_full_pixel_lists_are_retried_in_thinner_boxes():
     assert squeezed.stats.undecided > 0 and squeezed.stats.retries > 0
     assert squeezed.stats.possibly_lost == 0
     assert squeezed.pairs.tolist() == normal.pairs.tolist()
+    assert_matches_truth(squeezed.pairs, ground_truth(meshes, transforms), context="retried")
+    # Records of every attempt name their own tile in the plan the result carries: the tile's
+    # pair is the record's pair, and the tile's frame puts the record's pixel at its point.
+    rec, tiles = squeezed.records, squeezed.tiles
+    assert len(tiles) == squeezed.stats.tiles
+    tile_pairs = np.sort(tiles.bodies[rec["view"]], axis=1)
+    rec_pairs = np.sort(np.c_[rec["penetrating"], rec["penetrated"]], axis=1)
+    assert (tile_pairs == rec_pairs).all()
+    points = tiles.to_world(rec["view"], rec["x"] + 0.5, rec["y"] + 0.5, rec["depth"])
+    assert np.allclose(points, rec["point"], atol=1e-6 * np.abs(rec["point"]).max())
+    contacts = reduce_contacts(squeezed)
+    assert sorted(map(tuple, np.unique(contacts.pair, axis=0).tolist())) == \
+        sorted(map(tuple, squeezed.pairs.tolist()))
+    assert np.allclose(np.linalg.norm(contacts.normal, axis=1), 1.0)
 
 
 def test_record_modes_agree_on_pairs_and_records_lie_where_they_say():
@@ -192,6 +208,7 @@ def test_record_modes_agree_on_pairs_and_records_lie_where_they_say():
                for m in ("found", "all", "none")}
     pairs = {m: r.pairs.tolist() for m, r in results.items()}
     assert pairs["found"] == pairs["all"] == pairs["none"]
+    assert_matches_truth(results["found"].pairs, ground_truth(meshes, transforms))
     assert len(results["none"].records) == 0
     assert 0 < len(results["found"].records) <= len(results["all"].records)
     result = results["all"]

@@ -1,10 +1,15 @@
 """The ``pycinder`` command.
 
-    pycinder check FILE... [--tolerance T] [--json]         exit 0: no collision, 1: collisions, 2: error
+    pycinder check FILE... [--tolerance T] [--strict] [--json]
+                     [--strategy scene [--resolution N]]   exit 0: no collision, 1: collisions, 2: error
     pycinder debug-buffers [FILE...] --out DIR              PNGs of the buffers after each pass
     pycinder demo {stairs,snow-bunny,normals} [--frames N] [--out FILE.mp4|FILE.gif|DIR] [--window]
-    pycinder bench [SCENE...] [--repeat N] [--out DIR]      timings against python-fcl, coal, trimesh
-    pycinder example [--out DIR]                            check the built-in scene, write its buffers
+    pycinder bench [SCENE...] [--repeat N] [--peers ...] [--out DIR]
+                                                            timings against python-fcl, coal,
+                                                            trimesh and Warp, scored against
+                                                            exact geometry
+    pycinder example [--out DIR]                            the paper's three boxes: buffers and
+                                                            a labelled montage
 """
 
 from __future__ import annotations
@@ -62,6 +67,9 @@ def _detector_options(args: argparse.Namespace) -> dict:
             raise ValueError("--resolution sets the image of --strategy scene; the focused "
                              "strategy sizes its pixels by --tolerance")
         options["tolerance"] = args.tolerance
+    if args.strategy == "scene" and args.tolerance is not None:
+        raise ValueError("--tolerance sizes the focused strategy's pixels; --strategy scene "
+                         "has one image of --resolution pixels instead")
     return options
 
 
@@ -144,6 +152,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from .benchmarks import report, runner
 
     scenes = args.scenes or runner.DEFAULT_SCENES
+    report.require_matplotlib()  # before a long run, not after it
     try:
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
     except ImportError:  # pragma: no cover - rich comes with the bench extra
@@ -234,9 +243,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("bench", help="time pycinder against python-fcl, coal, trimesh and Warp")
     p.add_argument("scenes", nargs="*", metavar="SCENE",
                    help="stairs, many, deforming, narrow, sweep-extent, sweep-bodies, "
-                        "sweep-triangles, sweep-tolerance, modes, soak (default: all)")
+                        "sweep-triangles, sweep-tolerance, manager, contacts, modes, soak "
+                        "(default: all; the soak alone takes several minutes)")
     p.add_argument("--repeat", type=int, default=5, help="frames timed per scene")
-    p.add_argument("--peers", nargs="*", default=["python-fcl", "coal", "trimesh", "warp"])
+    p.add_argument("--peers", nargs="*", default=["python-fcl", "coal", "trimesh", "warp"],
+                   help="systems to compare (default: python-fcl coal trimesh warp); one that "
+                        "is not installed is left out and named")
     p.add_argument("--soak-frames", type=int, default=100_000,
                    help="frames of the memory soak (scene 'soak')")
     p.add_argument("--out", default="benchmarks/results", metavar="DIR")

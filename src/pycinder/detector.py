@@ -2,7 +2,7 @@
 
     request (checked once) + bodies + transforms
       -> scene (validated shapes, cached by content)
-      -> strategy: focused (broad phase -> tiles -> passes F1-F4 -> readback)
+      -> strategy: focused (broad phase -> tiles -> passes F0-F5 -> readback)
                    or scene (views -> passes 1-7 -> filter -> readback mode)
       -> CollisionResult
 """
@@ -17,7 +17,7 @@ import numpy as np
 
 from .focused import FocusedStrategy
 from .gpu.device import get_gpu
-from .request import CollisionRequest
+from .request import RECORD_MODES, CollisionRequest
 from .result import CollisionResult, Stats
 from .scene import ShapeCache, prepare_scene
 from .view import View
@@ -63,7 +63,8 @@ class Detector:
     def find_collisions(self, bodies: Sequence[Any], transforms: Any = None, *,
                         names: Sequence[str | None] | None = None,
                         groups: Any = None,
-                        view: View | Sequence[View] | None = None) -> CollisionResult:
+                        view: View | Sequence[View] | None = None,
+                        records: str | None = None) -> CollisionResult:
         """Find every pair of interfering bodies.
 
         Parameters
@@ -79,6 +80,9 @@ class Detector:
             bodies, or two sets against each other); default: every pair.
         view : View or sequence of View, optional
             Scene strategy only: the views to render through (default: one fitted view).
+        records : {"found", "all", "none"}, optional
+            Focused strategy: the request's ``records`` for this call only, on the same
+            pipelines and cached shapes (a manager asks for contacts on some calls only).
 
         Returns
         -------
@@ -89,6 +93,11 @@ class Detector:
         if view is not None and self.request.strategy != "scene":
             raise ValueError("view applies to strategy='scene'; the focused strategy chooses a "
                              "view per candidate pair")
+        if records is not None:
+            if self.request.strategy != "focused":
+                raise ValueError("records per call applies to strategy='focused'")
+            if records not in RECORD_MODES:
+                raise ValueError(f"records must be one of {RECORD_MODES}, got {records!r}")
         scene = prepare_scene(bodies, transforms, names=names, strict=self.request.strict,
                               cache=self.shapes, max_bodies=self.request.max_bodies)
         stats = Stats(strategy=self.request.strategy, adapter=self.gpu.description,
@@ -104,7 +113,7 @@ class Detector:
             if groups is not None:
                 result = result.across(groups)
         else:
-            result = self.strategy.run(scene, stats, groups)
+            result = self.strategy.run(scene, stats, groups, records)
         stats.wall_ms["total"] = (time.perf_counter() - t0) * 1e3
         return result
 
@@ -124,8 +133,8 @@ def shared_detector(request: CollisionRequest) -> Detector:
 
 def find_collisions(bodies: Sequence[Any], transforms: Any = None, *,
                     tolerance: float | None = None, names: Sequence[str | None] | None = None,
-                    view: View | Sequence[View] | None = None, **options: Any
-                    ) -> CollisionResult:
+                    groups: Any = None, view: View | Sequence[View] | None = None,
+                    **options: Any) -> CollisionResult:
     """Find every pair of interfering closed meshes.
 
     Parameters
@@ -139,6 +148,8 @@ def find_collisions(bodies: Sequence[Any], transforms: Any = None, *,
         body's size, per pair.
     names : sequence of str, optional
         Body names for error messages.
+    groups : (N,) int, optional
+        Only pairs of bodies in different groups are tested; default: every pair.
     view : View or sequence of View, optional
         Scene strategy only.
     **options
@@ -153,4 +164,5 @@ def find_collisions(bodies: Sequence[Any], transforms: Any = None, *,
     For animation loops keep a :class:`Detector`: this function keeps one per distinct request.
     """
     request = CollisionRequest(tolerance=tolerance, **options)
-    return shared_detector(request).find_collisions(bodies, transforms, names=names, view=view)
+    return shared_detector(request).find_collisions(bodies, transforms, names=names,
+                                                    groups=groups, view=view)

@@ -1,7 +1,7 @@
 """The focused strategy: broad phase, a tile per candidate pair, the focused passes, the result.
 
     scene -> world boxes -> sweep and prune -> tolerance per pair -> tiles and atlas
-          -> passes F1-F4 (one submission) -> per-tile counts and records -> pairs and records
+          -> passes F0-F5 (one submission) -> per-tile counts and records -> pairs and records
 
 A pair collides when any of its tiles found a sample inside the other body. A tile whose samples
 could not all be decided (a pixel held more crossings within the tile's box than its list) and
@@ -26,7 +26,7 @@ from .request import DEFAULT_RELATIVE_TOLERANCE, CollisionRequest
 from .result import CollisionResult, Stats
 from .scene import Scene
 from .scene.pack import ShapePack, pack_shapes, shape_layout
-from .tiles import TilePlan, plan_tiles, split_depth
+from .tiles import TilePlan, concat_plans, plan_tiles, split_depth
 
 RETRIES = 5
 """Times undecided tiles are run again: first with longer lists, then with thinner boxes."""
@@ -78,10 +78,11 @@ class FocusedStrategy:
         stats.uploaded_vertex_bytes = self.passes.upload(self._pack, scene.shapes)
         return self._pack
 
-    def run(self, scene: Scene, stats: Stats, groups: np.ndarray | None = None
-            ) -> CollisionResult:
+    def run(self, scene: Scene, stats: Stats, groups: np.ndarray | None = None,
+            records: str | None = None) -> CollisionResult:
         """Find the colliding pairs of a validated scene (of bodies in different ``groups``,
-        when given)."""
+        when given), keeping ``records`` ("found", "all" or "none"; default: the request's)."""
+        records = records or self.request.records
         t0 = time.perf_counter()
         if len(scene) < 2:
             return CollisionResult.empty(stats)
@@ -97,7 +98,7 @@ class FocusedStrategy:
         tol = self.tolerances(scene, pairs)
         stats.tolerance = (float(tol.min()), float(tol.max()))
         plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
-                          budget_pixels=self.budget_pixels, probe=self.request.records != "all")
+                          budget_pixels=self.budget_pixels, probe=records != "all")
         stats.separated = plan.separated
         t2 = time.perf_counter()
         stats.add_ms("tiles", (t2 - t1) * 1e3)
@@ -106,32 +107,28 @@ class FocusedStrategy:
         pack = self._shapes(scene, stats)
         t3 = time.perf_counter()
         stats.add_ms("upload", (t3 - t2) * 1e3)
-        found_tiles, records, plans = [], [], []
+        found_tiles, rows, plans = [], [], []
         current, capacity = plan, self.passes.capacity
         for attempt in range(RETRIES + 1):
             out = self.passes.run(current, current.tile_from_body(scene.transforms),
                                   scene.body_shape, pack, len(pairs),
-                                  records=self.request.records != "none",
-                                  all_records=self.request.records == "all",
+                                  records=records != "none", all_records=records == "all",
                                   list_capacity=capacity)
             self._count(stats, current, out)
             hit = out.tile_counts[:, 0] > 0
             found_tiles.append(current.bodies[hit])
-            records.append((current, out.records))
+            rows.append((current, out.records))
             plans.append(current)
             undecided = out.tile_counts[:, 1] > 0
             decided = unique_pairs(*np.concatenate(found_tiles).T)
-            again = undecided & ~_member(current.bodies, decided)
+            # An undecided tile of a pair found elsewhere changes no answer, but with
+            # records="all" its records are wanted too.
+            again = undecided if records == "all" else \
+                undecided & ~_member(current.bodies, decided)
             if not again.any():
                 break
             if attempt == RETRIES:
-                lost = unique_pairs(current.bodies[again, 0], current.bodies[again, 1])
-                stats.possibly_lost = len(lost)
-                warn_at_caller(
-                    f"{len(lost)} candidate pairs could not be decided: their tiles hold more "
-                    f"than {capacity} surface crossings per pixel even in boxes cut "
-                    f"{2 ** (RETRIES - LARGER_LISTS)} times thinner (first pair: bodies "
-                    f"{lost[0].tolist()}); see stats.possibly_lost", LossWarning)
+                self._report_loss(stats, current.bodies[again], decided, capacity)
                 break
             stats.retries += 1
             # First with longer lists (few tiles overflow, so memory is no concern), then with
@@ -146,11 +143,38 @@ class FocusedStrategy:
         stats.add_ms("gpu", (t4 - t3) * 1e3)
         both = np.concatenate(found_tiles)
         result_pairs = unique_pairs(both[:, 0], both[:, 1])
-        rec = np.concatenate([self._decode(scene, p, pack, r) for p, r in records]) \
-            if records else empty_records()
+        # Every attempt's records name tiles of its own plan: number them in the plans' order,
+        # so that ``records["view"]`` indexes the concatenated plan the result carries.
+        first_tile = np.cumsum([0] + [len(p) for p in plans[:-1]])
+        rec = np.concatenate([self._decode(scene, p, pack, r, int(o))
+                              for (p, r), o in zip(rows, first_tile)])
         stats.records = len(rec)
         stats.add_ms("decode", (time.perf_counter() - t4) * 1e3)
-        return CollisionResult(result_pairs, rec, stats, tiles=plans[0], scene=scene)
+        return CollisionResult(result_pairs, rec, stats, tiles=concat_plans(plans), scene=scene)
+
+    @staticmethod
+    def _report_loss(stats: Stats, bodies: np.ndarray, decided: np.ndarray, capacity: int
+                     ) -> None:
+        """Warn about the tiles still undecided after the last retry (``bodies`` (T, 2)): pairs
+        not found elsewhere may be lost; pairs found elsewhere may lack records."""
+        known = _member(bodies, decided)
+        thinner = 2 ** (RETRIES - LARGER_LISTS)
+        if (~known).any():
+            lost = unique_pairs(bodies[~known, 0], bodies[~known, 1])
+            stats.possibly_lost = len(lost)
+            warn_at_caller(
+                f"{len(lost)} candidate pairs could not be decided: their tiles hold more than "
+                f"{capacity} surface crossings per pixel even in boxes cut {thinner} times "
+                f"thinner (first pair: bodies {lost[0].tolist()}); see stats.possibly_lost",
+                LossWarning)
+        if known.any():
+            short = unique_pairs(bodies[known, 0], bodies[known, 1])
+            stats.incomplete_records = len(short)
+            warn_at_caller(
+                f"records of {len(short)} colliding pairs may be incomplete: some of their tiles "
+                f"hold more than {capacity} surface crossings per pixel even in boxes cut "
+                f"{thinner} times thinner (first pair: bodies {short[0].tolist()}); the pairs "
+                "are reported; see stats.incomplete_records", LossWarning)
 
     def _count(self, stats: Stats, plan: TilePlan, out: FocusedOutput) -> None:
         stats.tiles += len(plan)
@@ -165,10 +189,11 @@ class FocusedStrategy:
         for name, ms in self.passes.gpu_ms.items():
             stats.gpu_ms[name] = stats.gpu_ms.get(name, 0.0) + ms
 
-    def _decode(self, scene: Scene, plan: TilePlan, pack: ShapePack, rows: np.ndarray
-                ) -> np.ndarray:
+    def _decode(self, scene: Scene, plan: TilePlan, pack: ShapePack, rows: np.ndarray,
+                first_tile: int = 0) -> np.ndarray:
         """Records from the rows of passes F4 and F5 (tile, u | v << 16, z bits,
-        id | surface << 30 | side << 31): ``id`` is a packed edge (F4) or face (F5)."""
+        id | surface << 30 | side << 31): ``id`` is a packed edge (F4) or face (F5). A record's
+        ``view`` is its tile's index in ``plan`` plus ``first_tile``."""
         if len(rows) == 0:
             return empty_records()
         tile = rows[:, 0].astype(np.int64)
@@ -183,7 +208,7 @@ class FocusedStrategy:
         rec["penetrated"] = plan.bodies[tile, 1 - side]
         rec["edge"] = np.where(surface, -1, pack.edge_original[np.where(surface, 0, ident)])
         rec["face"] = np.where(surface, pack.face_original[np.where(surface, ident, 0)], -1)
-        rec["view"] = tile
+        rec["view"] = tile + first_tile
         rec["x"], rec["y"], rec["depth"] = u, v, z
         rec["point"] = plan.to_world(tile, u + 0.5, v + 0.5, z)
         rec["normal"] = np.nan

@@ -31,6 +31,7 @@ import numpy as np
 
 from .contacts import Contacts, reduce_contacts
 from .detector import Detector
+from .request import CollisionRequest
 from .result import CollisionResult
 
 EXTERNAL = "__external"
@@ -171,11 +172,15 @@ class CollisionManager:
     """
 
     def __init__(self, **options: Any) -> None:
-        options.pop("records", None)
-        self._options = options
-        self._detectors: dict[str, Detector] = {}
+        if "records" in options:
+            raise TypeError("CollisionManager chooses the records itself (all of them when a "
+                            "call asks for return_data, none otherwise); leave 'records' out")
+        if options.get("strategy", "focused") != "focused":
+            raise ValueError("CollisionManager runs the focused strategy (its contacts and "
+                             "distances need tiles per pair); leave 'strategy' out")
+        self._request = CollisionRequest(**options)  # options checked now, not at first use
+        self._detector_: Detector | None = None
         self._objs: dict[str, CollisionObject] = {}
-        Detector(**options)  # check the options now, not at the first query
 
     # -- objects --------------------------------------------------------------------------------
 
@@ -293,17 +298,19 @@ class CollisionManager:
 
     # -- inside ---------------------------------------------------------------------------------
 
-    def _detector(self, records: str) -> Detector:
-        if records not in self._detectors:
-            self._detectors[records] = Detector(**self._options, records=records)
-        return self._detectors[records]
+    @property
+    def _detector(self) -> Detector:
+        """One detector, its pipelines and cached shapes shared by every call, made at first
+        use."""
+        if self._detector_ is None:
+            self._detector_ = Detector(self._request)
+        return self._detector_
 
     def _query(self, objs: Sequence[CollisionObject], labels: list[str],
                groups: np.ndarray | None, contacts: bool) -> CollisionResult:
-        det = self._detector("all" if contacts else "none")
-        return det.find_collisions([o.mesh for o in objs],
-                                   np.array([o.transform for o in objs]).reshape(-1, 4, 4),
-                                   names=labels, groups=groups)
+        return self._detector.find_collisions(
+            [o.mesh for o in objs], np.array([o.transform for o in objs]).reshape(-1, 4, 4),
+            names=labels, groups=groups, records="all" if contacts else "none")
 
     @staticmethod
     def _contacts(result: CollisionResult, names: list[str]) -> list[ContactData]:
@@ -323,15 +330,13 @@ class CollisionManager:
         result = self._query(objs, labels, groups, contacts=True)
         if len(result.pairs):
             return self._deepest(result, objs, labels, reduce_contacts(result))
-        for o in objs:
-            self._fcl_object(o)
         request = fcl.DistanceRequest(enable_nearest_points=True, enable_signed_distance=True)
         best: tuple[float, Any, int, int] | None = None
         for i, j in _pairs_by_box_distance(objs, groups):
             if best is not None and _box_distance(objs[i], objs[j]) >= best[0]:
                 break
-            res = fcl.DistanceResult()
-            d = fcl.distance(objs[i]._fcl, objs[j]._fcl, request, res)
+            res = fcl.DistanceResult()  # python-fcl objects are built for the pairs visited only
+            d = fcl.distance(self._fcl_object(objs[i]), self._fcl_object(objs[j]), request, res)
             if best is None or d < best[0]:
                 best = (d, res, i, j)
         if best is None:
@@ -345,33 +350,33 @@ class CollisionManager:
                  ) -> tuple[float, tuple[str, str], DistanceData]:
         """The most negative signed distance among colliding pairs: python-fcl's EPA where both
         meshes are convex, the contacts' depth otherwise."""
-        fcl = _fcl()
         best: tuple[float, tuple[str, str], DistanceData] | None = None
         for a, b in result.pairs.tolist():
             pair = (labels[a], labels[b])
             oa, ob = objs[a], objs[b]
-            if oa.trimesh.is_convex and ob.trimesh.is_convex:
-                self._fcl_object(oa)
-                self._fcl_object(ob)
-                res = fcl.DistanceResult()
-                d = fcl.distance(oa._fcl, ob._fcl, fcl.DistanceRequest(
-                    enable_nearest_points=True, enable_signed_distance=True), res)
-                data = DistanceData(pair, d, res.nearest_points, (res.b1, res.b2))
+            mine = np.flatnonzero((contacts.pair == [a, b]).all(axis=1))
+            if (oa.trimesh.is_convex and ob.trimesh.is_convex) or not len(mine):
+                # Convex pairs, and (should records be missing) any pair: python-fcl's signed
+                # distance, exact for convex meshes.
+                d, data = self._fcl_signed(oa, ob, pair)
             else:
-                mine = np.flatnonzero((contacts.pair == [a, b]).all(axis=1))
-                if not len(mine):
-                    continue
                 k = mine[np.argmax(contacts.depth[mine])]
                 d = -float(contacts.depth[k])
                 points = [np.where(np.isnan(p), contacts.point[k], p) for p in contacts.deepest[k]]
                 data = DistanceData(pair, d, points, tuple(contacts.face[k]))
             if best is None or d < best[0]:
                 best = (d, pair, data)
-        if best is None:  # pairs found without contacts (records dropped): report touching
-            a, b = result.pairs[0]
-            pair = (labels[a], labels[b])
-            return 0.0, pair, DistanceData(pair, 0.0, [np.zeros(3), np.zeros(3)], (-1, -1))
+        assert best is not None  # result.pairs is not empty
         return best
+
+    def _fcl_signed(self, a: CollisionObject, b: CollisionObject, pair: tuple[str, str]
+                    ) -> tuple[float, DistanceData]:
+        """python-fcl's signed distance of two objects and its DistanceData."""
+        fcl = _fcl()
+        res = fcl.DistanceResult()
+        d = fcl.distance(self._fcl_object(a), self._fcl_object(b), fcl.DistanceRequest(
+            enable_nearest_points=True, enable_signed_distance=True), res)
+        return d, DistanceData(pair, d, res.nearest_points, (res.b1, res.b2))
 
     @staticmethod
     def _fcl_object(obj: CollisionObject) -> Any:

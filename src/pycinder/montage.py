@@ -9,6 +9,7 @@ three boxes as ``montage.png``.
 
 from __future__ import annotations
 
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -45,9 +46,23 @@ MUTED = (90, 94, 104)
 PANEL_OUTLINE = (150, 150, 150)
 
 
-def font(size: int):
+def pillow() -> Any:
+    """Pillow's ``PIL`` package, or an ImportError that says what to install."""
+    try:
+        import PIL
+        import PIL.Image
+        import PIL.ImageDraw
+        import PIL.ImageFont
+    except ImportError as exc:
+        raise ImportError("drawing the montage and the demos' overlays needs Pillow: pip install "
+                          "'pycinder[demo]' (from a clone: pip install '.[demo]')") from exc
+    return PIL
+
+
+@lru_cache(maxsize=8)
+def font(size: int) -> Any:
     """Pillow's bundled sans-serif at ``size`` pixels (its bitmap font on Pillow < 10.1)."""
-    from PIL import ImageFont
+    ImageFont = pillow().ImageFont
 
     try:
         return ImageFont.load_default(size=size)
@@ -130,7 +145,8 @@ def buffer_montage(buffers: dict[str, np.ndarray], *, title: str | None = None) 
     (height, width, 3) uint8
         The montage: three panels a row, each cropped to where any buffer shows something.
     """
-    from PIL import Image, ImageDraw
+    PIL = pillow()
+    Image, ImageDraw = PIL.Image, PIL.ImageDraw
 
     panels = [(key, head, note) for key, head, note in PANELS if key in buffers]
     images = [to_image(key, buffers[key]) for key, _, _ in panels]

@@ -73,7 +73,7 @@ def scene_records(pixel: np.ndarray, pen_id: np.ndarray, pend_id: np.ndarray,
                   encode: str, edge_start: np.ndarray) -> np.ndarray:
     """Records of the scene strategy from decoded channels (all (n,) uint32), sorted by pixel.
 
-    ``point`` is left at zero; :func:`scene_points` fills it from the view.
+    ``point`` is left at zero; the scene strategy fills it from the view that drew the pixel.
     """
     order = np.argsort(pixel, kind="stable")
     pixel, pen_id, pend_id, depth_bits, payload = (

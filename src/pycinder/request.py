@@ -39,6 +39,7 @@ scene's extent divided by the resolution, so it makes no promise in world units.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, fields
 from typing import Any, Literal
 
@@ -87,7 +88,7 @@ class CollisionRequest:
         What each record carries besides its point: the penetrating edge's index, or also its
         world-space normal (paper 5.3).
     edge_offset : float, optional
-        Scene strategy, ``self_interference="offset"``: how far edges move outwards, in body
+        Scene strategy, ``self_interference="offset"``: how far edges move outwards, in world
         units (default: half a pixel of the view at the scene's centre).
     strict : bool
         Raise instead of warning for open, inside-out and zero-area meshes and for views that
@@ -125,7 +126,7 @@ class CollisionRequest:
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if self.tolerance is not None:
-            if isinstance(self.tolerance, bool) or not isinstance(self.tolerance, (int, float)) \
+            if isinstance(self.tolerance, bool) or not isinstance(self.tolerance, numbers.Real) \
                     or not math.isfinite(self.tolerance) or self.tolerance <= 0:
                 raise ValueError(f"tolerance must be a positive number of world units, got "
                                  f"{self.tolerance!r}")

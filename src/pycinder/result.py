@@ -49,6 +49,9 @@ class Stats:
     possibly_lost: int = 0
     """Pairs that may have been dropped (undecided after retries, or a lossy readback): 0 means
     nothing was lost."""
+    incomplete_records: int = 0
+    """Reported pairs some of whose records may be missing (``records="all"``: a tile of theirs
+    still undecided after retries); their contacts come from the records found."""
     # scene strategy
     resolution: tuple[int, int] = (0, 0)
     readback: str = ""

@@ -24,7 +24,7 @@ class SelfInterference:
         self.request = request
 
     def edge_offset(self, view: View, resolution: int, centre: np.ndarray) -> float:
-        """How far edges move outwards along their vertex normals, in body units."""
+        """How far edges move outwards along their vertex normals, in world units."""
         return 0.0
 
 

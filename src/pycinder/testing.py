@@ -36,8 +36,8 @@ def _manifold3d() -> Any:
     try:
         import manifold3d
     except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ImportError("exact ground truth needs manifold3d: pip install 'pycinder[test]' (or "
-                          "'pycinder[bench]')") from exc
+        raise ImportError("exact ground truth needs manifold3d: pip install 'pycinder[test]' or "
+                          "'pycinder[bench]' (from a clone: pip install '.[test]')") from exc
     return manifold3d
 
 
@@ -268,21 +268,13 @@ def _fcl_object(mesh: trimesh.Trimesh) -> Any:
     try:
         import fcl
     except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ImportError("exact distances need python-fcl: pip install 'pycinder[test]'") from exc
+        raise ImportError("exact distances need python-fcl: pip install 'pycinder[test]' (from "
+                          "a clone: pip install '.[test]')") from exc
     model = fcl.BVHModel()
     model.beginModel(len(mesh.vertices), len(mesh.faces))
     model.addSubModel(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int32))
     model.endModel()
     return fcl.CollisionObject(model, fcl.Transform())
-
-
-def mesh_distance(a: trimesh.Trimesh, b: trimesh.Trimesh) -> float:
-    """Exact distance between two mesh surfaces (python-fcl; 0 when they cross). A body wholly
-    inside the other is not seen: check overlap with :func:`ground_truth` for that."""
-    import fcl
-
-    return float(fcl.distance(_fcl_object(a), _fcl_object(b), fcl.DistanceRequest(),
-                              fcl.DistanceResult()))
 
 
 def first_contact(a: trimesh.Trimesh, b: trimesh.Trimesh, direction: np.ndarray,

@@ -208,10 +208,10 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
         return _empty_plan(separated)
     cat = {k: np.concatenate([p[k] for p in keep]) for k in keep[0]}
     plans = [_pack(p, budget_pixels, separated) for p in _phases(cat, probe) if len(p["w"])]
-    return _concat(plans)
+    return concat_plans(plans)
 
 
-def _concat(plans: list[TilePlan]) -> TilePlan:
+def concat_plans(plans: list[TilePlan]) -> TilePlan:
     """Plans one after another: rounds of later plans follow those of earlier ones."""
     if len(plans) == 1:
         return plans[0]

@@ -73,7 +73,9 @@ def markdown(results: dict[str, Any]) -> str:
         f"- CPU: {m['cpu']} ({m['cores']} cores), Python {m['python']}",
         "- versions: " + ", ".join(f"{k} {v}" for k, v in m["versions"].items()),
         f"- command: `{m['command'] or 'pycinder bench'}`",
-        f"- peers: {', '.join(results.get('peers', []))}", "",
+        f"- peers: {', '.join(results.get('peers', []))}",
+        *[f"- left out: {name} ({why})" for name, why in results.get("left_out", {}).items()],
+        "",
         "Median milliseconds per frame, all pairs of the frame; the peer's time divided by "
         "pycinder's (above 1: pycinder is faster); recall over the pairs that must be found "
         "(penetrating by at least two tolerances, exact geometry) and pairs reported though at "
@@ -167,11 +169,18 @@ def markdown(results: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def plots(results: dict[str, Any], out: Path) -> list[Path]:
+def require_matplotlib() -> Any:
+    """matplotlib, or an ImportError that says what to install (checked before a run starts)."""
     try:
         import matplotlib
     except ImportError as exc:
-        raise ImportError("plots need matplotlib: pip install 'pycinder[bench]'") from exc
+        raise ImportError("the benchmark plots need matplotlib: pip install 'pycinder[bench]' "
+                          "(from a clone: pip install '.[bench]')") from exc
+    return matplotlib
+
+
+def plots(results: dict[str, Any], out: Path) -> list[Path]:
+    matplotlib = require_matplotlib()
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

@@ -72,15 +72,20 @@ def truth_for(scene: Scene, k: int, tolerance: float | None = None):
     return ground_truth(meshes, list(transforms), tolerance=tolerance)
 
 
-def make_peers(names: Sequence[str], progress: Progress | None = None) -> list[System]:
-    """The peers that can run here; one that cannot is reported and left out."""
+def make_peers(names: Sequence[str], left_out: dict[str, str] | None = None
+               ) -> list[System]:
+    """The peers that can run here; one that cannot is left out, with why, in ``left_out``
+    (name to reason) and on stderr."""
     out = []
     for name in names:
+        if name not in PEERS:
+            raise ValueError(f"unknown peer {name!r}; choose from {', '.join(PEERS)}")
         try:
             out.append(PEERS[name]())
         except ImportError as exc:
-            if progress:
-                progress(f"left out {name}: {exc}")
+            print(f"pycinder bench: left out {name}: {exc}", file=sys.stderr)
+            if left_out is not None:
+                left_out[name] = str(exc)
     return out
 
 
@@ -320,7 +325,8 @@ def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAUL
                          f"{', '.join(sorted(SCENES) + list(extra))}")
     say = progress or (lambda msg: None)
     results: dict[str, Any] = {"machine": machine_info(), "scenes": {}, "sweeps": {}}
-    peer_systems = make_peers(peers, say)
+    results["left_out"] = {}
+    peer_systems = make_peers(peers, results["left_out"])
     results["peers"] = [p.name for p in peer_systems]
     for name in scenes:
         say(name)

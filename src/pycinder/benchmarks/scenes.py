@@ -7,7 +7,6 @@ change the vertices every frame.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,9 +43,6 @@ class Scene:
     @property
     def triangles(self) -> int:
         return int(sum(len(f) for f in self.faces))
-
-    def iter_frames(self) -> Iterator[int]:
-        return iter(range(self.frames))
 
 
 class Stairs(Scene):

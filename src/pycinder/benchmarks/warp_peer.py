@@ -91,7 +91,8 @@ class Warp(System):
         try:
             import warp as wp
         except ImportError as e:
-            raise ImportError("the Warp peer needs warp-lang: pip install 'pycinder[bench]'") from e
+            raise ImportError("the Warp peer needs warp-lang: pip install 'pycinder[bench]' (from a "
+                              "clone: pip install '.[bench]')") from e
         wp.config.quiet = True  # older Warp; newer Warp reads log_level
         wp.config.log_level = getattr(wp, "LOG_WARNING", 30)
         wp.init()

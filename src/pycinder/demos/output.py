@@ -59,7 +59,9 @@ class FrameWriter:
         if self._writer is not None:
             self._writer.close()
         if self._gif:
-            from PIL import Image
+            from ..montage import pillow
+
+            Image = pillow().Image
 
             frames = [Image.fromarray(f) for f in self._gif]
             frames[0].save(self.out, save_all=True, append_images=frames[1:],

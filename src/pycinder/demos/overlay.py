@@ -13,9 +13,10 @@ panel is the number of marks drawn.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
+
+from ..montage import font, pillow
 
 MARK_EDGE = (150, 40, 200)
 """The paper's purple: the border of a mark."""
@@ -54,17 +55,6 @@ class LegendEntry:
     glyph: str = "mark"
     colour: tuple[int, int, int] | None = None
     image: np.ndarray | None = None
-
-
-@lru_cache(maxsize=4)
-def font(size: int = 13):
-    """Pillow's bundled sans-serif at ``size`` pixels (its bitmap font on Pillow < 10.1)."""
-    from PIL import ImageFont
-
-    try:
-        return ImageFont.load_default(size=size)
-    except TypeError:  # pragma: no cover - Pillow < 10.1
-        return ImageFont.load_default()
 
 
 def draw_mark(draw, x: float, y: float) -> None:
@@ -110,7 +100,8 @@ def overlay_layer(size: tuple[int, int], *, lines: list[str], legend: list[Legen
     (height, width, 4) uint8
         RGBA, transparent where nothing is drawn.
     """
-    from PIL import Image, ImageDraw
+    PIL = pillow()
+    Image, ImageDraw = PIL.Image, PIL.ImageDraw
 
     width, height = size
     img = Image.new("RGBA", (width, height), (0, 0, 0, 0))
@@ -144,7 +135,7 @@ def _panel(draw, lines: list[str], origin: tuple[int, int]) -> None:
 def _legend(img, draw, legend: list[LegendEntry], size: tuple[int, int], right: bool) -> None:
     if not legend:
         return
-    from PIL import Image
+    Image = pillow().Image
 
     glyph_w = max([22] + [e.image.shape[1] for e in legend if e.image is not None])
     rows = [max(18, (e.image.shape[0] + 4) if e.image is not None else 0) for e in legend]

@@ -48,6 +48,9 @@ def flake_mesh(size: float = FLAKE_SIZE) -> trimesh.Trimesh:
 def load_bunny(scan: bool = False, close_holes: bool = False, target_vertices: int = 8000
                ) -> tuple[trimesh.Trimesh, str]:
     """The demo's bunny, scaled to about 0.6 across with its feet at y = 0, and a note on it."""
+    if close_holes and not scan:
+        raise ValueError("close_holes (--close-holes) repairs the scanned bunny; the default "
+                         "bunny is closed already: add scan=True (--scan)")
     if scan:
         mesh = trimesh.load(sample_mesh_path("bunny10k_textured.obj"), force="mesh", process=True)
         note = "scanned bunny (open at the bottom)"

@@ -233,7 +233,6 @@ class FocusedPasses:
         only for shapes that are new objects (shapes are cached by content, so a new object
         means new vertices). Cluster bounds are recomputed for those shapes on the GPU.
         """
-        queue = self.gpu.device.queue
         changed: list[int]
         if pack.layout != self.layout:
             for buf, data in ((self.positions, pack.positions), (self.faces, pack.faces),

@@ -122,9 +122,8 @@ PREVENT_PLAN = (RenderStep((1,), True, True),
                 RenderStep((2, 3, 4), False, True, copy_owner_before=True),
                 RenderStep((5, 6, 7), False, False))
 
-# The depth buffer's clear value before pass 1 (paper line 5) and the stencil reference.
+# The depth buffer's clear value before pass 1 (paper line 5).
 DEPTH_CLEAR = 0.0
-STENCIL_REFERENCE = 0
 STENCIL_MASK = 0xFF
 
 

@@ -137,17 +137,6 @@ class ShapePack:
     face_original: np.ndarray
     layout: tuple
 
-    def edge_owner(self, edge: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Shape and original edge index (in the shape's own ``topology.edges``) of global edges.
-
-        Parameters
-        ----------
-        edge : (n,) int
-            Indices into :attr:`edges`.
-        """
-        shape = np.searchsorted(self.edge_start, edge, side="right") - 1
-        return shape, self.edge_original[edge]
-
 
 def shape_layout(shapes: Sequence) -> tuple:
     return tuple((id(s.topology), len(s.vertices)) for s in shapes)

@@ -13,7 +13,7 @@
 //   a = payload of the edge: global edge index + 1, or a packed normal   written by pass 4
 
 struct Frame {
-    // Offset of edge vertices along their vertex normal, in body units (self_interference="offset").
+    // Offset of edge vertices along their vertex normal, in world units (self_interference="offset").
     edge_offset: f32,
     // 0: payload is the edge index + 1; 1: payload is the packed world-space edge normal.
     payload_mode: u32,
@@ -75,7 +75,11 @@ fn vs_edge(@builtin(vertex_index) vi: u32) -> EdgeOut {
     let body = vertex_body[v];
     var p = load_position(v);
     if (frame.edge_offset != 0.0) {
-        p = p + frame.edge_offset * load_vertex_normal(v);
+        // Move the vertex edge_offset world units: along the normal, divided by how much the
+        // body's transform stretches that direction.
+        let n = load_vertex_normal(v);
+        let stretch = length((world_from_body[body] * vec4f(n, 0.0)).xyz);
+        p = p + (frame.edge_offset / max(stretch, 1e-30)) * n;
     }
     var out: EdgeOut;
     out.position = clip_from_body[body] * vec4f(p, 1.0);
