@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .contacts import Contacts, reduce_contacts
+from .contacts import reduce_contacts
 from .detector import Detector
 from .request import CollisionRequest
 from .result import CollisionResult
@@ -327,9 +327,9 @@ class CollisionManager:
         fcl = _fcl()
         if len(objs) < 2:
             return NO_DISTANCE, None, None
-        result = self._query(objs, labels, groups, contacts=True)
+        result = self._query(objs, labels, groups, contacts=False)
         if len(result.pairs):
-            return self._deepest(result, objs, labels, reduce_contacts(result))
+            return self._deepest(result.pairs, objs, labels, groups)
         request = fcl.DistanceRequest(enable_nearest_points=True, enable_signed_distance=True)
         best: tuple[float, Any, int, int] | None = None
         for i, j in _pairs_by_box_distance(objs, groups):
@@ -345,17 +345,27 @@ class CollisionManager:
         pair = (labels[i], labels[j])
         return d, pair, DistanceData(pair, d, res.nearest_points, (res.b1, res.b2))
 
-    def _deepest(self, result: CollisionResult, objs: Sequence[CollisionObject],
-                 labels: list[str], contacts: Contacts
-                 ) -> tuple[float, tuple[str, str], DistanceData]:
-        """The most negative signed distance among colliding pairs: python-fcl's EPA where both
-        meshes are convex, the contacts' depth otherwise."""
+    def _deepest(self, pairs: np.ndarray, objs: Sequence[CollisionObject], labels: list[str],
+                 groups: np.ndarray | None) -> tuple[float, tuple[str, str], DistanceData]:
+        """The most negative signed distance among the colliding ``pairs`` (K, 2): python-fcl's
+        EPA where both meshes are convex, else the depth of the GPU contacts, from a second
+        query over just the objects of such pairs."""
+        convex = np.array([o.trimesh.is_convex for o in objs])
+        concave = pairs[~(convex[pairs[:, 0]] & convex[pairs[:, 1]])]
+        contacts = None
+        if len(concave):
+            involved = np.unique(concave)
+            sub = self._query([objs[i] for i in involved], [labels[i] for i in involved],
+                              None if groups is None else groups[involved], contacts=True)
+            contacts = reduce_contacts(sub)
+            contacts.pair = involved[contacts.pair]  # back to indices into objs
         best: tuple[float, tuple[str, str], DistanceData] | None = None
-        for a, b in result.pairs.tolist():
+        for a, b in pairs.tolist():
             pair = (labels[a], labels[b])
             oa, ob = objs[a], objs[b]
-            mine = np.flatnonzero((contacts.pair == [a, b]).all(axis=1))
-            if (oa.trimesh.is_convex and ob.trimesh.is_convex) or not len(mine):
+            mine = np.flatnonzero((contacts.pair == [a, b]).all(axis=1)) \
+                if contacts is not None else np.zeros(0, np.int64)
+            if (convex[a] and convex[b]) or not len(mine):
                 # Convex pairs, and (should records be missing) any pair: python-fcl's signed
                 # distance, exact for convex meshes.
                 d, data = self._fcl_signed(oa, ob, pair)

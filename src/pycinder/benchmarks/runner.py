@@ -207,48 +207,59 @@ def run_soak(frames: int = 100_000, every: int = 1000, progress: Progress | None
 
 def run_manager(repeat: int) -> list[dict[str, Any]]:
     """CollisionManager calls against trimesh's (python-fcl) on the same objects, interleaved:
-    200 random primitives, a probe, a second manager of 50 objects."""
+    200 random primitives, a probe, a second manager of 50 objects, and a batch of 700 small
+    spheres tested against one box."""
     import trimesh
 
     from ..manager import CollisionManager
     from ..testing import random_scene
 
+    T = trimesh.transformations.translation_matrix
     meshes, transforms = random_scene(200, 7, density=0.15)
     others, other_t = random_scene(50, 8, density=0.15)
     probe = trimesh.creation.icosphere(subdivisions=3, radius=2.0)
-    managers = {"pycinder": (CollisionManager(), CollisionManager()),
+    ball = trimesh.creation.icosphere(subdivisions=1, radius=0.05)
+    centres = np.random.default_rng(0).uniform(-1.2, 1.2, (700, 3))
+    box = trimesh.creation.box((2, 2, 2))
+    managers = {"pycinder": (CollisionManager(), CollisionManager(), CollisionManager()),
                 "trimesh": (trimesh.collision.CollisionManager(),
+                            trimesh.collision.CollisionManager(),
                             trimesh.collision.CollisionManager())}
-    for first, second in managers.values():
+    for first, second, batch in managers.values():
         for i, (m, t) in enumerate(zip(meshes, transforms)):
             first.add_object(f"a{i}", m, t)
         for i, (m, t) in enumerate(zip(others, other_t)):
             second.add_object(f"b{i}", m, t)
+        for i, c in enumerate(centres):
+            batch.add_object(f"p{i}", ball, T(c))
     calls = {
         "in_collision_internal(return_names=True)":
-            lambda m, o: m.in_collision_internal(return_names=True),
+            lambda m, o, b: m.in_collision_internal(return_names=True),
         "in_collision_internal(return_data=True)":
-            lambda m, o: m.in_collision_internal(return_data=True),
+            lambda m, o, b: m.in_collision_internal(return_data=True),
         "in_collision_single(probe, return_names=True)":
-            lambda m, o: m.in_collision_single(probe, return_names=True),
+            lambda m, o, b: m.in_collision_single(probe, return_names=True),
+        "in_collision_single(box, return_names=True), 700 small spheres":
+            lambda m, o, b: b.in_collision_single(box, return_names=True),
         "in_collision_other(return_names=True)":
-            lambda m, o: m.in_collision_other(o, return_names=True),
+            lambda m, o, b: m.in_collision_other(o, return_names=True),
         "min_distance_single(probe far away)":
-            lambda m, o: m.min_distance_single(probe, trimesh.transformations.translation_matrix(
-                (0, 0, 40)), return_name=True),
-        "min_distance_other": lambda m, o: m.min_distance_other(o, return_names=True),
+            lambda m, o, b: m.min_distance_single(probe, T((0, 0, 40)), return_name=True),
+        "min_distance_internal (overlapping)":
+            lambda m, o, b: m.min_distance_internal(return_names=True),
+        "min_distance_other (overlapping)":
+            lambda m, o, b: m.min_distance_other(o, return_names=True),
     }
     rows = []
     for call, fn in calls.items():
         times: dict[str, list[float]] = {name: [] for name in managers}
         answers: dict[str, Any] = {}
-        for name, (first, second) in managers.items():
-            answers[name] = fn(first, second)  # warm-up
+        for name, objects in managers.items():
+            answers[name] = fn(*objects)  # warm-up
         for k in range(repeat):
             for name in (list(managers) if k % 2 == 0 else list(managers)[::-1]):
-                first, second = managers[name]
                 t0 = time.perf_counter()
-                fn(first, second)
+                fn(*managers[name])
                 times[name].append((time.perf_counter() - t0) * 1e3)
         med = {n: statistics.median(t) for n, t in times.items()}
         rows.append({"call": call, "median_ms": med, "ratio": med["trimesh"] / med["pycinder"],
