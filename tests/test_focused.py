@@ -4,6 +4,7 @@ deforming meshes, and the machinery (rounds, retries, record modes) that must no
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial import cKDTree
 
 import pycinder
 from pycinder.benchmarks.scenes import ManyBodies
@@ -194,6 +195,18 @@ def test_full_pixel_lists_are_retried_in_thinner_boxes():
     tile_pairs = np.sort(tiles.bodies[rec["view"]], axis=1)
     rec_pairs = np.sort(np.c_[rec["penetrating"], rec["penetrated"]], axis=1)
     assert (tile_pairs == rec_pairs).all()
+    # A retried tile's records come once: the same samples as without retries, per body pair
+    # and edge or face, at the same points (within a pixel: an edge is sampled from where it
+    # enters the thinner box).
+    def samples(r):
+        return np.unique(np.c_[r["penetrating"], r["penetrated"], r["edge"], r["face"]], axis=0,
+                         return_counts=True)
+
+    assert len(rec) == len(normal.records)
+    for mine, theirs in zip(samples(rec), samples(normal.records)):
+        assert np.array_equal(mine, theirs)
+    gap = cKDTree(normal.records["point"]).query(rec["point"])[0]
+    assert gap.max() < squeezed.stats.tolerance[0]
     points = tiles.to_world(rec["view"], rec["x"] + 0.5, rec["y"] + 0.5, rec["depth"])
     assert np.allclose(points, rec["point"], atol=1e-6 * np.abs(rec["point"]).max())
     contacts = reduce_contacts(squeezed)

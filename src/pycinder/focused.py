@@ -134,6 +134,10 @@ class FocusedStrategy:
             # First with longer lists (few tiles overflow, so memory is no concern), then with
             # the boxes cut in two along the view.
             which = np.flatnonzero(again)
+            # The retry covers these tiles' whole boxes again: their records from this attempt
+            # would come twice.
+            done, kept = rows[-1]
+            rows[-1] = (done, kept[~np.isin(kept[:, 0], which)])
             if attempt < LARGER_LISTS:
                 capacity *= 4
                 current = split_depth(current, which, self._budget(capacity), cut=False)
