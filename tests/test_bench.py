@@ -4,6 +4,7 @@ import json
 
 import fcl  # noqa: F401  (the test extra brings python-fcl, the first peer)
 import numpy as np
+import pytest
 
 from pycinder.benchmarks import peers, report, runner
 from pycinder.benchmarks.scenes import SphereField, SpreadPairs
@@ -56,3 +57,32 @@ def test_soak_keeps_memory_steady():
     assert soak["rss_growth_mib"] < 8, soak["samples"]
     assert soak["topology_builds"] == 3 and soak["pairs_found"] > 0
     assert len(soak["samples"]) >= 6
+
+
+def test_missing_optional_packages_name_their_extra(monkeypatch, capsys):
+    """Without the bench extra: a missing peer is left out and named, matplotlib is asked for
+    before a run starts, and the manager's distances name the distance extra."""
+    import importlib
+
+    import pycinder
+    from pycinder import cli
+
+    real_import = importlib.import_module
+    hidden = ("coal", "matplotlib", "fcl")
+
+    def fake(name, *args, **kwargs):
+        if name.split(".")[0] in hidden:
+            raise ImportError(f"No module named {name!r}")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(importlib, "import_module", fake)
+    left_out = {}
+    assert [p.name for p in runner.make_peers(["coal"], left_out)] == []
+    assert "pip install 'pycinder[bench]'" in left_out["coal"]
+    assert "left out coal" in capsys.readouterr().err
+    assert cli.main(["bench", "stairs", "--repeat", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "matplotlib" in err and "pip install '.[bench]'" in err
+    manager = pycinder.CollisionManager()
+    with pytest.raises(ImportError, match=r"python-fcl: pip install 'pycinder\[distance\]'"):
+        manager.min_distance_internal()

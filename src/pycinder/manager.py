@@ -31,6 +31,7 @@ import numpy as np
 
 from .contacts import reduce_contacts
 from .detector import Detector
+from .optional import require
 from .request import CollisionRequest
 from .result import CollisionResult
 
@@ -42,12 +43,7 @@ NO_DISTANCE = sys.float_info.max
 
 
 def _fcl() -> Any:
-    try:
-        import fcl
-    except ImportError as exc:
-        raise ImportError("CollisionManager.min_distance_* needs python-fcl: pip install "
-                          "'pycinder[distance]' (from a clone: pip install '.[distance]')") from exc
-    return fcl
+    return require("fcl", "CollisionManager.min_distance_*", "distance", "python-fcl")
 
 
 def _as_trimesh(mesh: Any) -> Any:

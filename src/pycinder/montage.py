@@ -17,6 +17,7 @@ import numpy as np
 
 from .debug import BufferCapture, id_colours, png_bytes, stencil_image, three_boxes, to_image
 from .detector import Detector
+from .optional import require
 from .view import View
 
 PANELS = (
@@ -48,14 +49,10 @@ PANEL_OUTLINE = (150, 150, 150)
 
 def pillow() -> Any:
     """Pillow's ``PIL`` package, or an ImportError that says what to install."""
-    try:
-        import PIL
-        import PIL.Image
-        import PIL.ImageDraw
-        import PIL.ImageFont
-    except ImportError as exc:
-        raise ImportError("drawing the montage and the demos' overlays needs Pillow: pip install "
-                          "'pycinder[demo]' (from a clone: pip install '.[demo]')") from exc
+    for module in ("PIL.Image", "PIL.ImageDraw", "PIL.ImageFont"):
+        require(module, "drawing the montage and the demos' overlays", "demo", "pillow")
+    import PIL
+
     return PIL
 
 

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from .optional import require
 from .request import DEFAULT_RELATIVE_TOLERANCE
 
 SURFACE_SAMPLES = 1500
@@ -33,12 +34,7 @@ SURFACE_SAMPLES = 1500
 
 
 def _manifold3d() -> Any:
-    try:
-        import manifold3d
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ImportError("exact ground truth needs manifold3d: pip install 'pycinder[test]' or "
-                          "'pycinder[bench]' (from a clone: pip install '.[test]')") from exc
-    return manifold3d
+    return require("manifold3d", "exact ground truth", "test")
 
 
 def world_mesh(mesh: Any, transform: np.ndarray | None) -> trimesh.Trimesh:
@@ -265,11 +261,7 @@ def sample_mesh_path(name: str) -> Path:
 
 
 def _fcl_object(mesh: trimesh.Trimesh) -> Any:
-    try:
-        import fcl
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ImportError("exact distances need python-fcl: pip install 'pycinder[test]' (from "
-                          "a clone: pip install '.[test]')") from exc
+    fcl = require("fcl", "exact distances", "test", "python-fcl")
     model = fcl.BVHModel()
     model.beginModel(len(mesh.vertices), len(mesh.faces))
     model.addSubModel(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int32))

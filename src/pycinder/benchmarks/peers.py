@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..broadphase import sweep_and_prune
+from .. import optional
 from ..detector import Detector
 from .scenes import Scene
 
@@ -43,13 +44,7 @@ def world_aabbs(verts: list[np.ndarray], transforms: np.ndarray) -> tuple[np.nda
 
 def require(module: str, package: str) -> Any:
     """Import an optional peer, or say which extra installs it."""
-    import importlib
-
-    try:
-        return importlib.import_module(module)
-    except ImportError as exc:
-        raise ImportError(f"the {package} peer needs {package}: pip install 'pycinder[bench]' "
-                          f"(from a clone: pip install '.[bench]')") from exc
+    return optional.require(module, f"the {package} peer", "bench", package)
 
 
 def as_pairs(found: set[tuple[int, int]]) -> np.ndarray:

@@ -6,6 +6,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from ..optional import require
+
 SYSTEMS = ("pycinder", "pycinder-scene", "python-fcl", "coal", "trimesh", "warp")
 
 TARGETS = (
@@ -173,12 +175,7 @@ def markdown(results: dict[str, Any]) -> str:
 
 def require_matplotlib() -> Any:
     """matplotlib, or an ImportError that says what to install (checked before a run starts)."""
-    try:
-        import matplotlib
-    except ImportError as exc:
-        raise ImportError("the benchmark plots need matplotlib: pip install 'pycinder[bench]' "
-                          "(from a clone: pip install '.[bench]')") from exc
-    return matplotlib
+    return require("matplotlib", "the benchmark plots", "bench")
 
 
 def plots(results: dict[str, Any], out: Path) -> list[Path]:

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from ..optional import require
 from .peers import System, aabb_candidates, as_pairs, world_aabbs
 from .scenes import Scene
 
@@ -88,11 +89,7 @@ class Warp(System):
     name = "warp"
 
     def __init__(self, device: str | None = None) -> None:
-        try:
-            import warp as wp
-        except ImportError as e:
-            raise ImportError("the Warp peer needs warp-lang: pip install 'pycinder[bench]' (from a "
-                              "clone: pip install '.[bench]')") from e
+        wp = require("warp", "the Warp peer", "bench", "warp-lang")
         wp.config.quiet = True  # older Warp; newer Warp reads log_level
         wp.config.log_level = getattr(wp, "LOG_WARNING", 30)
         wp.init()
