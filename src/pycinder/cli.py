@@ -80,6 +80,7 @@ def _strict_words(message: str) -> str:
 
 def cmd_check(args: argparse.Namespace) -> int:
     from .detector import Detector
+    from .records import pair_keys
 
     meshes, names = _load_meshes(args.files)
     det = Detector(**_detector_options(args))
@@ -92,9 +93,8 @@ def cmd_check(args: argparse.Namespace) -> int:
     st = result.stats
     if args.json:
         rec = result.records
-        lo = np.minimum(rec["penetrating"], rec["penetrated"]).astype(np.int64)
-        hi = np.maximum(rec["penetrating"], rec["penetrated"]).astype(np.int64)
-        keys, counts = np.unique(lo << 32 | hi, return_counts=True)
+        keys, counts = np.unique(pair_keys(rec["penetrating"], rec["penetrated"]),
+                                 return_counts=True)
         per_pair = dict(zip(keys.tolist(), counts.tolist()))
         print(json.dumps({
             "collision": bool(pairs),

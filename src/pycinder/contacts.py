@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .focused import edge_normals, face_normals_world
+from .records import pair_keys
 from .result import CollisionResult
 
 CELL_TOLERANCES = 4.0
@@ -167,7 +168,7 @@ def reduce_contacts(result: CollisionResult) -> Contacts:
     if not surface.any():
         weight[:] = 1.0
     # Regions: connected cells of a grid a few tolerances wide, per pair.
-    pair_key, group = np.unique(a << 32 | b, return_inverse=True)
+    pair_key, group = np.unique(pair_keys(a, b), return_inverse=True)
     cell_size = CELL_TOLERANCES * tol
     cell = np.floor(point / cell_size[:, None]).astype(np.int64)
     first = np.full((len(pair_key), 3), np.iinfo(np.int64).max)

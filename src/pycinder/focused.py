@@ -21,7 +21,7 @@ from .errors import LossWarning, warn_at_caller
 from .gpu.device import Gpu
 from .passes.focused import (C_SAMPLES, C_TOTAL_TRIS, ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES,
                              FocusedOutput, FocusedPasses)
-from .records import RECORD_DTYPE, empty_records, unique_pairs
+from .records import RECORD_DTYPE, empty_records, pair_keys, unique_pairs
 from .request import DEFAULT_RELATIVE_TOLERANCE, CollisionRequest
 from .result import CollisionResult, Stats
 from .scene import Scene
@@ -255,5 +255,4 @@ def _member(bodies: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     """(T,) whether each tile's pair is among ``pairs`` (K, 2), both sorted i < j."""
     if len(pairs) == 0:
         return np.zeros(len(bodies), dtype=bool)
-    key = bodies[:, 0] << 32 | bodies[:, 1]
-    return np.isin(key, pairs[:, 0] << 32 | pairs[:, 1])
+    return np.isin(pair_keys(bodies[:, 0], bodies[:, 1]), pair_keys(pairs[:, 0], pairs[:, 1]))

@@ -346,7 +346,9 @@ class CollisionManager:
         """The most negative signed distance among the colliding ``pairs`` (K, 2): python-fcl's
         EPA where both meshes are convex, else the depth of the GPU contacts, from a second
         query over just the objects of such pairs."""
-        convex = np.array([o.trimesh.is_convex for o in objs])
+        convex = np.zeros(len(objs), dtype=bool)  # asked only of objects in colliding pairs
+        touching = np.unique(pairs)
+        convex[touching] = [objs[i].trimesh.is_convex for i in touching]
         concave = pairs[~(convex[pairs[:, 0]] & convex[pairs[:, 1]])]
         contacts = None
         if len(concave):

@@ -113,12 +113,17 @@ def decode_compact(data: np.ndarray, width: int, view_index: int, encode: str,
                          width, view_index, encode, edge_start)
 
 
+def pair_keys(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """One int64 key per unordered pair of body indices (n,) and (n,): ``min << 32 | max``.
+    Keys sort as the pairs ``(i, j)``, ``i < j``, do; a 1-D unique or isin on them is far faster
+    than one over (n, 2) rows."""
+    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
+    return np.minimum(a, b) << 32 | np.maximum(a, b)
+
+
 def unique_pairs(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Unique sorted (K, 2) int64 pairs ``(i, j)``, ``i < j``, from two (n,) arrays of bodies."""
     if len(a) == 0:
         return np.zeros((0, 2), dtype=np.int64)
-    a = np.asarray(a, dtype=np.int64)
-    b = np.asarray(b, dtype=np.int64)
-    # One int64 key per pair: a 1-D unique is far faster than np.unique(axis=0).
-    key = np.unique(np.minimum(a, b) << 32 | np.maximum(a, b))
+    key = np.unique(pair_keys(a, b))
     return np.stack([key >> 32, key & 0xFFFFFFFF], axis=1)

@@ -9,11 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def pair_keys(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """One int64 key per unordered pair of body indices (n,) and (n,)."""
-    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
-    return np.minimum(a, b) << 32 | np.maximum(a, b)
+from ..records import pair_keys
 
 
 def pair_points(records: np.ndarray, pairs: np.ndarray, fallback: np.ndarray) -> np.ndarray:
