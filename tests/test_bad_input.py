@@ -52,18 +52,44 @@ def test_face_index_out_of_range(det, bad, face, corner):
         det.find_collisions([box_arrays(), (v, f)])
 
 
-def test_degenerate_face_repeating_a_vertex(det):
+def test_degenerate_face_repeating_a_vertex_is_dropped_with_a_warning():
+    """A face repeating a vertex index (common in STL files after processing) bounds nothing: it
+    is dropped, the body named, and the scene answered."""
     v, f = box_arrays()
-    f[4] = [f[4, 0], f[4, 0], f[4, 1]]
-    with pytest.raises(ValueError, match=r"body 0\b.*degenerate face.*face 4"):
-        det.find_collisions([(v, f)])
+    f = np.concatenate([f, [[f[4, 0], f[4, 0], f[4, 1]]]])     # one degenerate face, appended
+    other = trimesh.transformations.translation_matrix((0.5, 0.1, 0.2))
+    with pytest.warns(pycinder.DegenerateFaceWarning,
+                      match=r"body 1 \('stl'\).*1 faces that repeat a vertex index were dropped"):
+        result = pycinder.Detector().find_collisions([box_arrays(), (v, f)], [np.eye(4), other],
+                                                     names=["box", "stl"])
+    assert result.pairs.tolist() == [[0, 1]]
+    with pytest.raises(ValueError, match=r"body 0\b.*repeat a vertex index"):
+        pycinder.Detector(strict=True).find_collisions([(v, f)])
+
+
+def test_one_bad_body_among_sixty_leaves_the_rest_answered():
+    """60 boxes in a row, each overlapping the next; body 17 has degenerate faces (repeated
+    indices) and is still tested; every other pair is answered."""
+    v, f = box_arrays()
+    bad = np.concatenate([f, [[0, 0, 1], [2, 3, 3], [5, 4, 5]]])
+    bodies = [(v, bad) if k == 17 else (v, f) for k in range(60)]
+    transforms = [trimesh.transformations.translation_matrix((0.9 * k, 0, 0)) for k in range(60)]
+    with pytest.warns(pycinder.DegenerateFaceWarning, match=r"body 17\b.*3 faces"):
+        result = pycinder.Detector().find_collisions(bodies, transforms)
+    assert result.pairs.tolist() == [[k, k + 1] for k in range(59)]
+
+
+def test_all_faces_degenerate_names_the_body():
+    v, f = box_arrays()
+    with pytest.raises(ValueError, match=r"body 1\b.*every face repeats a vertex index"):
+        pycinder.Detector().find_collisions([box_arrays(), (v, np.array([[0, 0, 1], [2, 2, 2]]))])
 
 
 def test_zero_area_face_warns_and_strict_raises():
     # A closed tetrahedron-like surface with a vertex collapsed onto an edge midpoint.
     v = np.array([[0, 0, 0], [1, 0, 0], [0.5, 0, 0], [0, 0, 1.0]])
     f = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]])
-    with pytest.warns(pycinder.DegenerateFaceWarning, match="body 0.*zero area"):
+    with pytest.warns(pycinder.DegenerateFaceWarning, match="body 0.*faces of zero area are ignored"):
         pycinder.Detector().find_collisions([(v, f)])
     with pytest.raises(ValueError, match="body 0.*zero area"):
         pycinder.Detector(strict=True).find_collisions([(v, f)])
@@ -93,11 +119,19 @@ def test_inconsistent_winding_is_reported():
         pycinder.Detector().find_collisions([(box.vertices, faces)])
 
 
-def test_inside_out_mesh_is_reported():
+def test_inside_out_mesh_is_reported_and_still_a_solid():
     box = trimesh.creation.box((1, 1, 1))
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.2)
+    inverted = (box.vertices, box.faces[:, ::-1])
     with pytest.warns(pycinder.OpenMeshWarning, match=r"body 0 \('inverted'\).*inside out") as w:
-        pycinder.Detector().find_collisions([(box.vertices, box.faces[:, ::-1])], names=["inverted"])
+        result = pycinder.Detector().find_collisions([inverted, ball], names=["inverted", "ball"])
     assert w[0].filename == __file__
+    # Its inside has winding -1: a ball wholly inside is found, one outside is not.
+    assert result.pairs.tolist() == [[0, 1]]
+    far = trimesh.transformations.translation_matrix((0.75, 0, 0))
+    with pytest.warns(pycinder.OpenMeshWarning, match="inside out"):
+        apart = pycinder.Detector().find_collisions([inverted, ball], [np.eye(4), far])
+    assert apart.pairs.tolist() == []
     with pytest.raises(ValueError, match="inside out"):
         pycinder.Detector(strict=True).find_collisions([(box.vertices, box.faces[:, ::-1])])
 

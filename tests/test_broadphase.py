@@ -54,9 +54,14 @@ def test_world_boxes_hold_every_vertex():
     scene = prepare_scene(meshes, transforms)
     lo, hi = scene.world_boxes()
     for i, t in enumerate(transforms):
-        # the vertices as the GPU sees them (single precision)
-        w = scene.shape_of(i).vertices.astype(np.float64) @ t[:3, :3].T + t[:3, 3]
+        # the vertices as the GPU sees them (single precision, relative to the shape's offset,
+        # which the scene's transform carries)
+        g = scene.transforms[i]
+        w = scene.shape_of(i).vertices.astype(np.float64) @ g[:3, :3].T + g[:3, 3]
         assert (w >= lo[i] - 1e-9).all() and (w <= hi[i] + 1e-9).all()
+        # the same body as given
+        v = np.asarray(meshes[i].vertices) @ t[:3, :3].T + t[:3, 3]
+        assert np.allclose(w, v, atol=1e-6)
     # Tight for round bodies: within 1% of the exact box of a sphere, whatever its rotation.
     ball = trimesh.creation.icosphere(subdivisions=4)
     scene = prepare_scene([ball], [random_rotation(np.random.default_rng(3))])

@@ -1,10 +1,12 @@
 """The tolerance contract, against exact geometry.
 
-Each case is a pair of solids: B comes in towards A along a direction until manifold3d's exact
-distance says they first touch; from there B is set exactly 2 tolerances apart (must never be
-reported) and 4 tolerances deep (must always be reported; the ground truth checks it can prove
-the penetration). Every case runs as its own query, and all of them together in one assembly
-spread over more than 10,000 tolerances, at scales 1e-3, 1 and 1e3.
+Each case is a pair of solids: B comes in towards A along a direction until python-fcl's exact
+distance says they first touch; from there B is set 2 tolerances apart (must never be reported)
+and 4 tolerances deep (must always be reported; the ground truth checks it can prove the
+penetration). Every case runs as its own query, and all of them together in one assembly spread
+over more than 10,000 tolerances, at scales 1e-3, 1 and 1e3. The contract's own margins are
+tested too: exactly one tolerance apart (python-fcl's exact distance, never reported) and two
+tolerances deep along the approach (always reported).
 """
 
 from functools import lru_cache
@@ -75,8 +77,10 @@ def placed() -> list[dict]:
         d /= np.linalg.norm(d)
         apart = first_contact(a, b_world, d, gap=2 * TOL)
         touch = first_contact(a, b_world, d, gap=0.0)
+        at_margin = first_contact(a, b_world, d, gap=TOL)
         poses = {}
-        for key, s in (("apart", apart), ("deep", touch - 4 * TOL)):
+        for key, s in (("apart", apart), ("deep", touch - 4 * TOL),
+                       ("t apart", at_margin), ("2t deep", touch - 2 * TOL * (1 + 1e-6))):
             t = rot.copy()
             t[:3, 3] += s * d
             poses[key] = t
@@ -125,6 +129,38 @@ def test_each_pair_alone(detector, scale, i):
     meshes, transforms = _scaled(case, "deep", scale)
     assert detector.find_collisions(meshes, transforms).pairs.tolist() == [[0, 1]], \
         f"{case['name']}: missed 4 tolerances deep"
+
+
+def _fcl_distance(meshes, transforms) -> float:
+    import fcl
+
+    objs = []
+    for m, t in zip(meshes, transforms):
+        w = m.copy()
+        w.apply_transform(t)
+        model = fcl.BVHModel()
+        model.beginModel(len(w.vertices), len(w.faces))
+        model.addSubModel(np.asarray(w.vertices, np.float64), np.asarray(w.faces, np.int32))
+        model.endModel()
+        objs.append(fcl.CollisionObject(model, fcl.Transform()))
+    return float(fcl.distance(objs[0], objs[1], fcl.DistanceRequest(), fcl.DistanceResult()))
+
+
+@pytest.mark.parametrize("i", range(len(CASES)), ids=[f"{a}-{b}" for a, b, _, _ in CASES])
+def test_each_pair_at_the_contracts_margins(detector, scale, i):
+    """One tolerance apart by python-fcl's exact distance: never reported. Two tolerances deep
+    along the approach: always reported."""
+    case = placed()[i]
+    # The truth at scale 1 (distances scale with the scene; python-fcl's own tolerance is too
+    # coarse to measure a thousandth of these distances at scale 1e-3).
+    assert _fcl_distance(*_scaled(case, "t apart", 1.0)) >= TOL * (1 - 1e-9)
+    assert _fcl_distance(*_scaled(case, "2t deep", 1.0)) <= 0.0  # they meet (fcl: 0 or -1)
+    meshes, transforms = _scaled(case, "t apart", scale)
+    assert detector.find_collisions(meshes, transforms).pairs.tolist() == [], \
+        f"{case['name']}: reported one tolerance apart"
+    meshes, transforms = _scaled(case, "2t deep", scale)
+    assert detector.find_collisions(meshes, transforms).pairs.tolist() == [[0, 1]], \
+        f"{case['name']}: missed two tolerances deep"
 
 
 def test_assembly_spread_over_ten_thousand_tolerances(detector, scale):

@@ -9,12 +9,15 @@
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+import wgpu
 
+from .errors import GpuError, GpuTimeoutError
 from .focused import FocusedStrategy
 from .gpu.device import get_gpu
 from .request import RECORD_MODES, CollisionRequest
@@ -54,11 +57,24 @@ class Detector:
         self.request = request
         self.gpu = get_gpu()
         self.shapes = ShapeCache()
-        self.strategy: FocusedStrategy | SceneStrategy
-        if request.strategy == "focused":
-            self.strategy = FocusedStrategy(self.gpu, request)
-        else:
-            self.strategy = SceneStrategy(self.gpu, request)
+        self.strategy: FocusedStrategy | SceneStrategy = self._make_strategy()
+        self._lock = threading.RLock()
+
+    def _make_strategy(self) -> FocusedStrategy | SceneStrategy:
+        if self.request.strategy == "focused":
+            return FocusedStrategy(self.gpu, self.request)
+        return SceneStrategy(self.gpu, self.request)
+
+    def _recover(self, exc: Exception) -> GpuError:
+        """After a GPU error: rebuild the strategy's pipelines and buffers, so that the next
+        query starts clean, and say so in the error."""
+        try:
+            self.strategy = self._make_strategy()
+        except Exception as again:  # the device itself is gone
+            return GpuError(f"{exc}; the GPU device could not be used again ({again}): "
+                            "recreate the Detector in a new process")
+        kind = type(exc) if isinstance(exc, GpuError) else GpuError
+        return kind(f"{exc} (the detector was reset and can be used again)")
 
     def find_collisions(self, bodies: Sequence[Any], transforms: Any = None, *,
                         names: Sequence[str | None] | None = None,
@@ -89,6 +105,13 @@ class Detector:
         CollisionResult
             ``pairs`` is (K, 2) int64 with ``i < j``.
         """
+        with self._lock:  # one query at a time: the GPU buffers are the detector's own
+            return self._find_collisions(bodies, transforms, names, groups, view, records)
+
+    def _find_collisions(self, bodies: Sequence[Any], transforms: Any,
+                         names: Sequence[str | None] | None, groups: Any,
+                         view: View | Sequence[View] | None, records: str | None
+                         ) -> CollisionResult:
         t0 = time.perf_counter()
         if view is not None and self.request.strategy != "scene":
             raise ValueError("view applies to strategy='scene'; the focused strategy chooses a "
@@ -108,27 +131,32 @@ class Detector:
                 raise ValueError(f"groups must be {len(scene)} whole numbers, one per body; "
                                  f"got shape {groups.shape} of {groups.dtype}")
         stats.add_ms("validate", (time.perf_counter() - t0) * 1e3)
-        if isinstance(self.strategy, SceneStrategy):
-            result = self.strategy.run(scene, stats, view)
-            if groups is not None:
-                result = result.across(groups)
-        else:
-            result = self.strategy.run(scene, stats, groups, records)
+        try:
+            if isinstance(self.strategy, SceneStrategy):
+                result = self.strategy.run(scene, stats, view)
+                if groups is not None:
+                    result = result.across(groups)
+            else:
+                result = self.strategy.run(scene, stats, groups, records)
+        except (GpuTimeoutError, wgpu.GPUError) as exc:
+            raise self._recover(exc) from exc
         stats.wall_ms["total"] = (time.perf_counter() - t0) * 1e3
         return result
 
 
 _DETECTORS: dict[CollisionRequest, Detector] = {}
+_DETECTORS_LOCK = threading.Lock()
 
 
 def shared_detector(request: CollisionRequest) -> Detector:
     """A detector per distinct request, kept for reuse (the last few only)."""
-    det = _DETECTORS.get(request)
-    if det is None:
-        if len(_DETECTORS) >= 4:
-            _DETECTORS.pop(next(iter(_DETECTORS)))
-        det = _DETECTORS[request] = Detector(request)
-    return det
+    with _DETECTORS_LOCK:
+        det = _DETECTORS.get(request)
+        if det is None:
+            if len(_DETECTORS) >= 4:
+                _DETECTORS.pop(next(iter(_DETECTORS)))
+            det = _DETECTORS[request] = Detector(request)
+        return det
 
 
 def find_collisions(bodies: Sequence[Any], transforms: Any = None, *,

@@ -42,3 +42,21 @@ def _stacklevel() -> int:
 def warn_at_caller(message: str, category: type[Warning]) -> None:
     """``warnings.warn`` with the stack level of the first caller outside the package."""
     warnings.warn(message, category, stacklevel=_stacklevel())
+
+
+class GpuError(RuntimeError):
+    """The GPU could not do what a query asked; the message says what and what to do."""
+
+
+class GpuTimeoutError(GpuError):
+    """A wait on the GPU passed its deadline (``CollisionRequest.timeout``)."""
+
+
+class GpuMemoryError(GpuError, MemoryError):
+    """A query needs more GPU memory than the device allows, or than ``memory_budget`` permits
+    where it cannot be split into rounds."""
+
+
+class PrecisionWarning(UserWarning):
+    """A pair's bodies are too large for its tolerance in single precision: its tolerance was
+    raised to what the GPU can resolve (only for default tolerances)."""

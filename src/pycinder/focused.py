@@ -17,16 +17,19 @@ import time
 import numpy as np
 
 from .broadphase import sweep_and_prune
-from .errors import LossWarning, warn_at_caller
+from .errors import GpuMemoryError, LossWarning, PrecisionWarning, warn_at_caller
 from .gpu.device import Gpu
-from .passes.focused import (C_SAMPLES, C_TOTAL_TRIS, ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES,
-                             FocusedOutput, FocusedPasses)
+from .layout import (C_SAMPLES, C_TOTAL_TRIS, RECORD_ID_MASK, RECORD_KIND_SHIFT, RECORD_SIDE_BIT,
+                     RECORD_SURFACE)
+from .passes.focused import (ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, FocusedOutput,
+                             FocusedPasses, RoundTooLarge)
 from .records import RECORD_DTYPE, empty_records, pair_keys, unique_pairs
 from .request import DEFAULT_RELATIVE_TOLERANCE, CollisionRequest
 from .result import CollisionResult, Stats
 from .scene import Scene
 from .scene.pack import ShapePack, pack_shapes, shape_layout
-from .tiles import TilePlan, concat_plans, plan_tiles, split_depth
+from .tiles import (MAX_TILE, TilePlan, concat_plans, plan_tiles, repack,
+                    split_depth)
 
 RETRIES = 5
 """Times undecided tiles are run again: first with longer lists, then with thinner boxes."""
@@ -52,7 +55,8 @@ class FocusedStrategy:
     def __init__(self, gpu: Gpu, request: CollisionRequest) -> None:
         self.gpu = gpu
         self.request = request
-        self.passes = FocusedPasses(gpu, LIST_CAPACITY, profile=request.profile)
+        self.passes = FocusedPasses(gpu, LIST_CAPACITY, profile=request.profile,
+                                    timeout=request.timeout)
         per_pixel = PIXEL_BYTES + ENTRY_BYTES * LIST_CAPACITY
         self.budget_pixels = int(min(request.memory_budget // per_pixel,
                                      gpu.max_binding // (ENTRY_BYTES * LIST_CAPACITY),
@@ -64,13 +68,40 @@ class FocusedStrategy:
         return self.budget_pixels * self.passes.capacity // capacity
 
     def tolerances(self, scene: Scene, pairs: np.ndarray) -> np.ndarray:
-        """(K,) tolerance of each candidate pair, in world units."""
-        if self.request.tolerance is not None:
-            return np.full(len(pairs), self.request.tolerance)
+        """(K,) tolerance of each candidate pair, in world units.
+
+        The default is :data:`~pycinder.request.DEFAULT_RELATIVE_TOLERANCE` of the smaller body's
+        size, from the pair's own bodies only. A pair's pixels must also be resolvable in single
+        precision (see :func:`resolvable_tolerance`): a default tolerance below that is raised to
+        it with a :class:`~pycinder.errors.PrecisionWarning`; a tolerance given below it raises.
+        """
         size = body_sizes(scene)
-        tol = DEFAULT_RELATIVE_TOLERANCE * np.minimum(size[pairs[:, 0]], size[pairs[:, 1]])
-        # A body of no size (all vertices at one point) still gets a usable pixel.
-        return np.maximum(tol, 1e-12 * max(float(size.max(initial=0.0)), 1e-30))
+        a, b = pairs[:, 0], pairs[:, 1]
+        floor = resolvable_tolerance(scene, pairs, size)
+        if self.request.tolerance is not None:
+            tol = np.full(len(pairs), self.request.tolerance)
+            bad = np.flatnonzero(tol < floor)
+            if len(bad):
+                k = bad[np.argmax(floor[bad])]
+                raise ValueError(
+                    f"tolerance {self.request.tolerance:g} is too fine for {len(bad)} candidate "
+                    f"pairs in single precision (first: {scene.label(int(a[k]))} and "
+                    f"{scene.label(int(b[k]))}, {size[a[k]]:.3g} and {size[b[k]]:.3g} across): "
+                    f"the GPU resolves them at {floor[bad].max():.3g} or coarser; use a coarser "
+                    "tolerance, or test those bodies in a query of their own scale")
+            return tol
+        tol = DEFAULT_RELATIVE_TOLERANCE * np.minimum(size[a], size[b])
+        raised = np.flatnonzero(tol < floor)
+        if len(raised):
+            k = raised[np.argmax(floor[raised] / np.maximum(tol[raised], 1e-300))]
+            warn_at_caller(
+                f"{len(raised)} candidate pairs are too far apart in size (or too far from the "
+                f"origin) for their default tolerance in single precision: their tolerance was "
+                f"raised to what the GPU resolves (first: {scene.label(int(a[k]))} and "
+                f"{scene.label(int(b[k]))}, {size[a[k]]:.3g} and {size[b[k]]:.3g} across, "
+                f"tolerance {tol[k]:.3g} -> {floor[k]:.3g}); see stats.tolerance",
+                PrecisionWarning)
+        return np.maximum(tol, floor)
 
     def _shapes(self, scene: Scene, stats: Stats) -> ShapePack:
         if self._pack is None or self._pack.layout != shape_layout(scene.shapes):
@@ -98,7 +129,8 @@ class FocusedStrategy:
         tol = self.tolerances(scene, pairs)
         stats.tolerance = (float(tol.min()), float(tol.max()))
         plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
-                          budget_pixels=self.budget_pixels, probe=records != "all")
+                          budget_pixels=self.budget_pixels, probe=records != "all",
+                          open_bodies=scene.open, max_pixels=self.request.max_pixels)
         stats.separated = plan.separated
         t2 = time.perf_counter()
         stats.add_ms("tiles", (t2 - t1) * 1e3)
@@ -110,10 +142,7 @@ class FocusedStrategy:
         found_tiles, rows, plans = [], [], []
         current, capacity = plan, self.passes.capacity
         for attempt in range(RETRIES + 1):
-            out = self.passes.run(current, current.tile_from_body(scene.transforms),
-                                  scene.body_shape, pack, len(pairs),
-                                  records=records != "none", all_records=records == "all",
-                                  list_capacity=capacity)
+            current, out = self._run_plan(current, scene, pack, len(pairs), records, capacity)
             self._count(stats, current, out)
             hit = out.tile_counts[:, 0] > 0
             found_tiles.append(current.bodies[hit])
@@ -153,8 +182,41 @@ class FocusedStrategy:
         rec = np.concatenate([self._decode(scene, p, pack, r, int(o))
                               for (p, r), o in zip(rows, first_tile)])
         stats.records = len(rec)
+        if stats.dropped_records:
+            warn_at_caller(
+                f"{stats.dropped_records} records were dropped: more than one buffer of this "
+                f"device holds ({self.passes.records.limit // 16} records); every pair is "
+                "reported, but contacts come from the records kept; see stats.dropped_records",
+                LossWarning)
         stats.add_ms("decode", (time.perf_counter() - t4) * 1e3)
         return CollisionResult(result_pairs, rec, stats, tiles=concat_plans(plans), scene=scene)
+
+    def _run_plan(self, plan: TilePlan, scene: Scene, pack: ShapePack, n_pairs: int,
+                  records: str, capacity: int) -> tuple[TilePlan, FocusedOutput]:
+        """Run ``plan``'s passes; when a round clips more triangles than the device's buffers
+        hold, plan the same tiles in smaller rounds and run them again. Returns the plan run."""
+        budget, width = self._budget(capacity), plan.atlas_width
+        while True:
+            try:
+                return plan, self.passes.run(
+                    plan, plan.tile_from_body(scene.transforms), scene.body_shape, pack,
+                    n_pairs, records=records != "none", all_records=records == "all",
+                    list_capacity=capacity)
+            except RoundTooLarge as exc:
+                # Fewer atlas pixels per round, down to one band each; then narrower bands
+                # (fewer tiles in each).
+                largest = max(plan.round_rows) * width
+                budget = int(min(budget, largest) * 0.9 * exc.limit / exc.needed)
+                smaller = repack(plan, budget, width)
+                if max(smaller.round_rows) * width >= largest:
+                    if width <= MAX_TILE[0]:
+                        raise GpuMemoryError(
+                            f"one round of tiles clips {exc.needed} triangles, more than this "
+                            f"device's buffers hold ({exc.limit}), even in rounds of one atlas "
+                            "band; use a coarser tolerance or split the scene") from None
+                    width = max(MAX_TILE[0], width // 2)
+                    smaller = repack(plan, budget, width)
+                plan = smaller
 
     @staticmethod
     def _report_loss(stats: Stats, bodies: np.ndarray, decided: np.ndarray, capacity: int
@@ -190,13 +252,14 @@ class FocusedStrategy:
         stats.undecided += int(out.tile_counts[:, 1].sum())
         stats.bytes_read += out.bytes_read
         stats.reruns += out.reruns
-        for name, ms in self.passes.gpu_ms.items():
+        stats.dropped_records += out.dropped_records
+        for name, ms in out.gpu_ms.items():
             stats.gpu_ms[name] = stats.gpu_ms.get(name, 0.0) + ms
 
     def _decode(self, scene: Scene, plan: TilePlan, pack: ShapePack, rows: np.ndarray,
                 first_tile: int = 0) -> np.ndarray:
         """Records from the rows of passes F4 and F5 (tile, u | v << 16, z bits,
-        id | surface << 30 | side << 31): ``id`` is a packed edge (F4) or face (F5). A record's
+        id | kind | side, see :mod:`pycinder.layout`): ``id`` is a packed edge (F4) or face (F5). A record's
         ``view`` is its tile's index in ``plan`` plus ``first_tile``."""
         if len(rows) == 0:
             return empty_records()
@@ -204,9 +267,9 @@ class FocusedStrategy:
         u = (rows[:, 1] & 0xFFFF).astype(np.int64)
         v = (rows[:, 1] >> 16).astype(np.int64)
         z = rows[:, 2].view(np.float32)
-        ident = (rows[:, 3] & 0x3FFFFFFF).astype(np.int64)
-        surface = (rows[:, 3] >> 30) & 1 == 1
-        side = (rows[:, 3] >> 31).astype(np.int64)
+        ident = (rows[:, 3] & RECORD_ID_MASK).astype(np.int64)
+        surface = (rows[:, 3] >> RECORD_KIND_SHIFT) & 3 == RECORD_SURFACE
+        side = (rows[:, 3] >> RECORD_SIDE_BIT).astype(np.int64)
         rec = np.zeros(len(rows), dtype=RECORD_DTYPE)
         rec["penetrating"] = plan.bodies[tile, side]
         rec["penetrated"] = plan.bodies[tile, 1 - side]
@@ -222,6 +285,31 @@ class FocusedStrategy:
             rec["normal"][surface] = face_normals_world(scene, rec["penetrating"][surface],
                                                         rec["face"][surface])
         return rec
+
+
+MAX_PIXELS_ACROSS = 2.0**20
+"""Most pixels a pair's body may span: single-precision tile coordinates then stay within a
+sixteenth of a pixel (2**20 * 2**-24), well inside the contract's margins."""
+MAX_PIXELS_FROM_ORIGIN = 2.0**48
+"""Most pixels a pair's body may lie from the world origin: the double-precision planning then
+places its tiles within a sixteenth of a pixel (2**48 * 2**-52)."""
+SMALLEST_TOLERANCE = 1e-30
+"""A pair of bodies of no size (all vertices at one point) at the origin still gets a pixel."""
+
+
+def resolvable_tolerance(scene: Scene, pairs: np.ndarray, size: np.ndarray | None = None
+                         ) -> np.ndarray:
+    """(K,) the smallest tolerance at which each pair's tiles are resolved in single precision:
+    each body at most :data:`MAX_PIXELS_ACROSS` pixels across and :data:`MAX_PIXELS_FROM_ORIGIN`
+    pixels from the origin."""
+    size = body_sizes(scene) if size is None else size
+    centre = np.einsum("nij,nj->ni", scene.transforms[:, :3, :3],
+                       0.5 * (scene.local_lo + scene.local_hi)) + scene.transforms[:, :3, 3]
+    far = np.abs(centre).max(axis=1) + size
+    a, b = pairs[:, 0], pairs[:, 1]
+    return np.maximum.reduce([np.maximum(size[a], size[b]) / MAX_PIXELS_ACROSS,
+                              np.maximum(far[a], far[b]) / MAX_PIXELS_FROM_ORIGIN,
+                              np.full(len(pairs), SMALLEST_TOLERANCE)])
 
 
 def edge_normals(scene: Scene, body: np.ndarray, edge: np.ndarray) -> np.ndarray:

@@ -31,6 +31,25 @@ Without a tolerance, each pair gets ``DEFAULT_RELATIVE_TOLERANCE`` (1%) of the s
 size (the length of its bounding box's diagonal in world units): the promises then hold per pair
 at that scale, again independent of the rest of the scene.
 
+Open bodies. A body that is not a closed solid (it has holes, or faces wound inconsistently: any
+edge walked more often one way than the other) has no inside, so ray parity is never used for it.
+It is tested as a surface:
+
+4. A pair is reported where the open body's surface crosses the other body's surface (an edge of
+   one passes through a face of the other: tested exactly, edge by face, by pass F6), or where a
+   part of the open body lies inside the other body when that one is a closed solid (promise 2's
+   clauses, with the open body's edges and surface points). Surfaces that cross through each
+   other are reported; an open body lying 2 ``t`` inside a closed one is reported.
+5. A pair whose surfaces are at least ``t`` apart is never reported, as promise 1 says: nothing
+   is ever found inside an open body (a ball resting in a cup, clear of its walls, is apart).
+
+Precision. Pixels are resolved in single precision on the GPU: a pair's tolerance must be at
+least 2**-20 of its larger body's size and 2**-48 of its distance from the world origin (see
+:func:`pycinder.focused.resolvable_tolerance`). A default tolerance below that is raised to it
+with a :class:`~pycinder.errors.PrecisionWarning`; a tolerance given below it raises. Each body's
+vertices are re-centred in double precision before they are rounded, so a mesh stored far from
+its own origin keeps its detail. Bodies up to 1e30 units across are supported.
+
 The whole-scene strategy (``"scene"``) is the paper's: one image of ``resolution`` pixels across
 the whole scene, with the paper's self-interference and readback options. Its pixel is the
 scene's extent divided by the resolution, so it makes no promise in world units.
@@ -51,6 +70,12 @@ RECORD_MODES = ("found", "all", "none")
 
 DEFAULT_RELATIVE_TOLERANCE = 0.01
 """Default tolerance of a pair, as a fraction of the smaller body's bounding-box diagonal."""
+
+DEFAULT_TIMEOUT = 60.0
+"""Seconds a query may wait for the GPU (see :class:`CollisionRequest`)."""
+
+DEFAULT_MAX_PIXELS = 2**30
+"""Most pixels one focused query's tiles may hold (see :class:`CollisionRequest`)."""
 
 DEFAULT_MEMORY_BUDGET = 256 * 2**20
 """Bytes the focused strategy's atlas may use per round (more pixels are processed in rounds)."""
@@ -97,6 +122,13 @@ class CollisionRequest:
         Time each GPU pass with timestamp queries where the adapter supports them.
     memory_budget : int
         Focused strategy: bytes of pixel data per round of the atlas.
+    max_pixels : int
+        Focused strategy: most pixels one query's tiles may hold (default 2**30). A query over it
+        raises :class:`~pycinder.errors.GpuMemoryError` before anything is allocated, naming the
+        pairs and a tolerance that would fit. Pixels grow with (overlap size / tolerance)**2.
+    timeout : float
+        Seconds a query may wait for the GPU before it raises
+        :class:`~pycinder.errors.GpuTimeoutError` (default 60).
     records : {"found", "all", "none"}
         Focused strategy: ``"found"`` (default) stops testing a pair as soon as one of its tiles
         found it colliding (large windows are probed at their centre first) and returns the
@@ -117,6 +149,8 @@ class CollisionRequest:
     profile: bool = False
     memory_budget: int = DEFAULT_MEMORY_BUDGET
     records: str = "found"
+    timeout: float = DEFAULT_TIMEOUT
+    max_pixels: int = DEFAULT_MAX_PIXELS
 
     def __post_init__(self) -> None:
         _one_of("strategy", self.strategy, STRATEGIES)
@@ -131,6 +165,12 @@ class CollisionRequest:
                 raise ValueError(f"tolerance must be a positive number of world units, got "
                                  f"{self.tolerance!r}")
             object.__setattr__(self, "tolerance", float(self.tolerance))
+        if isinstance(self.timeout, bool) or not isinstance(self.timeout, numbers.Real) \
+                or not math.isfinite(self.timeout) or self.timeout <= 0:
+            raise ValueError(f"timeout must be a positive number of seconds, got {self.timeout!r}")
+        object.__setattr__(self, "timeout", float(self.timeout))
+        if not _positive_int(self.max_pixels):
+            raise ValueError(f"max_pixels must be a positive whole number, got {self.max_pixels!r}")
         if not _positive_int(self.memory_budget) or self.memory_budget < 2**20:
             raise ValueError(f"memory_budget must be a whole number of bytes, at least 1 MiB, "
                              f"got {self.memory_budget!r}")

@@ -49,6 +49,9 @@ class Stats:
     possibly_lost: int = 0
     """Pairs that may have been dropped (undecided after retries, or a lossy readback): 0 means
     nothing was lost."""
+    dropped_records: int = 0
+    """Records found but not kept because they outnumber what one buffer of the device holds
+    (``records="all"`` at a fine tolerance); pairs are unaffected."""
     incomplete_records: int = 0
     """Reported pairs some of whose records may be missing (``records="all"``: a tile of theirs
     still undecided after retries); their contacts come from the records found."""

@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .layout import FLAG_COUNT_BACK, FLAG_MIRROR, FLAG_OPEN, FLAG_SKIP_IF_HIT
+
 
 TILT = 0.41
 """Radians between the view direction and the overlap box's longest axis."""
@@ -42,12 +44,6 @@ MARGIN_PX = 1
 """Pixels added around the overlap box's projection, so that a sample near the box's edge still
 has a pixel centre in the window."""
 
-FLAG_COUNT_BACK = 1
-"""Tile flag: count the crossings behind the overlap box instead of in front of it."""
-FLAG_MIRROR = (2, 4)
-"""Tile flags: body a's (body b's) transform reverses orientation, so its faces' facing flips."""
-FLAG_SKIP_IF_HIT = 8
-"""Tile flag: skip this tile once another tile of its pair found a hit."""
 
 PROBE = (24, 24)
 """Largest probe tile: windows larger than this are probed at their centre first. Deep overlaps,
@@ -73,7 +69,7 @@ class TilePlan:
     slab : (T, 2) float64
         Depth range ``(z0, z1)`` of the overlap box, in pixels.
     flags : (T,) int64
-        :data:`FLAG_COUNT_BACK` and :data:`FLAG_MIRROR` bits.
+        ``FLAG_*`` bits of :mod:`pycinder.layout`.
     round : (T,) int64
         The round the tile is processed in.
     round_rows : list[int]
@@ -164,6 +160,7 @@ def _frames(transforms: np.ndarray) -> np.ndarray:
 def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
                local_hi: np.ndarray, world_lo: np.ndarray, world_hi: np.ndarray,
                transforms: np.ndarray, *, budget_pixels: int, probe: bool = True,
+               open_bodies: np.ndarray | None = None, max_pixels: float = float("inf"),
                chunk: int = 16384) -> TilePlan:
     """Tiles for candidate pairs.
 
@@ -184,6 +181,11 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     probe : bool
         Give large windows a probe tile at their centre that runs first; the rest of the window
         is skipped once the pair has a hit.
+    open_bodies : (N,) bool, optional
+        Bodies that are not solids (tested as surfaces).
+    max_pixels : float
+        Most pixels the windows may hold together; a plan over it raises
+        :class:`~pycinder.errors.GpuMemoryError` before any tile is made.
     chunk : int
         Pairs planned at once (bounds temporary memory).
 
@@ -200,13 +202,18 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
            t3 * half_local[:, None, :])
     aabb = (0.5 * (world_lo + world_hi), 0.5 * (world_hi - world_lo))
     frames = _frames(transforms)
+    if open_bodies is None:
+        open_bodies = np.zeros(len(transforms), dtype=bool)
     parts = [_plan_chunk(pairs[s:s + chunk], tolerance[s:s + chunk], obb, aabb, frames,
-                         transforms, s) for s in range(0, len(pairs), chunk)]
+                         transforms, open_bodies, s) for s in range(0, len(pairs), chunk)]
     keep = [p for p in parts if p is not None]
     separated = len(pairs) - sum(len(np.unique(p["pair"])) for p in keep)
     if not keep:
         return _empty_plan(separated)
     cat = {k: np.concatenate([p[k] for p in keep]) for k in keep[0]}
+    _check_pixels(cat, pairs, tolerance, max_pixels)
+    cat["w"] = cat["w"].astype(np.int64)
+    cat["h"] = cat["h"].astype(np.int64)
     plans = [_pack(p, budget_pixels, separated) for p in _phases(cat, probe) if len(p["w"])]
     return concat_plans(plans)
 
@@ -232,7 +239,8 @@ def _support(rows: np.ndarray, centre: np.ndarray, axes: np.ndarray
 
 
 def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, obb: tuple, aabb: tuple,
-                frames: np.ndarray, transforms: np.ndarray, first: int) -> dict | None:
+                frames: np.ndarray, transforms: np.ndarray, open_bodies: np.ndarray,
+                first: int) -> dict | None:
     a, b = pairs[:, 0], pairs[:, 1]
     k = len(pairs)
     # Three candidate frames per pair: world, body a's, body b's.
@@ -286,8 +294,9 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, obb: tuple, aabb: tuple,
         vlo[swap, 0], vhi[swap, 0] = vlo[swap, 1], vhi[swap, 1]
         vlo[swap, 1], vhi[swap, 1] = -hi0, -lo0
     px = tol[idx]
-    w = np.ceil((vhi[:, 0] - vlo[:, 0]) / px).astype(np.int64) + 2 * MARGIN_PX
-    h = np.ceil((vhi[:, 1] - vlo[:, 1]) / px).astype(np.int64) + 2 * MARGIN_PX
+    # Sizes stay floating point until the plan is known to fit (see _check_pixels).
+    w = np.ceil((vhi[:, 0] - vlo[:, 0]) / px) + 2 * MARGIN_PX
+    h = np.ceil((vhi[:, 1] - vlo[:, 1]) / px) + 2 * MARGIN_PX
     zmid = 0.5 * (vlo[:, 2] + vhi[:, 2])
     origin = ((vlo[:, 0] - MARGIN_PX * px)[:, None] * axes[:, 0]
               + (vlo[:, 1] - MARGIN_PX * px)[:, None] * axes[:, 1] + zmid[:, None] * axes[:, 2])
@@ -302,10 +311,33 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, obb: tuple, aabb: tuple,
     det = np.linalg.det(transforms[:, :3, :3])
     flags |= np.where(det[a[idx]] < 0, FLAG_MIRROR[0], 0)
     flags |= np.where(det[b[idx]] < 0, FLAG_MIRROR[1], 0)
+    flags |= np.where(open_bodies[a[idx]], FLAG_OPEN[0], 0)
+    flags |= np.where(open_bodies[b[idx]], FLAG_OPEN[1], 0)
     return {
         "pair": idx + first, "bodies": pairs[idx], "axes": axes, "origin": origin, "pixel": px,
         "w": w, "h": h, "slab": np.stack([z0, z1], axis=1), "flags": flags,
     }
+
+
+def _check_pixels(cat: dict, pairs: np.ndarray, tolerance: np.ndarray, max_pixels: float
+                  ) -> None:
+    """Raise :class:`~pycinder.errors.GpuMemoryError` when the windows hold more than
+    ``max_pixels`` pixels, naming the largest pairs and a tolerance that would fit."""
+    pixels = cat["w"] * cat["h"]
+    total = float(pixels.sum())
+    if total <= max_pixels:
+        return
+    from .errors import GpuMemoryError
+
+    order = np.argsort(-pixels)[:3]
+    worst = ", ".join(f"bodies {pairs[cat['pair'][k]].tolist()} ({pixels[k]:.3g} pixels at "
+                      f"tolerance {tolerance[cat['pair'][k]]:.3g})" for k in order)
+    # Pixels scale with (1 / tolerance) ** 2.
+    scale = np.sqrt(total / max_pixels)
+    raise GpuMemoryError(
+        f"this query's tiles would hold {total:.3g} pixels, more than max_pixels={max_pixels:.3g} "
+        f"(largest: {worst}); a tolerance about {scale:.3g} times coarser fits (for one "
+        f"tolerance t: {float(tolerance.max()) * scale:.3g}), or raise max_pixels")
 
 
 def _window_part(t: dict, rep: np.ndarray, u0: np.ndarray, v0: np.ndarray, w: np.ndarray,
@@ -350,9 +382,10 @@ def _phases(t: dict, probe: bool) -> list[dict]:
     return [first, _pieces(t, large, FLAG_SKIP_IF_HIT)]
 
 
-def _pack(t: dict, budget_pixels: int, separated: int) -> TilePlan:
-    """Place the tiles in atlas bands, cutting tiles at band ends, and split the bands into
-    rounds of at most ``budget_pixels``."""
+def _pack(t: dict, budget_pixels: int, separated: int, atlas_width: int = ATLAS_WIDTH
+          ) -> TilePlan:
+    """Place the tiles in atlas bands ``atlas_width`` wide (at least a tile's largest width),
+    cutting tiles at band ends, and split the bands into rounds of at most ``budget_pixels``."""
     classes = np.array(HEIGHT_CLASSES)
     cls = np.searchsorted(classes, t["h"])
     order = np.argsort(cls, kind="stable")
@@ -365,13 +398,13 @@ def _pack(t: dict, budget_pixels: int, separated: int) -> TilePlan:
     before = np.concatenate([[0], csum[:-1]])
     class_base = np.concatenate([[0], csum])[first_of_class][cls]
     start = before - class_base
-    band = start // ATLAS_WIDTH
+    band = start // atlas_width
     end = start + w
-    cut = (end - 1) // ATLAS_WIDTH > band
+    cut = (end - 1) // atlas_width > band
     # Cut the tiles that cross a band's end: the first part keeps the tile, the rest is a copy.
-    first_w = np.where(cut, (band + 1) * ATLAS_WIDTH - start, w)
+    first_w = np.where(cut, (band + 1) * atlas_width - start, w)
     rest = np.flatnonzero(cut)
-    cols = np.concatenate([start % ATLAS_WIDTH, np.zeros(len(rest), np.int64)])
+    cols = np.concatenate([start % atlas_width, np.zeros(len(rest), np.int64)])
     bands = np.concatenate([band, band[rest] + 1])
     widths = np.concatenate([first_w, w[rest] - first_w[rest]])
     src = np.concatenate([np.arange(len(w)), rest])
@@ -382,17 +415,17 @@ def _pack(t: dict, budget_pixels: int, separated: int) -> TilePlan:
     tile_cls = cls[src]
     # Bands of each class, in class order; rows from the top of the atlas.
     class_width = np.bincount(cls, weights=w, minlength=len(classes))
-    class_bands = np.ceil(class_width / ATLAS_WIDTH).astype(np.int64)
+    class_bands = np.ceil(class_width / atlas_width).astype(np.int64)
     band_class = np.repeat(np.arange(len(classes)), class_bands)
     band_rows = classes[band_class]
     band_first = np.concatenate([[0], np.cumsum(class_bands)])[:-1]
     # Rounds: bands in order, a new round whenever the budget would be passed (few bands).
-    rows_budget = max(int(budget_pixels) // ATLAS_WIDTH, int(classes[-1]))
+    rows_budget = max(int(budget_pixels) // atlas_width, 1)
     band_round = np.zeros(len(band_rows), np.int64)
     band_row0 = np.zeros(len(band_rows), np.int64)
     round_rows: list[int] = [0]
     for i, rows in enumerate(band_rows.tolist()):
-        if round_rows[-1] + rows > rows_budget:
+        if round_rows[-1] and round_rows[-1] + rows > rows_budget:  # a band always fits alone
             round_rows.append(0)
         band_round[i] = len(round_rows) - 1
         band_row0[i] = round_rows[-1]
@@ -403,7 +436,21 @@ def _pack(t: dict, budget_pixels: int, separated: int) -> TilePlan:
     o = np.argsort(global_band, kind="stable")
     return TilePlan(out["pair"][o], out["bodies"][o], out["axes"][o], out["origin"][o],
                     out["pixel"][o], window[o], out["slab"][o], out["flags"][o],
-                    band_round[global_band][o], round_rows, ATLAS_WIDTH, separated)
+                    band_round[global_band][o], round_rows, atlas_width, separated)
+
+
+def repack(plan: TilePlan, budget_pixels: int, atlas_width: int = ATLAS_WIDTH) -> TilePlan:
+    """The same tiles in rounds of at most ``budget_pixels`` atlas pixels, in an atlas
+    ``atlas_width`` wide (a plan whose rounds hold more work than the device's buffers is run
+    again in smaller rounds)."""
+    parts = []
+    for r in range(len(plan.round_rows)):  # each round on its own: probes stay before pieces
+        k = np.flatnonzero(plan.round == r)
+        t = {"pair": plan.pair[k], "bodies": plan.bodies[k], "axes": plan.axes[k],
+             "origin": plan.origin[k], "pixel": plan.pixel[k], "w": plan.window[k, 2],
+             "h": plan.window[k, 3], "slab": plan.slab[k], "flags": plan.flags[k]}
+        parts.append(_pack(t, budget_pixels, plan.separated, atlas_width))
+    return concat_plans(parts)
 
 
 def split_depth(plan: TilePlan, which: np.ndarray, budget_pixels: int, cut: bool = True

@@ -134,7 +134,7 @@ class NormalsSim:
         """The bunny's edges, each coloured by the normal the detector encodes for it."""
         shape = prepare_scene([self.bunny]).shapes[0]
         edges = shape.topology.edges
-        segments = np.asarray(shape.vertices, float)[edges]
+        segments = (np.asarray(shape.vertices, float) + shape.offset)[edges]  # as the bunny's
         return Lines(segments, normal_colours(shape.normals()[1]), thickness=1.6)
 
     def layers(self) -> dict[str, Layer | Lines]:

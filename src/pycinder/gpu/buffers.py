@@ -12,29 +12,45 @@ from __future__ import annotations
 import numpy as np
 import wgpu
 
+from ..errors import GpuMemoryError, GpuTimeoutError
+from ..request import DEFAULT_TIMEOUT
 from ..scene.pack import PackedScene
 
 STORAGE = wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_DST
 RECORD_FORMAT = "rgba32uint"
 
 
-def _capacity(nbytes: int) -> int:
-    return max(256, 1 << (max(int(nbytes), 1) - 1).bit_length())
+def _capacity(nbytes: int, limit: int) -> int:
+    return min(max(256, 1 << (max(int(nbytes), 1) - 1).bit_length()), limit)
 
 
 class GrowableBuffer:
-    """A GPU buffer that is replaced by a larger one only when the data outgrows it."""
+    """A GPU buffer that is replaced by a larger one only when the data outgrows it.
+
+    A request beyond the device's buffer limit raises :class:`~pycinder.errors.GpuMemoryError`
+    before anything is allocated, so the buffer held so far stays valid.
+    """
 
     def __init__(self, device: wgpu.GPUDevice, label: str, usage: int) -> None:
         self.device, self.label, self.usage = device, label, usage
         self.buffer: wgpu.GPUBuffer | None = None
         self.generation = 0
+        self.limit = int(device.limits["max-buffer-size"])
+        if usage & wgpu.BufferUsage.STORAGE:
+            self.limit = min(self.limit, int(device.limits["max-storage-buffer-binding-size"]))
+        self.limit -= self.limit % 4
 
     def ensure(self, nbytes: int) -> bool:
         """Make room for ``nbytes``; True when the buffer was (re)created."""
         if self.buffer is not None and self.buffer.size >= nbytes:
             return False
-        self.buffer = self.device.create_buffer(label=self.label, size=_capacity(nbytes),
+        if nbytes > self.limit:
+            raise GpuMemoryError(
+                f"the {self.label} buffer would need {nbytes / 2**20:.1f} MiB, more than this "
+                f"device's limit of {self.limit / 2**20:.1f} MiB for one buffer")
+        self.buffer = None  # free the old one before the new one is made
+        self.buffer = self.device.create_buffer(label=self.label,
+                                                size=_capacity(nbytes, self.limit),
                                                 usage=self.usage)
         self.generation += 1
         return True
@@ -160,6 +176,8 @@ class Targets:
         return self.width * self.height
 
 
+
+
 class Readback:
     """A MAP_READ staging buffer, grown on demand and reused."""
 
@@ -170,14 +188,40 @@ class Readback:
         self.buf.ensure(nbytes)
         return self.buf.buffer
 
-    def read(self, nbytes: int, dtype: np.dtype = np.uint32) -> np.ndarray:
-        """Map, copy out the first ``nbytes``, unmap."""
+    def read(self, nbytes: int, dtype: np.dtype = np.uint32, *,
+             timeout: float = DEFAULT_TIMEOUT, waiting_for: str = "") -> np.ndarray:
+        """Map, copy out the first ``nbytes``, unmap; wait at most ``timeout`` seconds.
+
+        Raises
+        ------
+        GpuTimeoutError
+            The GPU did not finish the submitted work in time (the buffer stays pending: the
+            resources that waited must be recreated).
+        """
         if nbytes == 0:
             return np.zeros(0, dtype=dtype)
         b = self.buf.buffer
-        b.map_sync(wgpu.MapMode.READ, 0, nbytes)
+        promise = b.map_async(wgpu.MapMode.READ, 0, nbytes)
+        if not wait_for(promise, timeout):
+            raise GpuTimeoutError(
+                f"the GPU did not finish {waiting_for or self.buf.label} within {timeout:g} s "
+                "(the device may be lost or overloaded)")
+        promise.sync_wait()
         try:
             data = np.frombuffer(b.read_mapped(0, nbytes), dtype=dtype).copy()
         finally:
             b.unmap()
         return data
+
+
+def wait_for(promise: object, timeout: float) -> bool:
+    """Wait for a wgpu promise for at most ``timeout`` seconds; False when it is still pending.
+
+    wgpu-native resolves promises on a polling thread that sets an event; waiting on that event
+    with a timeout is the only bounded wait wgpu-py offers. Other backends fall back to an
+    unbounded wait.
+    """
+    event = getattr(promise, "_thread_event", None)
+    if event is None:  # pragma: no cover - another wgpu backend
+        return True
+    return bool(event.wait(timeout))

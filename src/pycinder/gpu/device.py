@@ -15,8 +15,8 @@ INSTALL_HINT = (
 )
 
 
-STORAGE_BUFFERS_NEEDED = 10
-"""Storage buffers the focused edge test binds at once."""
+STORAGE_BUFFERS_NEEDED = 11
+"""Storage buffers the focused crossing test (pass F6) binds at once."""
 
 
 class NoAdapterError(RuntimeError):
@@ -131,12 +131,19 @@ def get_gpu() -> Gpu:
 @lru_cache(maxsize=None)
 def shader_source(name: str) -> str:
     """The WGSL source ``shaders/<name>.wgsl``, with ``//!include other.wgsl`` lines replaced by
-    that file's source (WGSL has no includes of its own)."""
+    that file's source (WGSL has no includes of its own), and ``//!include layout`` by the
+    constants generated from :mod:`pycinder.layout`."""
     text = resources.files("pycinder.shaders").joinpath(f"{name}.wgsl").read_text()
     lines = []
     for line in text.splitlines():
         if line.startswith("//!include "):
-            lines.append(shader_source(line.split()[1].removesuffix(".wgsl")))
+            included = line.split()[1].removesuffix(".wgsl")
+            if included == "layout":
+                from ..layout import wgsl_prelude
+
+                lines.append(wgsl_prelude())
+            else:
+                lines.append(shader_source(included))
         else:
             lines.append(line)
     return "\n".join(lines) + "\n"

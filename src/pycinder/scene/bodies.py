@@ -1,17 +1,24 @@
 """Bodies in, a validated :class:`Scene` out.
 
-A body is a closed triangle mesh (a ``trimesh.Trimesh`` or a ``(vertices, faces)`` pair) plus a
+A body is a triangle mesh (a ``trimesh.Trimesh`` or a ``(vertices, faces)`` pair) plus a
 world-from-body transform. Bodies that share one vertex array and one face array (250 copies of
 one sphere) share one :class:`Shape`, so each mesh is checked, measured and uploaded once.
 
 Shapes are cached across calls by content, like topologies: a rigid body passed again costs a
-lookup (trimesh meshes) or a fingerprint and a comparison (plain arrays), never a new check. The
-cache is bounded by bytes, so passing fresh arrays every frame does not grow memory.
+lookup (trimesh meshes carry their own content hash) or one hash of its vertex bytes (plain
+arrays, of any dtype, so arrays edited in place are seen), never a new check. The cache keeps the
+shapes of the current and the previous query, whatever their size, and others only within its
+byte bound: a body that deforms every frame replaces its shape instead of piling them up.
+
+Precision: a shape's vertices are stored in single precision relative to the centre of their
+box (computed in double precision), and that centre is folded into the body's transform, so a
+mesh stored far from its own origin keeps its detail. Extents up to :data:`MAX_EXTENT` are
+supported; every computation on the host that squares a length runs in double precision.
 """
 
 from __future__ import annotations
 
-import zlib
+import hashlib
 from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -21,6 +28,10 @@ import numpy as np
 
 from .normals import face_normals, signed_volume, vertex_and_edge_normals
 from .topology import DEFAULT_CACHE_BYTES, Topology, TopologyCache, report_problems
+
+MAX_EXTENT = 1e30
+"""Largest body extent and distance from its own origin, in its own units: single precision (the
+GPU's) holds the re-centred vertices with room to spare."""
 
 
 def body_label(index: int, name: str | None) -> str:
@@ -34,20 +45,22 @@ class Shape:
     Attributes
     ----------
     vertices : (V, 3) float32
+        Vertices relative to ``offset``.
     topology : Topology
+    offset : (3,) float64
+        The body-space point the stored vertices are relative to (the centre of their box).
     lo, hi : (3,) float64
-        Body-space bounding box.
+        Bounding box of ``vertices`` (relative to ``offset``).
     radius : float
-        Radius of the body-space bounding sphere about the box's centre.
+        Radius of the bounding sphere about the box's centre.
     """
 
     vertices: np.ndarray
     topology: Topology
+    offset: np.ndarray
     lo: np.ndarray
     hi: np.ndarray
     radius: float
-    source: np.ndarray | None = field(default=None, repr=False)
-    """A copy of the vertices as given (their own dtype), for a cheap comparison next time."""
     _normals: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
     _face_normals: np.ndarray | None = field(default=None, repr=False)
 
@@ -58,14 +71,16 @@ class Shape:
     @property
     def nbytes(self) -> int:
         extra = sum(a.nbytes for a in self._normals) if self._normals is not None else 0
-        if self.source is not None and self.source is not self.vertices:
-            extra += self.source.nbytes
+        if self._face_normals is not None:
+            extra += self._face_normals.nbytes
         return self.vertices.nbytes + extra
 
     def face_normals(self) -> np.ndarray:
-        """Unit face normals (F, 3) float32 of this pose."""
+        """Unit face normals (F, 3) float32 of this pose, one per face as given (zero for faces
+        dropped as degenerate)."""
         if self._face_normals is None:
-            self._face_normals = face_normals(self.vertices, self.topology.faces)[0]
+            normals = face_normals(self.vertices, self.topology.faces)[0]
+            self._face_normals = self.topology.given_faces(normals)
         return self._face_normals
 
     def normals(self) -> tuple[np.ndarray, np.ndarray]:
@@ -93,9 +108,30 @@ def _columns(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def check_vertices(vertices: Any, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A float32 copy of ``vertices`` (V, 3) and its bounds (lo, hi), raising on NaN,
-    infinities, values beyond single precision and bad shapes."""
+def check_vertices(vertices: Any, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Checked, re-centred vertices.
+
+    Parameters
+    ----------
+    vertices : (V, 3) real
+    label : str
+        How errors name the body.
+
+    Returns
+    -------
+    v32 : (V, 3) float32
+        The vertices minus ``offset``.
+    offset : (3,) float64
+        Centre of the vertices' box.
+    lo, hi : (3,) float64
+        Box of ``v32`` (exactly: the float32 values widened).
+
+    Raises
+    ------
+    ValueError
+        Bad shapes or dtypes, NaN or infinite vertices, or an extent or offset beyond
+        :data:`MAX_EXTENT`, naming the body.
+    """
     vertices = np.asarray(vertices)
     if vertices.ndim != 2 or vertices.shape[1] != 3:
         raise ValueError(f"{label}: vertices must have shape (V, 3), got {vertices.shape}")
@@ -103,17 +139,21 @@ def check_vertices(vertices: Any, label: str) -> tuple[np.ndarray, np.ndarray, n
         raise ValueError(f"{label}: vertices must be real numbers, got dtype {vertices.dtype}")
     if len(vertices) == 0:
         raise ValueError(f"{label}: the mesh is empty (0 vertices)")
-    v32 = np.ascontiguousarray(vertices, dtype=np.float32)
-    lo, hi = _columns(v32)  # NaN and infinities carry through min and max
+    lo, hi = _columns(vertices)  # NaN and infinities carry through min and max
     if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
-        finite = np.isfinite(vertices).all(axis=1)
-        if not finite.all():
-            bad = np.flatnonzero(~finite)
-            raise ValueError(
-                f"{label}: {len(bad)} vertices are NaN or infinite (first: vertex {int(bad[0])})")
-        raise ValueError(f"{label}: vertices overflow single precision (largest magnitude "
-                         f"{float(np.abs(vertices).max()):.3g})")
-    return v32, lo, hi
+        bad = np.flatnonzero(~np.isfinite(vertices).all(axis=1))
+        count = "1 vertex is" if len(bad) == 1 else f"{len(bad)} vertices are"
+        raise ValueError(f"{label}: {count} NaN or infinite (first: vertex {int(bad[0])}, "
+                         "counting from 0)")
+    offset = 0.5 * (lo + hi)
+    extent = float((hi - lo).max())
+    if extent > MAX_EXTENT or float(np.abs(offset).max()) > MAX_EXTENT:
+        raise ValueError(f"{label}: vertices span {extent:.3g} units around {offset.tolist()}; "
+                         f"pycinder supports bodies up to {MAX_EXTENT:g} units across and from "
+                         "their origin: rescale the scene")
+    v32 = (vertices - offset).astype(np.float32)
+    lo, hi = _columns(v32)  # the box of what the GPU sees, rounding included
+    return v32, offset, lo, hi
 
 
 def check_transforms(transforms: Any, n: int, names: Sequence[str | None]) -> np.ndarray:
@@ -153,54 +193,81 @@ def check_transforms(transforms: Any, n: int, names: Sequence[str | None]) -> np
     if (np.abs(det) < 1e-300).any() or not np.isfinite(det).all():
         i = int(np.flatnonzero((np.abs(det) < 1e-300) | ~np.isfinite(det))[0])
         raise ValueError(f"{body_label(i, names[i])}: transform is singular (it flattens the body)")
+    far = np.abs(t[:, :3, :]).reshape(n, 12).max(axis=1, initial=0.0) > MAX_EXTENT
+    if far.any():
+        i = int(np.flatnonzero(far)[0])
+        raise ValueError(f"{body_label(i, names[i])}: transform moves or scales the body beyond "
+                         f"{MAX_EXTENT:g} units; rescale the scene")
     return t
 
 
-def _vertex_key(vertices: Any) -> tuple[tuple, bool]:
-    """A content key for a vertex array and whether it is a full hash (trimesh tracked arrays)."""
+def _vertex_key(vertices: Any) -> tuple:
+    """A content key for a vertex array: trimesh's own hash of a tracked array, else a 128-bit
+    hash of its bytes (so an array edited in place gets a new key)."""
     if type(vertices).__name__ == "TrackedArray":
-        return ("tracked", hash(vertices), vertices.shape), True
-    v = np.asarray(vertices)
-    n = len(v) if v.ndim else 0
-    rows = v if n <= 256 else v[:: max(1, n // 256)]
-    return ("array", zlib.crc32(np.ascontiguousarray(rows).tobytes()), v.shape, v.dtype.str), False
+        return ("tracked", hash(vertices), vertices.shape)
+    v = np.ascontiguousarray(vertices)
+    digest = hashlib.blake2b(v.view(np.uint8).reshape(-1) if v.size else b"",
+                             digest_size=16).digest()
+    return ("array", digest, v.shape, v.dtype.str)
 
 
 class ShapeCache:
-    """Shapes by content, least recently used first out, bounded by bytes (topologies included).
+    """Shapes by content: those of the current and the previous query (what rigid reuse needs),
+    and topologies by face content within a byte bound.
 
     Parameters
     ----------
     max_bytes : int
-        Memory the cached shapes and topologies may hold together.
+        Memory the cached topologies may hold beyond those of the last two queries (half of it;
+        the other half is left to the shapes, for compatibility).
     """
 
     def __init__(self, max_bytes: int = DEFAULT_CACHE_BYTES) -> None:
         self.topologies = TopologyCache(max_bytes // 2)
         self.max_bytes = int(max_bytes) - self.topologies.max_bytes
         self._entries: OrderedDict[tuple, Shape] = OrderedDict()
+        self._used: dict[tuple, int] = {}
+        self.query = 0
         self.nbytes = 0
 
     def __len__(self) -> int:
         return len(self._entries)
 
+    def begin_query(self) -> None:
+        """Start a query: shapes used from now on are kept until the next query ends."""
+        self.query += 1
+        self.topologies.query = self.query
+
+    def end_query(self) -> None:
+        """Drop the shapes of neither this query nor the previous one (a body that deforms
+        leaves one shape behind per frame: they go at once), then topologies while over the byte
+        bound."""
+        keep_from = self.query - 1
+        for key in [k for k, q in self._used.items() if q < keep_from]:
+            self._drop(key)
+        self.topologies.evict()
+
+    def _drop(self, key: tuple) -> None:
+        self.nbytes -= self._entries.pop(key).nbytes
+        del self._used[key]
+
     def get(self, vertices: Any, faces: Any, label: str, strict: bool) -> Shape:
         """The shape of a mesh, checked and measured once per distinct content."""
-        vkey, exact = _vertex_key(vertices)
-        given = vertices if exact else np.asarray(vertices)
+        given = vertices if type(vertices).__name__ == "TrackedArray" else np.asarray(vertices)
         if given.ndim != 2 or given.shape[1] != 3 or len(given) == 0:
             check_vertices(given, label)  # raises with the message for the shape
         topo, built = self.topologies.get(faces, len(given), label)
-        key = (id(topo), vkey)
+        key = (id(topo), _vertex_key(given))
         shape = self._entries.get(key)
-        if shape is not None and shape.topology is topo and (
-                exact or (shape.source is not None and np.array_equal(shape.source, given))):
+        if shape is not None and shape.topology is topo:
             self._entries.move_to_end(key)
+            self._used[key] = self.query
             return shape
-        v32, lo, hi = check_vertices(given, label)
+        v32, offset, lo, hi = check_vertices(given, label)
         centre = 0.5 * (lo + hi)
-        d2 = sum((v32[:, k] - np.float32(centre[k])) ** 2 for k in range(3))
-        # single-precision rounding in d2 is far below the box's own size; pad by it anyway
+        d2 = sum((v32[:, k].astype(np.float64) - centre[k]) ** 2 for k in range(3))
+        # single-precision rounding of the vertices is far below the box's own size; pad by it
         radius = float(np.sqrt(d2.max())) * (1 + 1e-6)
         if built:
             _, areas = face_normals(v32, topo.faces)
@@ -209,15 +276,12 @@ class ShapeCache:
             before = topo.nbytes
             topo.clusters(v32)
             self.topologies.account(topo, topo.nbytes - before)
-        source = None if exact else (v32 if given.dtype == np.float32 else np.array(given))
-        shape = Shape(v32, topo, lo, hi, radius, source)
+        shape = Shape(v32, topo, offset, lo, hi, radius)
         if key in self._entries:
-            self.nbytes -= self._entries.pop(key).nbytes
+            self._drop(key)
         self._entries[key] = shape
+        self._used[key] = self.query
         self.nbytes += shape.nbytes
-        while self.nbytes > self.max_bytes and len(self._entries) > 1:
-            _, old = self._entries.popitem(last=False)
-            self.nbytes -= old.nbytes
         return shape
 
 
@@ -232,7 +296,8 @@ class Scene:
     body_shape : (N,) int64
         Each body's shape.
     transforms : (N, 4, 4) float64
-        World from body.
+        World from body, where body coordinates are those of the shapes' stored vertices (the
+        transforms given, with each shape's offset folded in).
     names : list of str or None
     """
 
@@ -262,6 +327,12 @@ class Scene:
     def local_hi(self) -> np.ndarray:
         """(N, 3) body-space box maximum of every body."""
         return self._per_shape([s.hi for s in self.shapes])
+
+    @property
+    def open(self) -> np.ndarray:
+        """(N,) whether each body is not a solid (tested as a surface, see
+        :attr:`~pycinder.scene.Topology.solid`)."""
+        return self._per_shape([not s.topology.solid for s in self.shapes])
 
     @property
     def radius(self) -> np.ndarray:
@@ -312,6 +383,21 @@ def prepare_scene(bodies: Sequence[Any], transforms: Any = None, *,
         raise ValueError(f"names must give one name per body: {len(names)} names, {n} bodies")
     cache = cache if cache is not None else ShapeCache()
     t = check_transforms(transforms, n, names)
+    cache.begin_query()
+    try:
+        shapes, body_shape = _shapes_of(bodies, names, cache, strict)
+    finally:
+        cache.end_query()
+    # The stored vertices are relative to each shape's offset: fold it into the transforms.
+    offsets = np.array([s.offset for s in shapes]).reshape(-1, 3)[body_shape]
+    t[:, :3, 3] += np.einsum("nij,nj->ni", t[:, :3, :3], offsets)
+    return Scene(shapes, body_shape, t, names)
+
+
+def _shapes_of(bodies: Sequence[Any], names: list[str | None], cache: ShapeCache, strict: bool
+               ) -> tuple[list[Shape], np.ndarray]:
+    """The distinct shapes of ``bodies`` and each body's index among them."""
+    n = len(bodies)
     shapes: list[Shape] = []
     index: dict[int, int] = {}
     seen: dict[tuple[int, int], int] = {}
@@ -331,4 +417,4 @@ def prepare_scene(bodies: Sequence[Any], transforms: Any = None, *,
                 shapes.append(shape)
             seen[key] = k
         body_shape[i] = k
-    return Scene(shapes, body_shape, t, names)
+    return shapes, body_shape

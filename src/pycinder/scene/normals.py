@@ -49,7 +49,7 @@ def vertex_and_edge_normals(vertices: np.ndarray, topo: Topology) -> tuple[np.nd
     edge_normals : (E, 3) float32
     """
     normals, areas = face_normals(vertices, topo.faces)
-    weighted = normals * areas[:, None].astype(np.float32)
+    weighted = normals.astype(np.float64) * areas[:, None]  # float32 would overflow for huge bodies
     vn = _accumulate(topo.faces.reshape(-1).astype(np.int64), np.repeat(weighted, 3, axis=0),
                      topo.n_vertices)
     en = _accumulate(topo.edge_faces, np.repeat(normals, 3, axis=0), len(topo.edges))

@@ -120,7 +120,8 @@ class ShapePack:
     vertex_start, face_start, edge_start, cluster_start : (S + 1,) int64
         Prefix offsets per shape.
     edge_original, face_original : (E,), (F,) int64
-        Index of each packed edge (face) among its shape's own ``topology.edges`` (``faces``).
+        Index of each packed edge among its shape's own ``topology.edges``, and of each packed
+        face in the shape's face array as given (faces dropped as degenerate are not packed).
     layout : tuple
         Topology identity and vertex count of every shape: equal layouts share index buffers.
     """
@@ -162,6 +163,8 @@ def pack_shapes(shapes: Sequence) -> ShapePack:
         clusters=np.concatenate(clusters).astype(np.uint32),
         vertex_start=vs, face_start=fs, edge_start=es, cluster_start=cs,
         edge_original=np.concatenate([c.edge_order for c in cl]),
-        face_original=np.concatenate([c.face_order for c in cl]),
+        face_original=np.concatenate([c.face_order if s.topology.kept is None
+                                      else s.topology.kept[c.face_order]
+                                      for s, c in zip(shapes, cl)]),
         layout=shape_layout(shapes),
     )

@@ -37,6 +37,13 @@ class Topology:
     n_vertices : int
     boundary_edges, nonmanifold_edges, misoriented_edges : int
         Edges used by one face; by three or more; whose two faces run the same way along them.
+    unbalanced_edges : int
+        Edges walked more often in one direction than in the other by the faces that use them.
+    dropped_faces : int
+        Faces dropped because they repeat a vertex index (they bound nothing).
+    kept : (F,) int64 or None
+        Where faces were dropped: the index of each face of ``faces`` in the face array as given
+        (records and contacts name faces by that index).
     """
 
     faces: np.ndarray
@@ -46,16 +53,37 @@ class Topology:
     boundary_edges: int
     nonmanifold_edges: int
     misoriented_edges: int
+    unbalanced_edges: int = 0
+    dropped_faces: int = 0
+    kept: np.ndarray | None = field(default=None, repr=False)
     _clusters: Clusters | None = field(default=None, repr=False)
 
     @property
     def closed(self) -> bool:
+        """A closed, consistently oriented two-manifold surface."""
         return self.boundary_edges == 0 and self.nonmanifold_edges == 0 and self.misoriented_edges == 0
+
+    @property
+    def solid(self) -> bool:
+        """Whether the surface bounds a solid: every edge is walked as often in one direction as
+        in the other, so the winding number of every point off the surface is well defined (a
+        closed mesh, also where closed parts share an edge). Solids are tested by ray counts;
+        other bodies as surfaces."""
+        return self.unbalanced_edges == 0
 
     @property
     def nbytes(self) -> int:
         extra = self._clusters.nbytes if self._clusters is not None else 0
         return self.faces.nbytes + self.edges.nbytes + self.edge_faces.nbytes + extra
+
+    def given_faces(self, values: np.ndarray) -> np.ndarray:
+        """Per-face ``values`` (F, ...) laid out as the face array was given: rows of dropped
+        faces are zero."""
+        if self.kept is None:
+            return values
+        out = np.zeros((len(self.kept) + self.dropped_faces,) + values.shape[1:], values.dtype)
+        out[self.kept] = values
+        return out
 
     def problem(self) -> str:
         parts = []
@@ -105,14 +133,16 @@ def build_topology(faces: np.ndarray, n_vertices: int, label: str) -> Topology:
             f"the mesh has {n_vertices} vertices)"
         )
     faces = faces.astype(np.uint32)
+    # A face that repeats a vertex index bounds nothing and walks its one real edge both ways:
+    # dropping it changes neither the surface nor its balance.
     repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
-    if repeated.any():
-        first = int(np.flatnonzero(repeated)[0])
-        raise ValueError(
-            f"{label}: {int(repeated.sum())} degenerate faces repeat a vertex index "
-            f"(first: face {first} = {faces[first].tolist()}); remove them, for example with "
-            "trimesh's mesh.update_faces(mesh.nondegenerate_faces())"
-        )
+    dropped = int(np.count_nonzero(repeated))
+    kept = None
+    if dropped:
+        kept = np.flatnonzero(~repeated)
+        faces = faces[kept]
+        if len(faces) == 0:
+            raise ValueError(f"{label}: every face repeats a vertex index: the mesh has no area")
     directed = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2).astype(np.int64)
     lo_hi = np.sort(directed, axis=1)
     key = lo_hi[:, 0] * np.int64(n_vertices) + lo_hi[:, 1]
@@ -133,33 +163,48 @@ def build_topology(faces: np.ndarray, n_vertices: int, label: str) -> Topology:
         boundary_edges=int(np.count_nonzero(counts == 1)),
         nonmanifold_edges=int(np.count_nonzero(counts > 2)),
         misoriented_edges=misoriented,
+        unbalanced_edges=int(np.count_nonzero(2 * forward_per_edge != counts)),
+        dropped_faces=dropped,
+        kept=kept,
     )
 
 
 def report_problems(topo: Topology, zero_area: int, label: str, strict: bool,
                     inverted: bool = False) -> None:
-    """Warn (or raise when ``strict``) about open, inside-out and zero-area meshes."""
+    """Warn (or raise when ``strict``) about open, inside-out and degenerate meshes, saying what
+    rule is applied to each."""
     if not topo.closed:
+        rule = ("it is tested as a solid all the same: every edge is walked equally often both "
+                "ways, so its inside is well defined" if topo.solid else
+                "it is tested as a surface: a pair is reported where its surface crosses the "
+                "other body's surface, or lies inside another body that is a closed solid; "
+                "nothing is ever found inside it")
         message = (
-            f"{label} is not a closed, consistently oriented surface: {topo.problem()}. CInDeR "
-            "counts faces along rays, which is only meaningful for closed solids, so collisions "
-            "with this body may be missed or invented. Repair it (trimesh.repair.fill_holes, "
-            "pymeshlab's close holes) or ask for strict checking to make this an error."
+            f"{label} is not a closed, consistently oriented surface: {topo.problem()}; {rule}. "
+            "Repair it (trimesh.repair.fill_holes, pymeshlab's close holes) to test it as a "
+            "solid, or ask for strict checking to make this an error."
         )
         if strict:
             raise ValueError(message)
         warn_at_caller(message, OpenMeshWarning)
     elif inverted:
         message = (
-            f"{label} is closed but wound inside out (its volume is negative): its faces point "
-            "inwards, so the ray count sees the outside as solid. Flip it (trimesh's "
-            "mesh.invert()) or ask for strict checking to make this an error."
+            f"{label} is closed but wound inside out (its volume is negative): collisions are "
+            "still found (the ray count of its inside is -1, not 0), but its normals, and so "
+            "contact normals, point inwards. Flip it (trimesh's mesh.invert()) or ask for strict "
+            "checking to make this an error."
         )
         if strict:
             raise ValueError(message)
         warn_at_caller(message, OpenMeshWarning)
+    degenerate = []
+    if topo.dropped_faces:
+        degenerate.append(f"{topo.dropped_faces} faces that repeat a vertex index were dropped")
     if zero_area:
-        message = f"{label} has {zero_area} faces of zero area"
+        degenerate.append(f"{zero_area} faces of zero area are ignored (they cross no ray)")
+    if degenerate:
+        message = (f"{label} has degenerate faces: {'; '.join(degenerate)}. Remove them with "
+                   "trimesh's mesh.update_faces(mesh.nondegenerate_faces()).")
         if strict:
             raise ValueError(message)
         warn_at_caller(message, DegenerateFaceWarning)
@@ -187,6 +232,10 @@ class TopologyCache:
         self.nbytes = 0
         self.builds = 0
         """How many topologies were built (a cache miss each)."""
+        self.query = 0
+        """The current query (see :meth:`ShapeCache.begin_query`): topologies used by it or the
+        one before are never evicted, whatever their size."""
+        self._used: dict[tuple, int] = {}
 
     def __len__(self) -> int:
         return len(self._entries)
@@ -213,23 +262,38 @@ class TopologyCache:
             return build_topology(faces_arr, n_vertices, label), True
         key, exact = self._key(faces_arr, n_vertices)
         topo = self._entries.get(key)
-        if topo is not None and (exact or np.array_equal(topo.faces, faces_arr)):
+        if topo is not None and (exact or self._same(topo, faces_arr)):
             self._entries.move_to_end(key)
+            self._used[key] = self.query
             return topo, False
         topo = build_topology(faces_arr, n_vertices, label)
         self.builds += 1
         if key in self._entries:
             self.nbytes -= self._entries.pop(key).nbytes
         self._entries[key] = topo
+        self._used[key] = self.query
         self.nbytes += topo.nbytes
         self.evict()
         return topo, True
 
+    @staticmethod
+    def _same(topo: Topology, faces: np.ndarray) -> bool:
+        """Whether ``faces`` (as given) are the faces ``topo`` was built from."""
+        if topo.kept is None:
+            return np.array_equal(topo.faces, faces)
+        return len(faces) == len(topo.kept) + topo.dropped_faces \
+            and np.array_equal(topo.faces, faces[topo.kept])
+
     def evict(self) -> None:
-        """Drop the least recently used topologies until the cache fits its byte bound."""
-        while self.nbytes > self.max_bytes and len(self._entries) > 1:
-            _, old = self._entries.popitem(last=False)
-            self.nbytes -= old.nbytes
+        """Drop the least recently used topologies until the cache fits its byte bound, never
+        one of the current or the previous query."""
+        for key in list(self._entries):
+            if self.nbytes <= self.max_bytes:
+                break
+            if self.query and self._used.get(key, 0) >= self.query - 1:
+                continue  # needed by the current or the previous query
+            self.nbytes -= self._entries.pop(key).nbytes
+            self._used.pop(key, None)
 
     def account(self, topo: Topology, added: int) -> None:
         """Count bytes a topology grew by after it was cached (its clusters)."""

@@ -19,9 +19,9 @@ fn position(v: u32) -> vec3f {
     return vec3f(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP)
 fn cluster_bounds(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
-    let i = (wg.y * ROW + wg.x) * 64u + lid;
+    let i = (wg.y * ROW + wg.x) * WORKGROUP + lid;
     if (i >= params.count) {
         return;
     }

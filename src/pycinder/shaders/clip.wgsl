@@ -16,6 +16,10 @@
 // Pixels around the window within which faces are not cut (cutting costs more than the spill).
 const GUARD: f32 = 0.0;
 
+// Pixels by which a face's box is grown before it is tested for pixel centres: more than the
+// rasterizer's vertex snapping can move an edge (half a step of a 4-bit sub-pixel grid).
+const SNAP_MARGIN: f32 = 0.125;
+
 struct Params {
     tri_cap: u32,
     item_cap: u32,
@@ -79,7 +83,7 @@ fn emit(slot: u32, a: vec3f, b: vec3f, c: vec3f, origin: vec2f, z0: f32, flags: 
     tris[base + 2u] = vec4u(bitcast<vec3u>(vec3f(c.xy + origin, c.z - z0)), flags);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP)
 fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
     let item_index = wg.y * ROW + wg.x;
     if (item_index >= min(atomicLoad(&counters[C_FACE_ITEMS]), params.item_cap)) {
@@ -111,9 +115,12 @@ fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
         return;  // wholly on the far side of the box: crosses no ray the count looks along
     }
     // A face covers no pixel centre (x + 0.5, y + 0.5) outside its box: a face smaller than a
-    // pixel usually holds none, and then crosses no ray at all.
-    let first_centre = ceil(lo.xy - 0.5);
-    if (any(first_centre > floor(hi.xy - 0.5))) {
+    // pixel usually holds none, and then crosses no ray at all. The rasterizer snaps vertices to
+    // its sub-pixel grid (at least 4 bits) and decides centres on an edge by the top-left rule,
+    // so a centre just outside the face's box can still be covered by the snapped face (and then
+    // by neither neighbour): the box is grown by SNAP_MARGIN before it is tested.
+    let first_centre = ceil(lo.xy - 0.5 - SNAP_MARGIN);
+    if (any(first_centre > floor(hi.xy - 0.5 + SNAP_MARGIN))) {
         return;
     }
     let area = cross2(p[1].xy - p[0].xy, p[2].xy - p[0].xy);

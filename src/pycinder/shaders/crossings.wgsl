@@ -11,10 +11,10 @@
 //!include tiles.wgsl
 
 struct Atlas {
-    width: u32,       // atlas pixels per row
-    height: u32,      // rows in this round
-    capacity: u32,    // list entries per pixel
-    _p0: u32,
+    width: u32,          // atlas pixels per row (the stride of the per-pixel buffers)
+    height: u32,         // rows of the render target
+    capacity: u32,       // list entries per pixel
+    target_width: u32,   // columns of the render target (at least `width`)
 };
 
 @group(0) @binding(0) var<storage, read> tris: array<vec4u>;
@@ -47,8 +47,8 @@ fn vs(@builtin(vertex_index) vi: u32) -> VertexOut {
     let p = bitcast<vec3f>(v.xyz);
     let t = tiles[v.w >> 3u];
     var out: VertexOut;
-    out.position = vec4f(p.x / f32(atlas.width) * 2.0 - 1.0, 1.0 - p.y / f32(atlas.height) * 2.0,
-                         0.5, 1.0);
+    out.position = vec4f(p.x / f32(atlas.target_width) * 2.0 - 1.0,
+                         1.0 - p.y / f32(atlas.height) * 2.0, 0.5, 1.0);
     out.z = p.z;
     out.flags = v.w;
     out.depth = t.slab.y - t.slab.x;

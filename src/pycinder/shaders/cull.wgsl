@@ -3,7 +3,8 @@
 // One thread per (tile, side, cluster of that side's body). A cluster's faces are kept when its
 // bounds meet the tile's window and are not wholly on the far side of the box from the counting
 // side (its faces could cross rays through the window there); its edges are kept when its
-// bounds meet the box itself (only there can an edge lie inside the other body).
+// bounds meet the box itself (only there can an edge lie inside the other body or cross its
+// surface).
 //!include tiles.wgsl
 
 struct Params {
@@ -20,26 +21,25 @@ struct Params {
 @group(0) @binding(0) var<storage, read> tiles: array<Tile>;
 @group(0) @binding(1) var<storage, read> clusters: array<Cluster>;
 @group(0) @binding(2) var<storage, read> bounds: array<vec4f>;
-// Per entry e = 2 * tile + side: the first thread of the entry (prefix over the whole frame),
-// and the first cluster of the entry's body; entry_prefix has one more element at the end.
-@group(0) @binding(3) var<storage, read> entry_prefix: array<u32>;
-@group(0) @binding(4) var<storage, read> entry_cluster: array<u32>;
-@group(0) @binding(5) var<storage, read_write> face_items: array<vec2u>;
-@group(0) @binding(6) var<storage, read_write> edge_items: array<vec2u>;
-@group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
-@group(0) @binding(8) var<uniform> params: Params;
-// Per tile (found, undecided), then per candidate pair a hit flag (set by pass F4).
-@group(0) @binding(9) var<storage, read> counts: array<u32>;
+// Per entry e = 2 * tile + side: x = the first thread of the entry (a prefix over the whole
+// frame), y = the first cluster of the entry's body; one more entry at the end holds the total.
+@group(0) @binding(3) var<storage, read> entries: array<vec2u>;
+@group(0) @binding(4) var<storage, read_write> face_items: array<vec2u>;
+@group(0) @binding(5) var<storage, read_write> edge_items: array<vec2u>;
+@group(0) @binding(6) var<storage, read_write> counters: array<atomic<u32>>;
+@group(0) @binding(7) var<uniform> params: Params;
+// Per tile (found, undecided), then per candidate pair a hit flag (set by passes F4-F6).
+@group(0) @binding(8) var<storage, read> counts: array<u32>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP)
 fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
-    let local = (wg.y * ROW + wg.x) * 64u + lid;
+    let local = (wg.y * ROW + wg.x) * WORKGROUP + lid;
     if (local >= params.total) {
         return;
     }
     let first = params.first_entry;
-    let i = entry_prefix[first] + local;
-    // The entry holding thread i: the last e with entry_prefix[e] <= i.
+    let i = entries[first].x + local;
+    // The entry holding thread i: the last e with entries[e].x <= i.
     var lo = first;
     var hi = first + params.n_entries;
     loop {
@@ -47,7 +47,7 @@ fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
             break;
         }
         let mid = (lo + hi) / 2u;
-        if (entry_prefix[mid] <= i) {
+        if (entries[mid].x <= i) {
             lo = mid;
         } else {
             hi = mid;
@@ -60,7 +60,7 @@ fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     if ((t.info.z & FLAG_SKIP_IF_HIT) != 0u && counts[params.pair_offset + t.info.w] != 0u) {
         return;  // another tile of this pair already found it colliding
     }
-    let c = entry_cluster[e] + (i - entry_prefix[e]);
+    let c = entries[e].y + (i - entries[e].x);
     let blo = bounds[2u * c].xyz;
     let bhi = bounds[2u * c + 1u].xyz;
     let centre = 0.5 * (blo + bhi);
@@ -81,7 +81,10 @@ fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     let back = (t.info.z & FLAG_COUNT_BACK) != 0u;
     let z_lo = mid_p.z - ext.z;
     let z_hi = mid_p.z + ext.z;
-    let faces_needed = select(z_lo <= t.slab.y, z_hi >= t.slab.x, back);
+    // Faces serve the ray counts, which only a solid needs; two open bodies are tested by their
+    // edges and faces in pass F6, which reads the faces directly.
+    let faces_needed = select(z_lo <= t.slab.y, z_hi >= t.slab.x, back)
+        && !(is_open(t, 0u) && is_open(t, 1u));
     let item = vec2u(tile_index, c | (side << 31u));
     if (faces_needed) {
         let slot = atomicAdd(&counters[C_FACE_ITEMS], 1u);

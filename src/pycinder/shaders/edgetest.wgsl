@@ -30,7 +30,7 @@ struct Params {
 @group(0) @binding(6) var<storage, read> crossings: array<vec2u>;
 // Per tile: [2t] samples found inside, [2t + 1] samples undecided; then a hit flag per pair.
 @group(0) @binding(7) var<storage, read_write> tile_counts: array<atomic<u32>>;
-// Per record: tile, pixel u | v << 16, f32 bits of the sample's z, edge | side << 31.
+// Per record: tile, pixel u | v << 16, f32 bits of the sample's z, edge | kind | side (layout.py).
 @group(0) @binding(8) var<storage, read_write> records: array<vec4u>;
 @group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>>;
 @group(0) @binding(10) var<uniform> params: Params;
@@ -39,25 +39,8 @@ fn position(v: u32) -> vec3f {
     return vec3f(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
 }
 
-@compute @workgroup_size(64)
-fn edge_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
-    let item_index = wg.y * ROW + wg.x;
-    if (item_index >= min(atomicLoad(&counters[C_EDGE_ITEMS]), params.item_cap)) {
-        return;
-    }
-    let item = edge_items[item_index];
-    let c = item.y & 0x7FFFFFFFu;
-    let side = item.y >> 31u;
-    let info = clusters[c];
-    if (lid >= info.edge_count) {
-        return;
-    }
-    let tile_index = item.x;
-    let t = tiles[tile_index];
-    if (params.early_out != 0u && atomicLoad(&tile_counts[params.pair_offset + t.info.w]) != 0u) {
-        return;  // pass F5 or an earlier tile already found this pair
-    }
-    let e = info.edge_start + lid;
+// Sample edge `e` of side `side` of tile `tile_index` and test its samples.
+fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32) {
     let a = tile_point(t, side, position(edges[2u * e]));
     let b = tile_point(t, side, position(edges[2u * e + 1u]));
     // Clip the edge to the box.
@@ -107,7 +90,7 @@ fn edge_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) 
             let slot = atomicAdd(&counters[C_RECORDS], 1u);
             if (slot < params.record_cap) {
                 records[slot] = vec4u(tile_index, x | (y << 16u), bitcast<u32>(s.z),
-                                      e | (side << 31u));  // bit 30 clear: an edge sample
+                                      e | (RECORD_EDGE << RECORD_KIND_SHIFT) | (side << RECORD_SIDE_BIT));
             }
         }
     }
@@ -119,5 +102,30 @@ fn edge_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) 
     if (undecided > 0u) {
         atomicAdd(&tile_counts[2u * tile_index + 1u], undecided);
         atomicAdd(&counters[C_UNDECIDED], undecided);
+    }
+}
+
+@compute @workgroup_size(WORKGROUP)
+fn edge_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
+    let item_index = wg.y * ROW + wg.x;
+    if (item_index >= min(atomicLoad(&counters[C_EDGE_ITEMS]), params.item_cap)) {
+        return;
+    }
+    let item = edge_items[item_index];
+    let c = item.y & 0x7FFFFFFFu;
+    let side = item.y >> 31u;
+    let info = clusters[c];
+    let tile_index = item.x;
+    let t = tiles[tile_index];
+    if (is_open(t, 1u - side)) {
+        return;  // the other body has no inside (its surface is tested by pass F6)
+    }
+    // A cluster owns up to about twice as many edges as faces: the workgroup strides over them.
+    for (var k = lid; k < info.edge_count; k += WORKGROUP) {
+        if (params.early_out != 0u
+                && atomicLoad(&tile_counts[params.pair_offset + t.info.w]) != 0u) {
+            return;  // pass F5 or an earlier tile already found this pair
+        }
+        test_edge(t, tile_index, side, info.edge_start + k);
     }
 }

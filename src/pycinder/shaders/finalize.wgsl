@@ -11,7 +11,7 @@ struct Params {
 
 @group(0) @binding(0) var<storage, read_write> counters: array<u32>;
 // [0..3) face-clip dispatch, [3..6) edge-test dispatch, [6..10) draw (vertices, 1, 0, 0),
-// [10..13) surface-test dispatch (64 pixels per workgroup)
+// [10..13) surface-test dispatch (WORKGROUP pixels per workgroup)
 @group(0) @binding(1) var<storage, read_write> args: array<u32>;
 @group(0) @binding(2) var<uniform> params: Params;
 
@@ -50,5 +50,5 @@ fn after_clip() {
 @compute @workgroup_size(1)
 fn after_crossings() {
     _ = params.face_cap;  // the three entry points share one bind group layout
-    rows((counters[C_ACTIVE] + 63u) / 64u, 10u);
+    rows((counters[C_ACTIVE] + WORKGROUP - 1u) / WORKGROUP, 10u);
 }

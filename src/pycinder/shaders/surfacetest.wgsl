@@ -24,15 +24,15 @@ struct Params {
 @group(0) @binding(1) var<storage, read> pixels: array<u32>;
 @group(0) @binding(2) var<storage, read> crossings: array<vec2u>;
 @group(0) @binding(3) var<storage, read_write> tile_counts: array<atomic<u32>>;
-// Per record: tile, pixel u | v << 16, f32 bits of the point's z, face | 1 << 30 | side << 31.
+// Per record: tile, pixel u | v << 16, f32 bits of the point's z, face | kind | side (layout.py).
 @group(0) @binding(4) var<storage, read_write> records: array<vec4u>;
 @group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>>;
 @group(0) @binding(6) var<uniform> params: Params;
 @group(0) @binding(7) var<storage, read> active_pixels: array<u32>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP)
 fn surface_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
-    let i = (wg.y * ROW + wg.x) * 64u + lid;
+    let i = (wg.y * ROW + wg.x) * WORKGROUP + lid;
     if (i >= atomicLoad(&counters[C_ACTIVE])) {
         return;
     }
@@ -56,6 +56,9 @@ fn surface_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
     for (var k = 0u; k < listed; k++) {
         let entry = crossings[pixel * cap + k];
         let side = entry.x & 1u;
+        if (is_open(t, 1u - side)) {
+            continue;  // the other body has no inside
+        }
         let z = bitcast<f32>(entry.x & 0xFFFFFFFCu);
         if (winding_at(pixel, listed, cap, 1u - side, z, back) != 0) {
             found++;
@@ -64,7 +67,7 @@ fn surface_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
                 let u = gid.x - t.window.x;
                 let v = gid.y - t.window.y;
                 records[slot] = vec4u(tile_index, u | (v << 16u), bitcast<u32>(z + t.slab.x),
-                                      entry.y | (1u << 30u) | (side << 31u));
+                                      entry.y | (RECORD_SURFACE << RECORD_KIND_SHIFT) | (side << RECORD_SIDE_BIT));
             }
         }
     }

@@ -1,0 +1,97 @@
+"""Everything the focused passes' shaders share with Python, declared once.
+
+The WGSL prelude (``//!include layout`` in a shader) is generated from this module by
+:func:`wgsl_prelude`, so a counter index, a flag bit or a workgroup size can never differ between
+the host and the GPU.
+"""
+
+from __future__ import annotations
+
+WORKGROUP = 64
+"""Threads per workgroup of the focused compute passes."""
+
+ROW = 32768
+"""Workgroups per row of a dispatch (under WebGPU's 65535 per dimension)."""
+
+CLUSTER_FACES = 64
+"""Faces per culling cluster. Pass F2 clips one face per thread of a workgroup, so a cluster has at
+most :data:`WORKGROUP` faces; its edges (about twice as many) are strided over by pass F4."""
+
+TILE_WORDS = 36
+"""32-bit words of one ``Tile`` (``tiles.wgsl``)."""
+
+# Tile flags.
+FLAG_COUNT_BACK = 1
+"""Count the crossings behind the overlap box instead of in front of it."""
+FLAG_MIRROR = (2, 4)
+"""Body a's (body b's) transform reverses orientation, so its faces' facing flips."""
+FLAG_SKIP_IF_HIT = 8
+"""Skip the tile once another tile of its pair found a hit."""
+FLAG_OPEN = (16, 32)
+"""Body a (body b) is not a closed solid: nothing is tested against its inside (it has none);
+its surface is tested by the edge-face crossing pass instead."""
+
+# Counters of a frame (``counters`` buffer). Items and triangles are reset every round.
+COUNTER_NAMES = (
+    "C_FACE_ITEMS",        # kept (tile, side, cluster) face items of this round
+    "C_EDGE_ITEMS",        # kept edge items of this round
+    "C_TRIS",              # clipped triangles of this round
+    "C_ACTIVE",            # pixels with at least one listed crossing (this round)
+    "C_RECORDS",           # records appended (samples found inside the other body, crossings)
+    "C_UNDECIDED",         # samples at pixels whose crossing list overflowed
+    "C_SAMPLES",           # edge samples tested
+    "C_CROSS_TESTS",       # edge-face pairs tested by the crossing pass
+    "C_MAX_FACE_ITEMS",
+    "C_MAX_EDGE_ITEMS",
+    "C_MAX_TRIS",
+    "C_TOTAL_TRIS",
+    "C_TOTAL_FACE_ITEMS",
+    "C_TOTAL_EDGE_ITEMS",
+    "C_SPARE0",
+    "C_SPARE1",
+)
+COUNTERS = len(COUNTER_NAMES)
+(C_FACE_ITEMS, C_EDGE_ITEMS, C_TRIS, C_ACTIVE, C_RECORDS, C_UNDECIDED, C_SAMPLES, C_CROSS_TESTS,
+ C_MAX_FACE_ITEMS, C_MAX_EDGE_ITEMS, C_MAX_TRIS, C_TOTAL_TRIS, C_TOTAL_FACE_ITEMS,
+ C_TOTAL_EDGE_ITEMS, _, _) = range(COUNTERS)
+ROUND_COUNTERS = 4
+"""The first counters, reset before every round."""
+
+# Record rows: (tile, u | v << 16, f32 bits of z, id | kind << RECORD_KIND_SHIFT | side << 31).
+RECORD_KIND_SHIFT = 29
+RECORD_ID_MASK = (1 << RECORD_KIND_SHIFT) - 1
+RECORD_EDGE, RECORD_SURFACE, RECORD_CROSSING = 0, 1, 2
+"""Record kinds: an edge sample inside the other body (id: packed edge), a surface point inside it
+(id: packed face), an edge crossing a face of the other body (id: packed edge)."""
+RECORD_SIDE_BIT = 31
+
+
+def wgsl_prelude() -> str:
+    """WGSL ``const`` declarations of this module's values."""
+    lines = ["// Generated from pycinder/layout.py: edit the Python, not this."]
+
+    def const(name: str, value: int) -> None:
+        lines.append(f"const {name}: u32 = {int(value)}u;")
+
+    const("WORKGROUP", WORKGROUP)
+    const("ROW", ROW)
+    const("CLUSTER_FACES", CLUSTER_FACES)
+    const("FLAG_COUNT_BACK", FLAG_COUNT_BACK)
+    const("FLAG_MIRROR0", FLAG_MIRROR[0])
+    const("FLAG_MIRROR1", FLAG_MIRROR[1])
+    const("FLAG_SKIP_IF_HIT", FLAG_SKIP_IF_HIT)
+    const("FLAG_OPEN0", FLAG_OPEN[0])
+    const("FLAG_OPEN1", FLAG_OPEN[1])
+    for i, name in enumerate(COUNTER_NAMES):
+        const(name, i)
+    const("ROUND_COUNTERS", ROUND_COUNTERS)
+    const("RECORD_KIND_SHIFT", RECORD_KIND_SHIFT)
+    const("RECORD_ID_MASK", RECORD_ID_MASK)
+    const("RECORD_EDGE", RECORD_EDGE)
+    const("RECORD_SURFACE", RECORD_SURFACE)
+    const("RECORD_CROSSING", RECORD_CROSSING)
+    const("RECORD_SIDE_BIT", RECORD_SIDE_BIT)
+    return "\n".join(lines) + "\n"
+
+
+assert CLUSTER_FACES <= WORKGROUP, "pass F2 clips one face per thread"

@@ -1,0 +1,171 @@
+"""Pipelines whose resources are bound by name, and a profiler shared by the passes of a frame.
+
+A shader declares its bindings once (``@group(0) @binding(N) var<...> name``); :class:`Stage`
+reads those declarations, so a pass binds ``{"tiles": ..., "counters": ...}`` by the names the
+WGSL uses and never repeats a binding number. Bind groups are cached and rebuilt only when a
+buffer behind them was replaced.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any, Union
+
+import numpy as np
+import wgpu
+
+from ..gpu.buffers import GrowableBuffer, Readback
+from ..gpu.device import Gpu, shader_source
+
+Resource = Union[wgpu.GPUBuffer, GrowableBuffer, tuple]
+"""A buffer, a growable buffer (its current buffer), or ``(buffer, offset, size)``."""
+
+_BINDING = re.compile(r"@group\(0\)\s*@binding\((\d+)\)\s*var(?:<[^>]*>)?\s+(\w+)")
+
+
+def binding_numbers(source: str) -> dict[str, int]:
+    """Binding number of every ``@group(0)`` variable declared in a WGSL source, by name."""
+    return {name: int(number) for number, name in _BINDING.findall(source)}
+
+
+class Stage:
+    """One pipeline (compute, or render with ``render=``) and its bind groups by name.
+
+    Parameters
+    ----------
+    gpu : Gpu
+    shader : str
+        The WGSL file (``shaders/<shader>.wgsl``).
+    entry : str
+        Compute entry point (ignored for render pipelines).
+    render : dict, optional
+        ``primitive`` and ``fragment`` targets of a render pipeline whose vertex and fragment
+        entry points are ``vs`` and ``fs``.
+    label : str
+        What profiles and errors call it.
+    """
+
+    _modules: dict[tuple[int, str], wgpu.GPUShaderModule] = {}
+
+    def __init__(self, gpu: Gpu, shader: str, entry: str = "", *, render: dict | None = None,
+                 label: str = "") -> None:
+        self.device = gpu.device
+        self.label = label or f"{shader}: {entry}"
+        source = shader_source(shader)
+        self.numbers = binding_numbers(source)
+        key = (id(self.device), shader)
+        module = self._modules.get(key)
+        if module is None:
+            module = self._modules[key] = self.device.create_shader_module(label=shader,
+                                                                           code=source)
+        if render is None:
+            self.pipeline = self.device.create_compute_pipeline(
+                label=self.label, layout="auto",
+                compute={"module": module, "entry_point": entry})
+        else:
+            self.pipeline = self.device.create_render_pipeline(
+                label=self.label, layout="auto",
+                vertex={"module": module, "entry_point": "vs"},
+                primitive=render["primitive"],
+                fragment={"module": module, "entry_point": "fs", "targets": render["targets"]})
+        self._groups: dict[str, tuple[tuple, wgpu.GPUBindGroup]] = {}
+
+    def group(self, key: str = "", /, **resources: Resource) -> wgpu.GPUBindGroup:
+        """The bind group of ``resources`` by binding name (cached under ``key``).
+
+        Every binding the pipeline uses must be given; names the shader does not declare are an
+        error (a renamed binding is caught at once)."""
+        unknown = set(resources) - set(self.numbers)
+        if unknown:
+            raise KeyError(f"{self.label} declares no binding {sorted(unknown)}")
+        entries, ident = [], []
+        for name, resource in resources.items():
+            if isinstance(resource, GrowableBuffer):
+                resource = resource.buffer
+            if isinstance(resource, tuple):
+                buffer, offset, size = resource
+                entry = {"buffer": buffer, "offset": offset, "size": size}
+            else:
+                buffer, offset = resource, 0
+                entry = {"buffer": buffer}
+            entries.append({"binding": self.numbers[name], "resource": entry})
+            ident.append((buffer, offset))
+        cached = self._groups.get(key)
+        # The key holds the buffers themselves: an id alone can be reused by a new buffer once a
+        # grown one is freed.
+        if cached is not None and len(cached[0]) == len(ident) and all(
+                a[0] is b[0] and a[1] == b[1] for a, b in zip(cached[0], ident)):
+            return cached[1]
+        group = self.device.create_bind_group(layout=self.pipeline.get_bind_group_layout(0),
+                                              entries=entries)
+        self._groups[key] = (tuple(ident), group)
+        return group
+
+
+class Profiler:
+    """Timestamps of every timed pass of a frame, every round included.
+
+    Only the queries written in the frame are resolved (resolving a query never written makes
+    some drivers wait for it for ever), and their values travel in the frame's one readback.
+
+    Parameters
+    ----------
+    gpu : Gpu
+    enabled : bool
+        Time passes (only where the adapter supports timestamp queries).
+    """
+
+    def __init__(self, gpu: Gpu, enabled: bool) -> None:
+        self.device = gpu.device
+        self.enabled = enabled and gpu.timestamps
+        self.query_set: wgpu.GPUQuerySet | None = None
+        self.capacity = 0
+        self.names: list[str] = []
+        self.resolved: wgpu.GPUBuffer | None = None
+
+    def begin(self, passes: int) -> None:
+        """Start a frame of at most ``passes`` timed passes."""
+        self.names = []
+        if not self.enabled or passes <= self.capacity:
+            return
+        self.capacity = max(passes, 2 * self.capacity, 16)
+        self.query_set = self.device.create_query_set(type="timestamp", count=2 * self.capacity)
+        self.resolved = self.device.create_buffer(
+            label="timestamps", size=16 * self.capacity,
+            usage=wgpu.BufferUsage.QUERY_RESOLVE | wgpu.BufferUsage.COPY_SRC)
+
+    def writes(self, name: str) -> dict[str, Any]:
+        """Keyword arguments of ``begin_*_pass`` that time a pass called ``name``."""
+        if not self.enabled:
+            return {}
+        if len(self.names) >= self.capacity:
+            raise RuntimeError("more timed passes than the profiler was begun with")
+        i = 2 * len(self.names)
+        self.names.append(name)
+        return {"timestamp_writes": {"query_set": self.query_set,
+                                     "beginning_of_pass_write_index": i,
+                                     "end_of_pass_write_index": i + 1}}
+
+    @property
+    def nbytes(self) -> int:
+        return 16 * len(self.names)
+
+    def resolve(self, encoder: wgpu.GPUCommandEncoder, staging: wgpu.GPUBuffer,
+                offset: int) -> None:
+        """Resolve the written queries and copy them to ``staging`` at ``offset``."""
+        if not self.names:
+            return
+        n = 2 * len(self.names)
+        encoder.resolve_query_set(self.query_set, 0, n, self.resolved, 0)
+        encoder.copy_buffer_to_buffer(self.resolved, 0, staging, offset, 8 * n)
+
+    def times(self, words: np.ndarray) -> dict[str, float]:
+        """Milliseconds per pass name (summed over rounds) from the resolved words (uint32)."""
+        ts = words.view(np.uint64).astype(np.float64).reshape(-1, 2)
+        out: dict[str, float] = {}
+        for name, (start, end) in zip(self.names, ts):
+            out[name] = out.get(name, 0.0) + max(end - start, 0.0) * 1e-6
+        return out
+
+
+__all__ = ["Profiler", "Readback", "Stage", "binding_numbers"]
