@@ -72,3 +72,18 @@ def test_a_deforming_body_keeps_memory_flat_for_ten_thousand_frames():
     print("RSS growth per 1,000 frames (MiB):", np.round(growth, 2).tolist())
     assert marks[-1] - marks[0] < 4.0, marks
     assert len(det.shapes) <= 3 and det.shapes.topologies.builds <= 2
+
+
+def test_a_mesh_larger_than_the_cache_is_kept_while_it_is_used():
+    """The shapes and topologies of the current (and previous) query stay cached whatever the
+    byte bound: a mesh larger than the cache is not rebuilt on every call."""
+    big = trimesh.creation.icosphere(subdivisions=5)          # 20,480 faces, about 0.8 MB cached
+    det = pycinder.Detector()
+    det.shapes = ShapeCache(max_bytes=100_000)
+    box = trimesh.creation.box((0.5, 0.5, 0.5))
+    poses = np.stack([np.eye(4), np.eye(4)])
+    poses[1, 0, 3] = 1.1
+    for _ in range(4):
+        det.find_collisions([(np.array(big.vertices), np.array(big.faces)), box], poses)
+    assert det.shapes.topologies.builds == 2
+    assert det.shapes.topologies.nbytes > det.shapes.topologies.max_bytes
