@@ -105,14 +105,52 @@ class Detector:
         CollisionResult
             ``pairs`` is (K, 2) int64 with ``i < j``.
         """
-        with self._lock:  # one query at a time: the GPU buffers are the detector's own
-            return self._find_collisions(bodies, transforms, names, groups, view, records)
+        return self.submit(bodies, transforms, names=names, groups=groups, view=view,
+                           records=records).result()
 
-    def _find_collisions(self, bodies: Sequence[Any], transforms: Any,
-                         names: Sequence[str | None] | None, groups: Any,
-                         view: View | Sequence[View] | None, records: str | None
-                         ) -> CollisionResult:
-        t0 = time.perf_counter()
+    def submit(self, bodies: Sequence[Any], transforms: Any = None, *,
+               names: Sequence[str | None] | None = None, groups: Any = None,
+               view: View | Sequence[View] | None = None, records: str | None = None
+               ) -> PendingQuery:
+        """:meth:`find_collisions` without waiting for the GPU: the host checks the bodies,
+        plans the tiles and submits the frame, and returns at once. Prepare the next frame, then
+        call ``.result()`` on the handle. Two queries can be in flight; a third waits for the
+        oldest's GPU work. Arguments as :meth:`find_collisions`.
+
+        Returns
+        -------
+        PendingQuery
+            ``.result()`` gives the :class:`CollisionResult`; ``.ready`` says whether the GPU
+            has finished.
+
+        Examples
+        --------
+        >>> pending = det.submit(meshes, transforms[0])
+        >>> for k in range(1, frames):
+        ...     following = det.submit(meshes, transforms[k])   # the GPU still runs frame k-1
+        ...     handle(pending.result())
+        ...     pending = following
+        """
+        with self._lock:  # one query at a time: the GPU buffers are the detector's own
+            t0 = time.perf_counter()
+            try:
+                return PendingQuery(self, self._submit(bodies, transforms, names, groups, view,
+                                                       records, t0), t0)
+            except (GpuTimeoutError, wgpu.GPUError) as exc:
+                raise self._recover(exc) from exc
+
+    def _finish(self, pending: Any, t0: float) -> CollisionResult:
+        with self._lock:
+            try:
+                result = pending.result()
+            except (GpuTimeoutError, wgpu.GPUError) as exc:
+                raise self._recover(exc) from exc
+            result.stats.wall_ms["total"] = (time.perf_counter() - t0) * 1e3
+            return result
+
+    def _submit(self, bodies: Sequence[Any], transforms: Any,
+                names: Sequence[str | None] | None, groups: Any,
+                view: View | Sequence[View] | None, records: str | None, t0: float) -> Any:
         if view is not None and self.request.strategy != "scene":
             raise ValueError("view applies to strategy='scene'; the focused strategy chooses a "
                              "view per candidate pair")
@@ -131,17 +169,43 @@ class Detector:
                 raise ValueError(f"groups must be {len(scene)} whole numbers, one per body; "
                                  f"got shape {groups.shape} of {groups.dtype}")
         stats.add_ms("validate", (time.perf_counter() - t0) * 1e3)
-        try:
-            if isinstance(self.strategy, SceneStrategy):
-                result = self.strategy.run(scene, stats, view)
-                if groups is not None:
-                    result = result.across(groups)
-            else:
-                result = self.strategy.run(scene, stats, groups, records)
-        except (GpuTimeoutError, wgpu.GPUError) as exc:
-            raise self._recover(exc) from exc
-        stats.wall_ms["total"] = (time.perf_counter() - t0) * 1e3
-        return result
+        if isinstance(self.strategy, SceneStrategy):
+            result = self.strategy.run(scene, stats, view)
+            return _Done(result.across(groups) if groups is not None else result)
+        return self.strategy.submit(scene, stats, groups, records)
+
+
+class PendingQuery:
+    """A query submitted with :meth:`Detector.submit`; :meth:`result` waits for it."""
+
+    def __init__(self, detector: Detector, pending: Any, t0: float) -> None:
+        self._detector, self._pending, self._t0 = detector, pending, t0
+        self._result: CollisionResult | None = None
+
+    @property
+    def ready(self) -> bool:
+        """Whether the GPU has finished the query's first frame (``result()`` will not wait for
+        it; retries of undecided tiles, if any, still run then)."""
+        return self._result is not None or self._pending.ready
+
+    def result(self) -> CollisionResult:
+        """The query's result, waiting for the GPU if it has not finished (at most the request's
+        ``timeout`` per wait)."""
+        if self._result is None:
+            self._result = self._detector._finish(self._pending, self._t0)
+        return self._result
+
+
+class _Done:
+    """A query answered when it was submitted (the scene strategy's, and empty ones)."""
+
+    ready = True
+
+    def __init__(self, result: CollisionResult) -> None:
+        self._result = result
+
+    def result(self) -> CollisionResult:
+        return self._result
 
 
 _DETECTORS: dict[CollisionRequest, Detector] = {}

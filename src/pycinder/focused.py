@@ -22,7 +22,7 @@ from .gpu.device import Gpu
 from .layout import (C_SAMPLES, C_TOTAL_TRIS, RECORD_ID_MASK, RECORD_KIND_SHIFT, RECORD_SIDE_BIT,
                      RECORD_SURFACE)
 from .passes.focused import (ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, FocusedOutput,
-                             FocusedPasses, RoundTooLarge)
+                             FocusedPasses, RoundTooLarge, Submitted)
 from .records import RECORD_DTYPE, empty_records, pair_keys, unique_pairs
 from .request import DEFAULT_RELATIVE_TOLERANCE, CollisionRequest
 from .result import CollisionResult, Stats
@@ -113,10 +113,16 @@ class FocusedStrategy:
             records: str | None = None) -> CollisionResult:
         """Find the colliding pairs of a validated scene (of bodies in different ``groups``,
         when given), keeping ``records`` ("found", "all" or "none"; default: the request's)."""
+        return self.submit(scene, stats, groups, records).result()
+
+    def submit(self, scene: Scene, stats: Stats, groups: np.ndarray | None = None,
+               records: str | None = None) -> PendingFocused:
+        """:meth:`run` up to the first frame's submission: the broad phase, the tiles, the
+        upload and the frame's command buffer. The GPU then works while the caller does."""
         records = records or self.request.records
         t0 = time.perf_counter()
         if len(scene) < 2:
-            return CollisionResult.empty(stats)
+            return PendingFocused(self, CollisionResult.empty(stats))
         lo, hi = scene.world_boxes()
         pairs = sweep_and_prune(lo, hi)
         if groups is not None:
@@ -125,7 +131,7 @@ class FocusedStrategy:
         t1 = time.perf_counter()
         stats.add_ms("broad phase", (t1 - t0) * 1e3)
         if len(pairs) == 0:
-            return CollisionResult.empty(stats)
+            return PendingFocused(self, CollisionResult.empty(stats))
         tol = self.tolerances(scene, pairs)
         stats.tolerance = (float(tol.min()), float(tol.max()))
         plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
@@ -135,14 +141,26 @@ class FocusedStrategy:
         t2 = time.perf_counter()
         stats.add_ms("tiles", (t2 - t1) * 1e3)
         if len(plan) == 0:
-            return CollisionResult.empty(stats)
+            return PendingFocused(self, CollisionResult.empty(stats))
         pack = self._shapes(scene, stats)
+        first = self.passes.submit(plan, plan.tile_from_body(scene.transforms), scene.body_shape,
+                                   pack, len(pairs), shapes=scene.shapes,
+                                   records=records != "none", all_records=records == "all")
         t3 = time.perf_counter()
         stats.add_ms("upload", (t3 - t2) * 1e3)
+        stats.submitted_ms = (t3 - t0) * 1e3
+        return PendingFocused(self, None, (scene, stats, records, pairs, plan, pack, first, t3))
+
+    def _complete(self, scene: Scene, stats: Stats, records: str, pairs: np.ndarray,
+                  plan: TilePlan, pack: ShapePack, first: Submitted, t3: float
+                  ) -> CollisionResult:
+        """The rest of :meth:`run` once the first frame is submitted: its readback, the retries
+        of undecided tiles, and the decoding."""
         found_tiles, rows, plans = [], [], []
         current, capacity = plan, self.passes.capacity
         for attempt in range(RETRIES + 1):
-            current, out = self._run_plan(current, scene, pack, len(pairs), records, capacity)
+            current, out = self._run_plan(current, scene, pack, len(pairs), records, capacity,
+                                          first if attempt == 0 else None)
             self._count(stats, current, out)
             hit = out.tile_counts[:, 0] > 0
             found_tiles.append(current.bodies[hit])
@@ -192,17 +210,24 @@ class FocusedStrategy:
         return CollisionResult(result_pairs, rec, stats, tiles=concat_plans(plans), scene=scene)
 
     def _run_plan(self, plan: TilePlan, scene: Scene, pack: ShapePack, n_pairs: int,
-                  records: str, capacity: int) -> tuple[TilePlan, FocusedOutput]:
-        """Run ``plan``'s passes; when a round clips more triangles than the device's buffers
-        hold, plan the same tiles in smaller rounds and run them again. Returns the plan run."""
+                  records: str, capacity: int, submitted: Submitted | None = None
+                  ) -> tuple[TilePlan, FocusedOutput]:
+        """Run ``plan``'s passes (or read ``submitted``, the plan's frame already on the GPU);
+        when a round clips more triangles than the device's buffers hold, plan the same tiles
+        in smaller rounds and run them again. Returns the plan run."""
         budget, width = self._budget(capacity), plan.atlas_width
         while True:
             try:
+                if submitted is not None:
+                    return plan, self.passes.finish(submitted)
+                # A frame submitted since may have replaced the shapes on the GPU.
+                pack = self._shapes(scene, Stats())
                 return plan, self.passes.run(
                     plan, plan.tile_from_body(scene.transforms), scene.body_shape, pack,
-                    n_pairs, records=records != "none", all_records=records == "all",
-                    list_capacity=capacity)
+                    n_pairs, shapes=scene.shapes, records=records != "none",
+                    all_records=records == "all", list_capacity=capacity)
             except RoundTooLarge as exc:
+                submitted = None
                 # Fewer atlas pixels per round, down to one band each; then narrower bands
                 # (fewer tiles in each).
                 largest = max(plan.round_rows) * width
@@ -344,3 +369,22 @@ def _member(bodies: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     if len(pairs) == 0:
         return np.zeros(len(bodies), dtype=bool)
     return np.isin(pair_keys(bodies[:, 0], bodies[:, 1]), pair_keys(pairs[:, 0], pairs[:, 1]))
+
+
+class PendingFocused:
+    """A focused query whose first frame is on the GPU; :meth:`result` finishes it."""
+
+    def __init__(self, strategy: FocusedStrategy, result: CollisionResult | None,
+                 state: tuple | None = None) -> None:
+        self.strategy, self._result, self._state = strategy, result, state
+
+    @property
+    def ready(self) -> bool:
+        """Whether the GPU has finished the first frame (retries, if any, still take time)."""
+        return self._result is not None or self._state[6].ready
+
+    def result(self) -> CollisionResult:
+        if self._result is None:
+            state, self._state = self._state, None
+            self._result = self.strategy._complete(*state)
+        return self._result

@@ -71,6 +71,9 @@ class Stats:
     uploaded_vertex_bytes: int = 0
     reruns: int = 0
     """Frames run again because a buffer had to grow."""
+    submitted_ms: float = 0.0
+    """Focused strategy: host milliseconds from the query's start to its first submission
+    (validation excluded): the work the host does before the GPU can start."""
     wall_ms: dict[str, float] = field(default_factory=dict)
     gpu_ms: dict[str, float] = field(default_factory=dict)
 

@@ -17,6 +17,8 @@ from ..request import DEFAULT_TIMEOUT
 from ..scene.pack import PackedScene
 
 STORAGE = wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_DST
+_READ_NOSYNC = "READ_NOSYNC"
+"""wgpu-py's map mode for reading without its extra flushing submission (see Readback.start)."""
 RECORD_FORMAT = "rgba32uint"
 
 
@@ -200,13 +202,38 @@ class Readback:
         """
         if nbytes == 0:
             return np.zeros(0, dtype=dtype)
-        b = self.buf.buffer
-        promise = b.map_async(wgpu.MapMode.READ, 0, nbytes)
+        return self.wait(self.start(nbytes), nbytes, dtype, timeout=timeout,
+                         waiting_for=waiting_for)
+
+    def start(self, nbytes: int) -> object:
+        """Ask for the first ``nbytes`` to be mapped once the GPU has written them; returns the
+        wgpu promise that :meth:`wait` takes.
+
+        The staging buffer is only ever written by copy commands of a command buffer already
+        submitted, so the empty submission wgpu-py makes before mapping for reading (for data
+        written by ``queue.write_buffer`` and not yet flushed) is skipped: it costs a round trip
+        of its own (0.8 ms of 1 ms on lavapipe)."""
+        buffer = self.buf.buffer
+        try:
+            return buffer.map_async(_READ_NOSYNC, 0, nbytes)
+        except (KeyError, ValueError, TypeError):  # pragma: no cover - a wgpu-py without it
+            return buffer.map_async(wgpu.MapMode.READ, 0, nbytes)
+
+    @staticmethod
+    def ready(promise: object) -> bool:
+        """Whether a mapping asked for with :meth:`start` is done (reading will not wait)."""
+        return wait_for(promise, 0.0)
+
+    def wait(self, promise: object, nbytes: int, dtype: np.dtype = np.uint32, *,
+             timeout: float = DEFAULT_TIMEOUT, waiting_for: str = "") -> np.ndarray:
+        """Wait at most ``timeout`` seconds for a mapping asked for with :meth:`start`, copy out
+        the first ``nbytes`` and unmap."""
         if not wait_for(promise, timeout):
             raise GpuTimeoutError(
                 f"the GPU did not finish {waiting_for or self.buf.label} within {timeout:g} s "
                 "(the device may be lost or overloaded)")
         promise.sync_wait()
+        b = self.buf.buffer
         try:
             data = np.frombuffer(b.read_mapped(0, nbytes), dtype=dtype).copy()
         finally:

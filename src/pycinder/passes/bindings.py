@@ -159,11 +159,15 @@ class Profiler:
         encoder.resolve_query_set(self.query_set, 0, n, self.resolved, 0)
         encoder.copy_buffer_to_buffer(self.resolved, 0, staging, offset, 8 * n)
 
-    def times(self, words: np.ndarray) -> dict[str, float]:
-        """Milliseconds per pass name (summed over rounds) from the resolved words (uint32)."""
-        ts = words.view(np.uint64).astype(np.float64).reshape(-1, 2)
+    def times(self, words: np.ndarray, names: list[str] | None = None) -> dict[str, float]:
+        """Milliseconds per pass name (summed over rounds) from the resolved words (uint32) of
+        the passes ``names`` (default: this frame's)."""
+        names = self.names if names is None else names
+        if not names:
+            return {}
+        ts = words[:4 * len(names)].view(np.uint64).astype(np.float64).reshape(-1, 2)
         out: dict[str, float] = {}
-        for name, (start, end) in zip(self.names, ts):
+        for name, (start, end) in zip(names, ts):
             out[name] = out.get(name, 0.0) + max(end - start, 0.0) * 1e-6
         return out
 

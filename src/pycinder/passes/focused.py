@@ -115,6 +115,28 @@ class FocusedOutput:
     dropped_records: int = 0
 
 
+SLOTS = 2
+"""Frames that can be in flight at once (each has its own records and staging buffers)."""
+
+
+@dataclass(eq=False)
+class Submitted:
+    """A frame submitted to the GPU, and what it found once read (``output``)."""
+
+    args: tuple
+    options: dict
+    slot: int
+    layout: dict | None = None
+    pending: object = None
+    output: FocusedOutput | None = None
+    reruns: int = 0
+
+    @property
+    def ready(self) -> bool:
+        """Whether the GPU has finished the frame (reading it will not wait)."""
+        return self.output is not None or Readback.ready(self.pending)
+
+
 class RoundTooLarge(Exception):
     """A round clipped more triangles than one buffer of this device holds: the caller plans the
     tiles in smaller rounds and runs them again."""
@@ -224,7 +246,9 @@ class FocusedPasses:
         self.pixels = grow("pixel counts", _U.STORAGE | _U.COPY_DST)
         self.lists = grow("pixel crossings", _U.STORAGE)
         self.tile_counts = grow("tile counts", _U.STORAGE | _U.COPY_SRC | _U.COPY_DST)
-        self.records = grow("records", _U.STORAGE | _U.COPY_SRC)
+        # Per frame in flight: the records and the staging buffers they are read through.
+        self.records_slots = [grow(f"records {k}", _U.STORAGE | _U.COPY_SRC)
+                              for k in range(SLOTS)]
         self.counters = device.create_buffer(label="counters", size=4 * COUNTERS,
                                              usage=_U.STORAGE | _U.COPY_SRC | _U.COPY_DST)
         self.args = device.create_buffer(label="indirect args", size=64,
@@ -232,8 +256,10 @@ class FocusedPasses:
         self.round_params = grow("round parameters", _U.UNIFORM | _U.COPY_DST)
         self.frame_params = device.create_buffer(label="frame parameters", size=6 * PARAM_STRIDE,
                                                  usage=_U.UNIFORM | _U.COPY_DST)
-        self.readback = Readback(device, "focused readback")
-        self.readback_more = Readback(device, "focused records")
+        self.readbacks = [Readback(device, f"focused readback {k}") for k in range(SLOTS)]
+        self.readbacks_more = [Readback(device, f"focused records {k}") for k in range(SLOTS)]
+        self.in_flight: list[Submitted | None] = [None] * SLOTS
+        self._next_slot = 0
         self.target: wgpu.GPUTexture | None = None
         self.target_view: wgpu.GPUTextureView | None = None
         self.caps = {"tris": 1 << 16, "records": 1 << 16}
@@ -302,9 +328,20 @@ class FocusedPasses:
     # -- one frame --------------------------------------------------------------------------
 
     def run(self, plan: TilePlan, matrices: np.ndarray, body_shape: np.ndarray,
-            pack: ShapePack, n_pairs: int, *, records: bool = True, all_records: bool = False,
-            list_capacity: int | None = None) -> FocusedOutput:
-        """Run passes F0-F6 for every tile and read back what they found.
+            pack: ShapePack, n_pairs: int, *, shapes: list | None = None, records: bool = True,
+            all_records: bool = False, list_capacity: int | None = None) -> FocusedOutput:
+        """Run passes F0-F6 for every tile and read back what they found (see :meth:`submit`)."""
+        return self.finish(self.submit(plan, matrices, body_shape, pack, n_pairs, shapes=shapes,
+                                       records=records, all_records=all_records,
+                                       list_capacity=list_capacity))
+
+    def submit(self, plan: TilePlan, matrices: np.ndarray, body_shape: np.ndarray,
+               pack: ShapePack, n_pairs: int, *, shapes: list | None = None,
+               records: bool = True, all_records: bool = False,
+               list_capacity: int | None = None) -> Submitted:
+        """Encode passes F0-F6 for every tile in one command buffer, submit it and start its
+        readback; :meth:`finish` waits for it. Two frames can be in flight: a third waits for
+        the oldest.
 
         Parameters
         ----------
@@ -317,6 +354,9 @@ class FocusedPasses:
             The uploaded shapes.
         n_pairs : int
             Candidate pairs (``plan.pair`` indexes them).
+        shapes : list of Shape, optional
+            The shapes uploaded for this frame: uploaded again should the frame have to run
+            again after a later frame replaced them.
         records : bool
             Read back the records (False: only the per-tile counts).
         all_records : bool
@@ -324,8 +364,67 @@ class FocusedPasses:
         list_capacity : int, optional
             Crossings kept per pixel in this run (default: the one given at construction).
         """
-        self.run_capacity = int(list_capacity or self.capacity)
-        self.all_records = all_records
+        slot = self._next_slot
+        self._next_slot = (slot + 1) % SLOTS
+        older = self.in_flight[slot]
+        if older is not None:
+            self.finish(older)  # its staging buffers are about to be reused
+        sub = Submitted((plan, matrices, body_shape, pack, n_pairs),
+                        dict(shapes=shapes, records=records, all_records=all_records,
+                             list_capacity=list_capacity), slot)
+        self.in_flight[slot] = sub
+        self._submit(sub)
+        return sub
+
+    def finish(self, sub: Submitted) -> FocusedOutput:
+        """Wait for a submitted frame and read what it found; run it again while a buffer had to
+        grow, so nothing is dropped."""
+        while sub.output is None:
+            out = self._read(sub)
+            c = out.counters
+            grown = False
+            max_tris, max_records = self.tris.limit // 48, self.records.limit // 16
+            if c[C_MAX_TRIS] > self.caps["tris"]:
+                self.in_flight[sub.slot] = None
+                if c[C_MAX_TRIS] > max_tris:
+                    raise RoundTooLarge(int(c[C_MAX_TRIS]), max_tris)
+                self.caps["tris"] = min(int(c[C_MAX_TRIS] * 1.5) + 1024, max_tris)
+                grown = True
+            if c[C_RECORDS] > self.caps["records"] and sub.options["records"] \
+                    and self.caps["records"] < max_records:
+                # More records than one buffer holds are dropped (and counted): pairs come
+                # from the per-tile counts, which are complete.
+                self.caps["records"] = min(int(c[C_RECORDS] * 1.5) + 1024, max_records)
+                grown = True
+            if grown:
+                sub.reruns += 1
+                shapes = sub.options["shapes"]
+                if shapes is not None and self.uploaded is not None \
+                        and any(a is not b for a, b in zip(shapes, self.uploaded)):
+                    self.upload(sub.args[3], shapes)  # a later frame replaced the vertices
+                self._submit(sub)
+                continue
+            out.reruns = sub.reruns
+            out.dropped_records = max(int(c[C_RECORDS]) - self.caps["records"], 0) \
+                if sub.options["records"] else 0
+            sub.output = out
+            if self.in_flight[sub.slot] is sub:
+                self.in_flight[sub.slot] = None
+        return sub.output
+
+    def _records(self, slot: int) -> GrowableBuffer:
+        return self.records_slots[slot]
+
+    @property
+    def records(self) -> GrowableBuffer:
+        """The records buffer of the first slot (its limit is every slot's)."""
+        return self.records_slots[0]
+
+    def _submit(self, sub: Submitted) -> None:
+        plan, matrices, body_shape, pack, n_pairs = sub.args
+        opts = sub.options
+        self.run_capacity = int(opts["list_capacity"] or self.capacity)
+        self.all_records = opts["all_records"]
         t = len(plan)
         words = tile_words(plan, matrices)
         shapes = body_shape[plan.bodies].reshape(-1)                    # entry e = 2 * tile + side
@@ -355,35 +454,12 @@ class FocusedPasses:
         self.pixels.ensure(PIXEL_BYTES * width * rows)
         self.lists.ensure(ENTRY_BYTES * self.run_capacity * width * rows)
         self.active.ensure(4 * width * rows)
-        reruns = 0
-        max_tris = self.tris.limit // 48
-        max_records = self.records.limit // 16
-        self.caps["tris"] = min(self.caps["tris"], max_tris)
-        self.caps["records"] = min(self.caps["records"], max_records)
-        while True:
-            self.tris.ensure(48 * self.caps["tris"])
-            self.tri_face.ensure(4 * self.caps["tris"])
-            self.records.ensure(16 * self.caps["records"])
-            out = self._frame(plan, bounds, round_threads, items, records)
-            c = out.counters
-            grown = False
-            if c[C_MAX_TRIS] > self.caps["tris"]:
-                if c[C_MAX_TRIS] > max_tris:
-                    raise RoundTooLarge(int(c[C_MAX_TRIS]), max_tris)
-                self.caps["tris"] = min(int(c[C_MAX_TRIS] * 1.5) + 1024, max_tris)
-                grown = True
-            if c[C_RECORDS] > self.caps["records"] and records \
-                    and self.caps["records"] < max_records:
-                # More records than one buffer holds are dropped (and counted): pairs come
-                # from the per-tile counts, which are complete.
-                self.caps["records"] = min(int(c[C_RECORDS] * 1.5) + 1024, max_records)
-                grown = True
-            if not grown:
-                out.reruns = reruns
-                out.dropped_records = max(int(c[C_RECORDS]) - self.caps["records"], 0) \
-                    if records else 0
-                return out
-            reruns += 1
+        self.caps["tris"] = min(self.caps["tris"], self.tris.limit // 48)
+        self.caps["records"] = min(self.caps["records"], self.records.limit // 16)
+        self.tris.ensure(48 * self.caps["tris"])
+        self.tri_face.ensure(4 * self.caps["tris"])
+        self._records(sub.slot).ensure(16 * self.caps["records"])
+        self._frame(sub, plan, bounds, round_threads, items, opts["records"])
 
     def _ensure_target(self, width: int, rows: int) -> None:
         if self.target is not None and self.target.width >= width and self.target.height >= rows:
@@ -426,8 +502,10 @@ class FocusedPasses:
         self.gpu.device.queue.write_buffer(self.frame_params, 0, frame)
 
     def _encode_round(self, encoder: wgpu.GPUCommandEncoder, r: int, threads: int,
-                      rows: int) -> None:
-        """Passes F1-F6 of round ``r`` (``threads`` cull threads, ``rows`` atlas rows)."""
+                      rows: int, slot: int) -> None:
+        """Passes F1-F6 of round ``r`` (``threads`` cull threads, ``rows`` atlas rows), writing
+        records to the buffer of frame slot ``slot``."""
+        records = self._records(slot)
         b = self
         finalize = dict(counters=b.counters, args=b.args,
                         params=(b.frame_params, P_FINALIZE * PARAM_STRIDE, 16))
@@ -465,27 +543,28 @@ class FocusedPasses:
         cpass = scope.begin("F5 surface test")
         _dispatch(cpass, self.after_crossings, self.after_crossings.group(**finalize), (1,))
         _dispatch(cpass, self.surface_test, self.surface_test.group(
-            f"round {r}", tiles=b.tiles, pixels=b.pixels, crossings=b.lists,
-            tile_counts=b.tile_counts, records=b.records, counters=b.counters,
+            f"round {r} slot {slot}", tiles=b.tiles, pixels=b.pixels, crossings=b.lists,
+            tile_counts=b.tile_counts, records=records, counters=b.counters,
             params=surface_block, active_pixels=b.active), indirect=(self.args, ARGS_SURFACE))
         cpass = scope.begin("F4 edge test")
         _dispatch(cpass, self.edge_test, self.edge_test.group(
-            tiles=b.tiles, clusters=b.clusters, positions=b.positions, edges=b.edges,
-            edge_items=b.edge_items, pixels=b.pixels, crossings=b.lists,
-            tile_counts=b.tile_counts, records=b.records, counters=b.counters,
+            f"slot {slot}", tiles=b.tiles, clusters=b.clusters, positions=b.positions,
+            edges=b.edges, edge_items=b.edge_items, pixels=b.pixels, crossings=b.lists,
+            tile_counts=b.tile_counts, records=records, counters=b.counters,
             params=(b.frame_params, P_EDGES * PARAM_STRIDE, 32)), indirect=(self.args, ARGS_EDGES))
         if self.any_open:
             cpass = scope.begin("F6 crossing test")
             _dispatch(cpass, self.crossing_test, self.crossing_test.group(
-                tiles=b.tiles, clusters=b.clusters, bounds=b.cluster_bounds,
+                f"slot {slot}", tiles=b.tiles, clusters=b.clusters, bounds=b.cluster_bounds,
                 positions=b.positions, faces=b.faces, edges=b.edges, edge_items=b.edge_items,
-                entries=b.entries, tile_counts=b.tile_counts, records=b.records,
+                entries=b.entries, tile_counts=b.tile_counts, records=records,
                 counters=b.counters, params=(b.frame_params, P_CROSS * PARAM_STRIDE, 16)),
                 indirect=(self.args, ARGS_EDGES))
         scope.end()
 
-    def _frame(self, plan: TilePlan, bounds: np.ndarray, round_threads: np.ndarray, items: int,
-               want_records: bool) -> FocusedOutput:
+    def _frame(self, sub: Submitted, plan: TilePlan, bounds: np.ndarray,
+               round_threads: np.ndarray, items: int, want_records: bool) -> None:
+        """Encode the frame, submit it and start mapping its readback."""
         device = self.gpu.device
         n_rounds = len(plan.round_rows)
         t = len(plan)
@@ -498,38 +577,54 @@ class FocusedPasses:
         encoder.clear_buffer(self.tile_counts.buffer, 0, 8 * t + 4 * self.n_pairs)
         for r in range(n_rounds):
             if round_threads[r]:
-                self._encode_round(encoder, r, int(round_threads[r]), plan.round_rows[r])
+                self._encode_round(encoder, r, int(round_threads[r]), plan.round_rows[r],
+                                   sub.slot)
         speculative = min(max(SPECULATIVE_RECORDS, self.recent_records * 5 // 4),
                           self.caps["records"]) if want_records else 0
         head = 4 * COUNTERS + 8 * t
         stamps = -(-(head + 16 * speculative) // 8) * 8
-        staging = self.readback.ensure(stamps + self.profiler.nbytes)
+        nbytes = stamps + self.profiler.nbytes
+        readback = self.readbacks[sub.slot]
+        staging = readback.ensure(nbytes)
         encoder.copy_buffer_to_buffer(self.counters, 0, staging, 0, 4 * COUNTERS)
         if t:
             encoder.copy_buffer_to_buffer(self.tile_counts.buffer, 0, staging, 4 * COUNTERS, 8 * t)
         if speculative:
-            encoder.copy_buffer_to_buffer(self.records.buffer, 0, staging, head, 16 * speculative)
+            encoder.copy_buffer_to_buffer(self._records(sub.slot).buffer, 0, staging, head,
+                                          16 * speculative)
         self.profiler.resolve(encoder, staging, stamps)
         device.queue.submit([encoder.finish()])
         self._bound_pending = None
-        data = self.readback.read(stamps + self.profiler.nbytes, timeout=self.timeout,
-                                  waiting_for=f"a frame of {t} tiles in {n_rounds} rounds")
-        gpu_ms = self.profiler.times(data[stamps // 4:])
+        sub.layout = dict(t=t, head=head, stamps=stamps, nbytes=nbytes, speculative=speculative,
+                          timed=list(self.profiler.names), records=want_records,
+                          waiting=f"a frame of {t} tiles in {n_rounds} rounds")
+        sub.pending = readback.start(nbytes)
+
+    def _read(self, sub: Submitted) -> FocusedOutput:
+        """Wait for a submitted frame's readback (one map) and decode its words."""
+        lay = sub.layout
+        t, head, stamps, speculative = lay["t"], lay["head"], lay["stamps"], lay["speculative"]
+        data = self.readbacks[sub.slot].wait(sub.pending, lay["nbytes"], timeout=self.timeout,
+                                             waiting_for=lay["waiting"])
+        gpu_ms = self.profiler.times(data[stamps // 4:], lay["timed"])
         counters = data[:COUNTERS].astype(np.int64)
         tile_counts = data[COUNTERS:COUNTERS + 2 * t].reshape(t, 2).astype(np.int64)
-        n_records = int(min(counters[C_RECORDS], self.caps["records"])) if want_records else 0
-        if want_records:
+        n_records = int(min(counters[C_RECORDS], self.caps["records"])) if lay["records"] else 0
+        if lay["records"]:
             self.recent_records = n_records
-        bytes_read = stamps + self.profiler.nbytes
+        bytes_read = lay["nbytes"]
         if n_records <= speculative:
             recs = data[head // 4: head // 4 + 4 * n_records].reshape(-1, 4)
         else:
+            device = self.gpu.device
             encoder = device.create_command_encoder()
-            staging = self.readback_more.ensure(16 * n_records)
-            encoder.copy_buffer_to_buffer(self.records.buffer, 0, staging, 0, 16 * n_records)
+            more = self.readbacks_more[sub.slot]
+            staging = more.ensure(16 * n_records)
+            encoder.copy_buffer_to_buffer(self._records(sub.slot).buffer, 0, staging, 0,
+                                          16 * n_records)
             device.queue.submit([encoder.finish()])
-            recs = self.readback_more.read(16 * n_records, timeout=self.timeout,
-                                           waiting_for=f"{n_records} records").reshape(-1, 4)
+            recs = more.read(16 * n_records, timeout=self.timeout,
+                             waiting_for=f"{n_records} records").reshape(-1, 4)
             bytes_read += 16 * n_records
         if len(recs):
             recs = recs[np.lexsort((recs[:, 3], recs[:, 2], recs[:, 1], recs[:, 0]))]
