@@ -132,7 +132,7 @@ class CollisionRequest:
     records : {"found", "all", "none"}
         Focused strategy: ``"found"`` (default) stops testing a pair as soon as one of its tiles
         found it colliding (large windows are probed at their centre first) and returns the
-        records found on the way; ``"all"`` tests every tile and returns every sample inside the
+        first records found (up to 16 per pair); ``"all"`` tests every tile and returns every sample inside the
         other body (for contact generation); ``"none"`` returns pairs only. The pairs are the
         same in every mode. The scene strategy always returns its records.
     """

@@ -35,6 +35,9 @@ from .states import FOCUSED_CROSSINGS
 LIST_CAPACITY = 8
 """Crossings kept per pixel within a tile's box (both bodies together)."""
 
+FOUND_RECORDS_PER_PAIR = 16
+"""Records kept per pair with records="found" (the first samples found); "all" keeps every one."""
+
 SPECULATIVE_RECORDS = 4096
 """Fewest records copied into the frame's one readback; a frame copies a quarter more than the
 last frame found (frames of an animation are alike), so that most frames need one round trip."""
@@ -479,6 +482,7 @@ class FocusedPasses:
         n_rounds = len(plan.round_rows)
         caps = self.caps
         record_cap = caps["records"] if want_records else 0
+        pair_records = 0xFFFFFFFF if self.all_records else FOUND_RECORDS_PER_PAIR
         # Per-round parameters of the cull and the surface test, one uniform block each.
         self.round_params.ensure(ROUND_STRIDE * max(n_rounds, 1))
         block = np.zeros((max(n_rounds, 1), ROUND_STRIDE // 4), dtype=np.uint32)
@@ -486,8 +490,9 @@ class FocusedPasses:
         for r in range(n_rounds):
             block[r, :6] = (round_threads[r], 2 * bounds[r], 2 * (bounds[r + 1] - bounds[r]),
                             items, items, 2 * len(plan))
-            block[r, surface:surface + 5] = (plan.atlas_width, plan.round_rows[r],
-                                             self.run_capacity, record_cap, 2 * len(plan))
+            block[r, surface:surface + 6] = (plan.atlas_width, plan.round_rows[r],
+                                             self.run_capacity, record_cap, 2 * len(plan),
+                                             pair_records)
         self.round_params.write(block)
         frame = np.zeros((6, PARAM_STRIDE // 4), dtype=np.uint32)
         early_out = 0 if self.all_records else 1
@@ -495,9 +500,9 @@ class FocusedPasses:
         frame[P_CLIP, :4] = (caps["tris"], items, 0, 0)
         frame[P_ATLAS, :4] = (plan.atlas_width, self.target.height, self.run_capacity,
                               self.target.width)
-        frame[P_EDGES, :6] = (plan.atlas_width, self.run_capacity, record_cap, items,
-                              2 * len(plan), early_out)
-        frame[P_CROSS, :4] = (record_cap, items, 2 * len(plan), early_out)
+        frame[P_EDGES, :7] = (plan.atlas_width, self.run_capacity, record_cap, items,
+                              2 * len(plan), early_out, pair_records)
+        frame[P_CROSS, :5] = (record_cap, items, 2 * len(plan), early_out, pair_records)
         frame[P_BOUNDS, 0] = 0 if self._bound_pending is None else len(self._bound_pending)
         self.gpu.device.queue.write_buffer(self.frame_params, 0, frame)
 
@@ -558,7 +563,7 @@ class FocusedPasses:
                 f"slot {slot}", tiles=b.tiles, clusters=b.clusters, bounds=b.cluster_bounds,
                 positions=b.positions, faces=b.faces, edges=b.edges, edge_items=b.edge_items,
                 entries=b.entries, tile_counts=b.tile_counts, records=records,
-                counters=b.counters, params=(b.frame_params, P_CROSS * PARAM_STRIDE, 16)),
+                counters=b.counters, params=(b.frame_params, P_CROSS * PARAM_STRIDE, 32)),
                 indirect=(self.args, ARGS_EDGES))
         scope.end()
 

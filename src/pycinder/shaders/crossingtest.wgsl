@@ -14,12 +14,17 @@
 // through their shared edge passes through exactly one of them (a zero counts for the face that
 // walks the edge from its lower index).
 //!include tiles.wgsl
+//!include records.wgsl
 
 struct Params {
     record_cap: u32,    // 0: count hits without writing records
     item_cap: u32,
     pair_offset: u32,   // where the per-pair hit flags start in tile_counts
     early_out: u32,     // 1: skip tiles whose pair is already found
+    pair_records: u32,  // records kept per pair
+    _p0: u32,
+    _p1: u32,
+    _p2: u32,
 };
 
 @group(0) @binding(0) var<storage, read> tiles: array<Tile>;
@@ -163,14 +168,10 @@ fn crossing_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_ind
                         continue;
                     }
                     found++;
-                    let slot = atomicAdd(&counters[C_RECORDS], 1u);
-                    if (slot < params.record_cap) {
-                        let u = u32(x.x);
-                        let v = u32(x.y);
-                        records[slot] = vec4u(tile_index, u | (v << 16u), bitcast<u32>(x.z),
-                                              e | (RECORD_CROSSING << RECORD_KIND_SHIFT)
-                                                | (side << RECORD_SIDE_BIT));
-                    }
+                    append_record(t, vec4u(tile_index, u32(x.x) | (u32(x.y) << 16u),
+                                           bitcast<u32>(x.z),
+                                           e | (RECORD_CROSSING << RECORD_KIND_SHIFT)
+                                             | (side << RECORD_SIDE_BIT)));
                 }
             }
             workgroupBarrier();
@@ -179,6 +180,6 @@ fn crossing_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_ind
     atomicAdd(&counters[C_CROSS_TESTS], 1u);
     if (found > 0u) {
         atomicAdd(&tile_counts[2u * tile_index], found);
-        atomicStore(&tile_counts[params.pair_offset + t.info.w], 1u);
+        mark_found(t);
     }
 }

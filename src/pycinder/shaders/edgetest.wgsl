@@ -9,6 +9,7 @@
 // counted as undecided (the host then retries their tiles with thinner boxes).
 //!include tiles.wgsl
 //!include lists.wgsl
+//!include records.wgsl
 
 struct Params {
     atlas_width: u32,
@@ -17,7 +18,7 @@ struct Params {
     item_cap: u32,
     pair_offset: u32,   // where the per-pair hit flags start in tile_counts
     early_out: u32,     // 1: skip tiles whose pair is already found (records "found" or "none")
-    _p1: u32,
+    pair_records: u32,  // records kept per pair
     _p2: u32,
 };
 
@@ -87,17 +88,14 @@ fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32) {
         let winding = winding_at(pixel, listed, cap, other, s.z - t.slab.x, back);
         if (winding != 0) {
             found++;
-            let slot = atomicAdd(&counters[C_RECORDS], 1u);
-            if (slot < params.record_cap) {
-                records[slot] = vec4u(tile_index, x | (y << 16u), bitcast<u32>(s.z),
-                                      e | (RECORD_EDGE << RECORD_KIND_SHIFT) | (side << RECORD_SIDE_BIT));
-            }
+            append_record(t, vec4u(tile_index, x | (y << 16u), bitcast<u32>(s.z),
+                                   e | (RECORD_EDGE << RECORD_KIND_SHIFT) | (side << RECORD_SIDE_BIT)));
         }
     }
     atomicAdd(&counters[C_SAMPLES], steps + 1u);
     if (found > 0u) {
         atomicAdd(&tile_counts[2u * tile_index], found);
-        atomicStore(&tile_counts[params.pair_offset + t.info.w], 1u);
+        mark_found(t);
     }
     if (undecided > 0u) {
         atomicAdd(&tile_counts[2u * tile_index + 1u], undecided);

@@ -8,6 +8,7 @@
 // listed a crossing at.
 //!include tiles.wgsl
 //!include lists.wgsl
+//!include records.wgsl
 
 struct Params {
     atlas_width: u32,
@@ -15,7 +16,7 @@ struct Params {
     capacity: u32,
     record_cap: u32,    // 0: count hits without writing records
     pair_offset: u32,
-    _p0: u32,
+    pair_records: u32,  // records kept per pair
     _p1: u32,
     _p2: u32,
 };
@@ -62,17 +63,15 @@ fn surface_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
         let z = bitcast<f32>(entry.x & 0xFFFFFFFCu);
         if (winding_at(pixel, listed, cap, 1u - side, z, back) != 0) {
             found++;
-            let slot = atomicAdd(&counters[C_RECORDS], 1u);
-            if (slot < params.record_cap) {
-                let u = gid.x - t.window.x;
-                let v = gid.y - t.window.y;
-                records[slot] = vec4u(tile_index, u | (v << 16u), bitcast<u32>(z + t.slab.x),
-                                      entry.y | (RECORD_SURFACE << RECORD_KIND_SHIFT) | (side << RECORD_SIDE_BIT));
-            }
+            let u = gid.x - t.window.x;
+            let v = gid.y - t.window.y;
+            append_record(t, vec4u(tile_index, u | (v << 16u), bitcast<u32>(z + t.slab.x),
+                                   entry.y | (RECORD_SURFACE << RECORD_KIND_SHIFT)
+                                     | (side << RECORD_SIDE_BIT)));
         }
     }
     if (found > 0u) {
         atomicAdd(&tile_counts[2u * tile_index], found);
-        atomicStore(&tile_counts[params.pair_offset + t.info.w], 1u);
+        mark_found(t);
     }
 }
