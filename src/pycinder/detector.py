@@ -117,6 +117,16 @@ class Detector:
         stats.wall_ms["total"] = (time.perf_counter() - t0) * 1e3
         return result
 
+    def find_collisions_batch(self, scenes: Sequence[Any], *, tolerance: Any = None,
+                              labels: Sequence[Any] | None = None, records: str | None = None
+                              ) -> list[CollisionResult]:
+        """Many small scenes in one query, pairs only within a scene; one result per scene,
+        as :meth:`find_collisions` gives it. See :func:`pycinder.batch.find_collisions_batch`."""
+        from .batch.query import find_collisions_batch
+
+        return find_collisions_batch(self, scenes, tolerance=tolerance, labels=labels,
+                                     records=records)
+
 
 _DETECTORS: dict[CollisionRequest, Detector] = {}
 

@@ -79,15 +79,18 @@ class FocusedStrategy:
         return self._pack
 
     def run(self, scene: Scene, stats: Stats, groups: np.ndarray | None = None,
-            records: str | None = None) -> CollisionResult:
+            records: str | None = None, within: np.ndarray | None = None,
+            tolerance: np.ndarray | None = None) -> CollisionResult:
         """Find the colliding pairs of a validated scene (of bodies in different ``groups``,
-        when given), keeping ``records`` ("found", "all" or "none"; default: the request's)."""
+        when given; of bodies with the same ``within`` key (N,), when given), keeping
+        ``records`` ("found", "all" or "none"; default: the request's). ``tolerance`` (N,):
+        a pair's tolerance from its first body, where not NaN."""
         records = records or self.request.records
         t0 = time.perf_counter()
         if len(scene) < 2:
             return CollisionResult.empty(stats)
         lo, hi = scene.world_boxes()
-        pairs = sweep_and_prune(lo, hi)
+        pairs = sweep_and_prune(lo, hi, within)
         if groups is not None:
             pairs = pairs[groups[pairs[:, 0]] != groups[pairs[:, 1]]]
         stats.candidates = len(pairs)
@@ -96,6 +99,8 @@ class FocusedStrategy:
         if len(pairs) == 0:
             return CollisionResult.empty(stats)
         tol = self.tolerances(scene, pairs)
+        if tolerance is not None:
+            tol = np.where(np.isnan(tolerance[pairs[:, 0]]), tol, tolerance[pairs[:, 0]])
         stats.tolerance = (float(tol.min()), float(tol.max()))
         plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
                           budget_pixels=self.budget_pixels, probe=records != "all")
