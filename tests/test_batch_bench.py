@@ -52,6 +52,7 @@ def test_panda_links_and_poses_match_pybullet(panda):
 def test_short_benchmark_run_agrees_with_exact_geometry():
     r = batch.run_batch(60, batch_sizes=(1, 30), sweep=30, single=5, truth=4, workers=())
     assert r["pairs_per_configuration"] == 55 and r["ray"] == []
+    assert r["batch_equals_single"] == [5, 5]
     assert [b["batch_size"] for b in r["pycinder-batch"]] == [1, 30]
     t = r["truth"]["pycinder"]
     assert t["must"] > 0 and t["found"] == t["must"] and t["false"] == 0

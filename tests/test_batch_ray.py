@@ -126,3 +126,11 @@ def test_bad_scenes_are_reported_and_the_rest_complete(data, capsys):
     assert "scene 'typo' body 0: unknown keys ['transfrom']" in rows["typo"]["error"]
     for e in entries[:16]:
         assert rows[e["id"]]["pairs"] == want[e["id"]] and rows[e["id"]]["error"] is None
+
+
+def test_workers_that_cannot_be_placed_are_an_error():
+    with pytest.raises(ValueError, match="3 workers need 3 CPUs and 0 GPUs; the Ray cluster "
+                                         "has 2 CPUs and 0 GPUs"):
+        run([], workers=3)
+    with pytest.raises(ValueError, match="batch_size must be a whole number"):
+        run([], batch_size=0)
