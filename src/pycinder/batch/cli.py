@@ -105,7 +105,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
         sink.close()
     s = results.summary
     print(f"{s['scenes']} scenes in {s['seconds']:.1f} s: {s['scenes_per_s']:.1f} scenes/s on "
-          f"{s['workers']} workers ({s['adapter']}), {s['batch_size']} scenes per query; "
+          f"{s['workers']} worker{'s' if s['workers'] != 1 else ''} ({s['adapter']}), {s['batch_size']} scenes per query; "
           f"{s['failed']} failed, {s['retried']} retried, {s['worker_failures']} worker "
           f"failures; {skipped} already in {args.out}")
     return 1 if s["failed"] else 0

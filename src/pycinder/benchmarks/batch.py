@@ -270,7 +270,8 @@ def markdown(r: dict[str, Any]) -> list[str]:
         lines.append(f"| pycinder, {b['batch_size']} per query | {b['configurations']} | "
                      f"{b['seconds']:.2f} | {b['per_s']:.0f} | {b['per_s'] / fcl:.2f} |")
     for row in r["ray"]:
-        lines.append(f"| pycinder.batch.run, {row['workers']} Ray workers, {row['batch_size']} "
+        lines.append(f"| pycinder.batch.run, {row['workers']} Ray "
+                     f"worker{'s' if row['workers'] != 1 else ''}, {row['batch_size']} "
                      f"per query | {row['scenes']} | {row['seconds']:.2f} | "
                      f"{row['scenes_per_s']:.0f} | {row['scenes_per_s'] / fcl:.2f} |")
     a, t = r["agreement"], r["truth"]
