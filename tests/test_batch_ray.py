@@ -8,7 +8,6 @@ import signal
 import pytest
 
 from pycinder.batch import run
-from pycinder.batch.cli import cmd_batch  # noqa: F401  (the command under test, via main)
 from pycinder.cli import main
 
 from batch_helpers import expected_pairs, mesh_pool, random_entries, write_manifest
