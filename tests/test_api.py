@@ -160,3 +160,19 @@ def test_stats_report_bytes_and_time():
     assert r.stats.candidates == 0 and r.stats.bytes_read == 0  # the broad phase decided
     r = focused.find_collisions([a, b], touching)
     assert r.stats.candidates == 1 and r.stats.records == len(r.records) > 0
+
+
+def test_repeated_queries_leave_the_inputs_as_they_were():
+    """The same (N, 4, 4) float64 array of transforms and the same vertex arrays, queried again
+    and again: same answer, and the arrays are never written to (shapes are re-centred inside
+    the scene, on copies)."""
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.5)
+    off_centre = (np.array(ball.vertices) + [3.0, 0.0, 0.0], np.array(ball.faces))
+    transforms = np.stack([np.eye(4)] * 3)
+    transforms[1, 0, 3], transforms[2, 0, 3] = 0.8, -3.8     # centres at 0, 0.8 and -0.8
+    given = transforms.copy(), off_centre[0].copy()
+    det = pycinder.Detector()
+    answers = [det.find_collisions([ball, ball, off_centre], transforms).pairs.tolist()
+               for _ in range(4)]
+    assert answers == [[[0, 1], [0, 2]]] * 4
+    assert np.array_equal(transforms, given[0]) and np.array_equal(off_centre[0], given[1])

@@ -260,6 +260,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="out/buffers", metavar="DIR")
     p.add_argument("--resolution", type=int, default=512)
     p.set_defaults(func=cmd_example)
+    from .batch.cli import add_parser as add_batch_parser
+    add_batch_parser(sub)
     return parser
 
 

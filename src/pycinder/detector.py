@@ -139,6 +139,20 @@ class Detector:
             except (GpuTimeoutError, wgpu.GPUError) as exc:
                 raise self._recover(exc) from exc
 
+    def find_collisions_batch(self, scenes: Sequence[Any], *, tolerance: Any = None,
+                              labels: Sequence[Any] | None = None, records: str | None = None
+                              ) -> list[CollisionResult]:
+        """Many small scenes in one query, pairs only within a scene; one result per scene,
+        as :meth:`find_collisions` gives it. See :func:`pycinder.batch.find_collisions_batch`."""
+        from .batch.query import find_collisions_batch
+
+        with self._lock:
+            try:
+                return find_collisions_batch(self, scenes, tolerance=tolerance, labels=labels,
+                                             records=records)
+            except (GpuTimeoutError, wgpu.GPUError) as exc:
+                raise self._recover(exc) from exc
+
     def _finish(self, pending: Any, t0: float) -> CollisionResult:
         with self._lock:
             try:

@@ -67,31 +67,39 @@ class FocusedStrategy:
         """Atlas pixels per round with lists of ``capacity`` crossings."""
         return self.budget_pixels * self.passes.capacity // capacity
 
-    def tolerances(self, scene: Scene, pairs: np.ndarray) -> np.ndarray:
+    def tolerances(self, scene: Scene, pairs: np.ndarray, given: np.ndarray | None = None
+                   ) -> np.ndarray:
         """(K,) tolerance of each candidate pair, in world units.
 
-        The default is :data:`~pycinder.request.DEFAULT_RELATIVE_TOLERANCE` of the smaller body's
-        size, from the pair's own bodies only. A pair's pixels must also be resolvable in single
+        ``given`` (N,): a tolerance per body (a batch of scenes gives each scene's to its bodies),
+        used for a pair from its first body where not NaN; else the request's tolerance; else the
+        default, :data:`~pycinder.request.DEFAULT_RELATIVE_TOLERANCE` of the smaller body's size,
+        from the pair's own bodies only. A pair's pixels must also be resolvable in single
         precision (see :func:`resolvable_tolerance`): a default tolerance below that is raised to
         it with a :class:`~pycinder.errors.PrecisionWarning`; a tolerance given below it raises.
         """
         size = body_sizes(scene)
         a, b = pairs[:, 0], pairs[:, 1]
         floor = resolvable_tolerance(scene, pairs, size)
-        if self.request.tolerance is not None:
-            tol = np.full(len(pairs), self.request.tolerance)
-            bad = np.flatnonzero(tol < floor)
-            if len(bad):
-                k = bad[np.argmax(floor[bad])]
-                raise ValueError(
-                    f"tolerance {self.request.tolerance:g} is too fine for {len(bad)} candidate "
-                    f"pairs in single precision (first: {scene.label(int(a[k]))} and "
-                    f"{scene.label(int(b[k]))}, {size[a[k]]:.3g} and {size[b[k]]:.3g} across): "
-                    f"the GPU resolves them at {floor[bad].max():.3g} or coarser; use a coarser "
-                    "tolerance, or test those bodies in a query of their own scale")
-            return tol
         tol = DEFAULT_RELATIVE_TOLERANCE * np.minimum(size[a], size[b])
-        raised = np.flatnonzero(tol < floor)
+        chosen = np.zeros(len(pairs), dtype=bool)
+        if self.request.tolerance is not None:
+            tol[:] = self.request.tolerance
+            chosen[:] = True
+        if given is not None:
+            g = np.asarray(given, dtype=np.float64)[a]
+            chosen |= ~np.isnan(g)
+            tol = np.where(np.isnan(g), tol, g)
+        bad = np.flatnonzero(chosen & (tol < floor))
+        if len(bad):
+            k = bad[np.argmax(floor[bad])]
+            raise ValueError(
+                f"tolerance {tol[k]:g} is too fine for {len(bad)} candidate pairs in single "
+                f"precision (first: {scene.label(int(a[k]))} and {scene.label(int(b[k]))}, "
+                f"{size[a[k]]:.3g} and {size[b[k]]:.3g} across): the GPU resolves them at "
+                f"{floor[bad].max():.3g} or coarser; use a coarser tolerance, or test those "
+                "bodies in a query of their own scale")
+        raised = np.flatnonzero(~chosen & (tol < floor))
         if len(raised):
             k = raised[np.argmax(floor[raised] / np.maximum(tol[raised], 1e-300))]
             warn_at_caller(
@@ -110,13 +118,17 @@ class FocusedStrategy:
         return self._pack
 
     def run(self, scene: Scene, stats: Stats, groups: np.ndarray | None = None,
-            records: str | None = None) -> CollisionResult:
+            records: str | None = None, within: np.ndarray | None = None,
+            tolerance: np.ndarray | None = None) -> CollisionResult:
         """Find the colliding pairs of a validated scene (of bodies in different ``groups``,
-        when given), keeping ``records`` ("found", "all" or "none"; default: the request's)."""
-        return self.submit(scene, stats, groups, records).result()
+        when given; of bodies with the same ``within`` key (N,), when given), keeping
+        ``records`` ("found", "all" or "none"; default: the request's). ``tolerance`` (N,):
+        a pair's tolerance from its first body, where not NaN."""
+        return self.submit(scene, stats, groups, records, within, tolerance).result()
 
     def submit(self, scene: Scene, stats: Stats, groups: np.ndarray | None = None,
-               records: str | None = None) -> PendingFocused:
+               records: str | None = None, within: np.ndarray | None = None,
+               tolerance: np.ndarray | None = None) -> PendingFocused:
         """:meth:`run` up to the first frame's submission: the broad phase, the tiles, the
         upload and the frame's command buffer. The GPU then works while the caller does."""
         records = records or self.request.records
@@ -124,7 +136,7 @@ class FocusedStrategy:
         if len(scene) < 2:
             return PendingFocused(self, CollisionResult.empty(stats))
         lo, hi = scene.world_boxes()
-        pairs = sweep_and_prune(lo, hi)
+        pairs = sweep_and_prune(lo, hi, within)
         if groups is not None:
             pairs = pairs[groups[pairs[:, 0]] != groups[pairs[:, 1]]]
         stats.candidates = len(pairs)
@@ -132,7 +144,7 @@ class FocusedStrategy:
         stats.add_ms("broad phase", (t1 - t0) * 1e3)
         if len(pairs) == 0:
             return PendingFocused(self, CollisionResult.empty(stats))
-        tol = self.tolerances(scene, pairs)
+        tol = self.tolerances(scene, pairs, tolerance)
         stats.tolerance = (float(tol.min()), float(tol.max()))
         plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
                           budget_pixels=self.budget_pixels, probe=records != "all",

@@ -161,6 +161,10 @@ def markdown(results: dict[str, Any]) -> str:
                          f"{p['normal_error_deg']:.1f} | {p['depth']:.4f} | {f['contacts']} | "
                          f"{f['normal_error_deg']:.1f} | {f['depth']:.4f} |")
         lines.append("")
+    if results.get("batch"):
+        from .batch import markdown as batch_markdown
+
+        lines += batch_markdown(results["batch"])
     soak = results.get("soak")
     if soak:
         lines += ["## Memory over a long loop", "",

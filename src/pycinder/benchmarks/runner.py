@@ -25,7 +25,8 @@ from .peers import PEERS, Pycinder, System
 from .scenes import SCENES, Scene, SphereField, Stairs
 
 DEFAULT_SCENES = ["stairs", "many", "deforming", "narrow", "sweep-extent", "sweep-bodies",
-                  "sweep-triangles", "sweep-tolerance", "manager", "contacts", "modes", "soak"]
+                  "sweep-triangles", "sweep-tolerance", "manager", "contacts", "modes", "batch",
+                  "soak"]
 DEFAULT_PEERS = ["python-fcl", "coal", "trimesh", "warp"]
 TOLERANCE_SWEEP = (0.001, 0.0028, 0.005, 0.01)
 """World tolerances of the Stairs tolerance sweep (the spheres are 0.16 across; pycinder's
@@ -329,7 +330,7 @@ def run_contact_accuracy() -> list[dict[str, Any]]:
 def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAULT_PEERS,
         soak_frames: int = 100_000, progress: Progress | None = None) -> dict[str, Any]:
     """Run the named scenes, ``repeat`` frames each."""
-    extra = ("modes", "soak", "manager", "contacts")
+    extra = ("modes", "soak", "manager", "contacts", "batch")
     unknown = [n for n in scenes if n not in SCENES and n not in extra]
     if unknown:
         raise ValueError(f"unknown scene {unknown[0]!r}; choose from "
@@ -352,6 +353,11 @@ def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAUL
             continue
         if name == "contacts":
             results["contacts"] = run_contact_accuracy()
+            continue
+        if name == "batch":
+            from .batch import run_batch
+
+            results["batch"] = run_batch(progress=say)
             continue
         if name == "sweep-tolerance":
             results["sweeps"][name] = run_tolerance_sweep(repeat, make_peers(["python-fcl"]))

@@ -174,7 +174,7 @@ def check_transforms(transforms: Any, n: int, names: Sequence[str | None]) -> np
     if transforms is None:
         return np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
     try:
-        t = np.asarray(transforms, dtype=np.float64)
+        t = np.array(transforms, dtype=np.float64)  # a copy: the scene folds offsets into it
     except (TypeError, ValueError) as exc:
         raise ValueError(f"transforms must be (N, 4, 4) numbers: {exc}") from exc
     if t.shape != (n, 4, 4):

@@ -1,0 +1,314 @@
+"""Robot configurations per second: in-query batching and Ray workers, against python-fcl.
+
+``pycinder bench batch``: random configurations of a real arm (the Franka Panda's 11 collision
+meshes, :mod:`.robot`), every pair of its bodies checked per configuration, on the same poses:
+
+* python-fcl: one ``DynamicAABBTreeCollisionManager``, transforms set per configuration;
+* pycinder, one query per configuration (``find_collisions``);
+* pycinder, many configurations per query (``find_collisions_batch``), at several batch sizes;
+* ``pycinder.batch.run`` on a local Ray with 1, 2 and N workers, with and without batching,
+  fed from manifest entries that name the mesh files (read once per worker);
+* the driver alone reading and checking the manifest: the data-loading limit of a run.
+
+Answers are compared configuration by configuration, and scored against exact geometry on a
+subset (manifold3d and trimesh, :func:`pycinder.testing.ground_truth`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..testing import ground_truth
+from .peers import FCL
+from .robot import Robot, panda, write_meshes
+from .scenes import Scene
+
+CONFIGURATIONS = 10_000
+BATCH_SIZES = (1, 10, 100, 1000)
+RAY_BATCH = 250
+"""Configurations per query in the batched Ray runs (40 chunks of the 10,000)."""
+
+
+def _rate(count: int, seconds: float) -> float:
+    return count / max(seconds, 1e-9)
+
+
+class Configurations(Scene):
+    """A robot's configurations as benchmark frames: frame k is configuration k's poses."""
+
+    def __init__(self, robot: Robot, poses: np.ndarray) -> None:
+        meshes = [b.mesh for b in robot.bodies]
+        super().__init__(f"{robot.name}-configurations", f"{robot.name}, {len(poses)} poses",
+                         [np.asarray(m.faces) for m in meshes],
+                         [np.asarray(m.vertices) for m in meshes], len(poses))
+        self.poses = poses
+
+    def frame(self, k: int) -> tuple[list[np.ndarray], np.ndarray]:
+        return self.rest, self.poses[k]
+
+
+def fcl_pairs(robot: Robot, poses: np.ndarray) -> tuple[list[set], float]:
+    """Colliding pairs per configuration from python-fcl's dynamic AABB tree manager (the
+    benchmarks' python-fcl peer: transforms set, tree updated and all pairs collected per
+    configuration), and the seconds taken."""
+    scene = Configurations(robot, poses)
+    peer = FCL()
+    peer.prepare(scene)
+    t0 = time.perf_counter()
+    pairs = [peer.step(scene, k) for k in range(len(poses))]
+    seconds = time.perf_counter() - t0
+    return [{tuple(p) for p in found.tolist()} for found in pairs], seconds
+
+
+def manifest_entries(robot: Robot, poses: np.ndarray, paths: Sequence[str]) -> list[dict]:
+    """One scene entry per configuration, naming the mesh files (as a manifest line would)."""
+    names = [b.link for b in robot.bodies]
+    return [{"id": c, "bodies": [{"mesh": p, "transform": t.tolist(), "name": n}
+                                 for p, t, n in zip(paths, pose, names)]}
+            for c, pose in enumerate(poses)]
+
+
+def loading_rate(entries: list[dict], folder: Path) -> tuple[float, float]:
+    """Scenes per second the driver reads and checks from a manifest file, alone; and the
+    manifest's bytes per scene."""
+    from ..batch.manifest import normalize, read_manifest
+
+    path = folder / "manifest.jsonl"
+    path.write_text("".join(json.dumps(e) + "\n" for e in entries))
+    t0 = time.perf_counter()
+    n = sum(1 for k, e in enumerate(read_manifest(path)) if normalize(e, k))
+    return _rate(n, time.perf_counter() - t0), path.stat().st_size / max(n, 1)
+
+
+def ray_rates(entries: list[dict], workers: Sequence[int], batch: int, unbatched: int,
+              say: Callable[[str], None]) -> list[dict]:
+    """Scenes per second of ``pycinder.batch.run`` with each worker count, batched (all
+    entries, ``batch`` per query) and not (the first ``unbatched``, one per query)."""
+    import ray
+
+    from ..batch import run
+
+    rows = []
+    started = not ray.is_initialized()
+    if started:
+        ray.init(num_cpus=max(workers), include_dashboard=False, log_to_driver=False,
+                 logging_level="ERROR")
+    try:
+        gpus = float(ray.cluster_resources().get("GPU", 0))
+        for w in workers:
+            for size, todo in ((1, entries[:unbatched]), (batch, entries)):
+                say(f"batch: Ray, {w} workers, {size} scenes per query")
+                t0 = time.perf_counter()
+                results = run(todo, workers=w, batch_size=size,
+                              gpus_per_worker=min(1.0, gpus / w) if gpus else 0.0)
+                start = time.perf_counter() - t0
+                pairs = {r["id"]: r.get("pairs") for r in results}
+                s = results.summary
+                rows.append({"workers": w, "batch_size": size, "scenes": s["scenes"],
+                             "seconds": s["seconds"], "scenes_per_s": s["scenes_per_s"],
+                             "startup_s": start, "failed": s["failed"],
+                             "mesh_loads": s.get("mesh_loads"), "pairs": pairs})
+    finally:
+        if started:
+            ray.shutdown()
+    return rows
+
+
+def run_batch(configurations: int = CONFIGURATIONS, *, batch_sizes: Sequence[int] = BATCH_SIZES,
+              sweep: int = 1000, single: int = 1000, truth: int = 20,
+              workers: Sequence[int] | None = None, unbatched: int = 1000,
+              ray_batch: int = RAY_BATCH, seed: int = 0, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Configurations per second of the Panda arm, every system on the same poses.
+
+    Parameters
+    ----------
+    configurations : int
+        Random configurations (within the joint limits) timed for python-fcl, the largest
+        batch size and the batched Ray runs.
+    batch_sizes : sequence of int
+        Configurations per query in the in-process sweep, over the first ``sweep``.
+    single : int
+        Configurations timed one query each.
+    truth : int
+        Configurations scored against exact geometry.
+    workers : sequence of int, optional
+        Ray worker counts (default 1, 2 and the number of CPU cores; empty: no Ray runs).
+    unbatched : int
+        Configurations of the Ray runs with one scene per query.
+    ray_batch : int
+        Configurations per query of the batched Ray runs.
+    """
+    import pycinder
+
+    say = progress or (lambda msg: None)
+    robot = panda()
+    q = robot.random_configurations(configurations, seed)
+    poses = robot.poses(q)
+    meshes = [b.mesh for b in robot.bodies]
+    out: dict[str, Any] = {
+        "robot": robot.name, "bodies": len(meshes),
+        "triangles": [len(m.faces) for m in meshes], "pairs_per_configuration":
+            len(meshes) * (len(meshes) - 1) // 2, "configurations": configurations,
+        "repaired": {Path(b.source).name: b.repaired for b in robot.bodies if b.repaired},
+    }
+    say("batch: python-fcl")
+    fcl, seconds = fcl_pairs(robot, poses)
+    out["python-fcl"] = {"configurations": configurations, "seconds": seconds,
+                         "per_s": _rate(configurations, seconds)}
+    det = pycinder.Detector(records="none")
+    scenes = [(meshes, pose) for pose in poses]
+    det.find_collisions_batch(scenes[:max(batch_sizes)])  # warm-up: pipelines, shapes
+    say("batch: pycinder, one query per configuration")
+    t0 = time.perf_counter()
+    alone = [det.find_collisions(meshes, pose).pairs for pose in poses[:single]]
+    seconds = time.perf_counter() - t0
+    out["pycinder-single"] = {"configurations": single, "seconds": seconds,
+                              "per_s": _rate(single, seconds)}
+    out["pycinder-batch"] = []
+    ours: list[np.ndarray] = []
+    for size in batch_sizes:
+        count = configurations if size == max(batch_sizes) else min(sweep, configurations)
+        say(f"batch: pycinder, {size} configurations per query")
+        results = []
+        t0 = time.perf_counter()
+        for k in range(0, count, size):
+            results += det.find_collisions_batch(scenes[k:k + size])
+        seconds = time.perf_counter() - t0
+        out["pycinder-batch"].append({"batch_size": size, "configurations": count,
+                                      "seconds": seconds, "per_s": _rate(count, seconds)})
+        if size == max(batch_sizes):
+            ours = [r.pairs for r in results]
+    # Where the time of a configuration goes, alone and in the largest batch (wall ms per
+    # configuration by stage: the host stages bound one worker's rate whatever the GPU).
+    size = max(batch_sizes)
+    out["ms_per_configuration"] = {
+        "single": det.find_collisions(meshes, poses[0]).stats.wall_ms,
+        f"batch of {size}": {k: v / size for k, v in
+                             det.find_collisions_batch(scenes[:size])[0].stats.wall_ms.items()}}
+    same = [{tuple(p) for p in ours[c].tolist()} == fcl[c] for c in range(configurations)]
+    out["batch_equals_single"] = [int(sum(np.array_equal(a, b) for a, b in zip(alone, ours))),
+                                  len(alone)]
+    out["agreement"] = {
+        "configurations_equal": int(sum(same)),
+        "pairs_pycinder": int(sum(len(p) for p in ours)),
+        "pairs_fcl": int(sum(len(f) for f in fcl)),
+        "only_pycinder": int(sum(len({tuple(p) for p in ours[c].tolist()} - fcl[c])
+                                 for c in range(configurations))),
+        "only_fcl": int(sum(len(fcl[c] - {tuple(p) for p in ours[c].tolist()})
+                            for c in range(configurations))),
+    }
+    say("batch: exact geometry where the two disagree")
+    differ = [c for c in range(configurations) if not same[c]][:truth]
+    kinds = {"must_only_fcl": 0, "separate_only_pycinder": 0, "ambiguous": 0}
+    for c in differ:
+        t = ground_truth(meshes, poses[c])
+        must = {tuple(p) for p in t.overlap.tolist()}
+        apart = {tuple(p) for p in t.separate.tolist()}
+        mine = {tuple(p) for p in ours[c].tolist()}
+        for p in mine ^ fcl[c]:
+            if p in must and p in fcl[c]:
+                kinds["must_only_fcl"] += 1
+            elif p in apart and p in mine:
+                kinds["separate_only_pycinder"] += 1
+            else:
+                kinds["ambiguous"] += 1
+    out["agreement"]["scored_configurations"] = len(differ)
+    out["agreement"]["scored_pairs"] = kinds
+    say(f"batch: exact geometry on {truth} configurations")
+    score = {"pycinder": [0, 0, 0], "python-fcl": [0, 0, 0]}  # must, found, false
+    for c in range(min(truth, configurations)):
+        t = ground_truth(meshes, poses[c])
+        for name, found in (("pycinder", ours[c]), ("python-fcl", sorted(fcl[c]))):
+            s = t.score(np.asarray(found, dtype=np.int64).reshape(-1, 2))
+            score[name][0] += s["overlaps"]
+            score[name][1] += s["found"]
+            score[name][2] += len(s["false"])
+    out["truth"] = {n: {"configurations": min(truth, configurations), "must": v[0],
+                        "found": v[1], "false": v[2]} for n, v in score.items()}
+    workers = sorted(set((1, 2, os.cpu_count() or 1) if workers is None else workers))
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = write_meshes(robot, tmp)
+        entries = manifest_entries(robot, poses, paths)
+        out["loading_per_s"], out["manifest_bytes_per_scene"] = loading_rate(entries, Path(tmp))
+        rows = ray_rates(entries, workers, ray_batch, min(unbatched, configurations),
+                         say) if workers else []
+    for row in rows:
+        pairs = row.pop("pairs")
+        row["equal_to_in_process"] = all(pairs[c] == ours[c].tolist() for c in pairs)
+    out["ray"] = rows
+    return out
+
+
+def markdown(r: dict[str, Any]) -> list[str]:
+    """The report's section for ``pycinder bench batch``."""
+    fcl = r["python-fcl"]["per_s"]
+    lines = [
+        f"## Robot configurations: {r['robot']} ({r['bodies']} collision meshes, "
+        f"{r['pairs_per_configuration']} pairs each)", "",
+        f"{r['configurations']} random configurations within the joint limits, all pairs of "
+        "each checked; configurations per second on the same poses. Meshes: "
+        f"{', '.join(str(t) for t in r['triangles'])} triangles"
+        + (f"; {', '.join(f'{k}: {v}' for k, v in r['repaired'].items())}" if r["repaired"]
+           else "") + ".", "",
+        "| system | configurations | seconds | configurations / s | / python-fcl |",
+        "|---|---|---|---|---|",
+        f"| python-fcl (DynamicAABBTree manager) | {r['python-fcl']['configurations']} | "
+        f"{r['python-fcl']['seconds']:.2f} | {fcl:.0f} | 1.00 |",
+        f"| pycinder, one query each | {r['pycinder-single']['configurations']} | "
+        f"{r['pycinder-single']['seconds']:.2f} | {r['pycinder-single']['per_s']:.0f} | "
+        f"{r['pycinder-single']['per_s'] / fcl:.2f} |",
+    ]
+    for b in r["pycinder-batch"]:
+        lines.append(f"| pycinder, {b['batch_size']} per query | {b['configurations']} | "
+                     f"{b['seconds']:.2f} | {b['per_s']:.0f} | {b['per_s'] / fcl:.2f} |")
+    for row in r["ray"]:
+        lines.append(f"| pycinder.batch.run, {row['workers']} Ray "
+                     f"worker{'s' if row['workers'] != 1 else ''}, {row['batch_size']} "
+                     f"per query | {row['scenes']} | {row['seconds']:.2f} | "
+                     f"{row['scenes_per_s']:.0f} | {row['scenes_per_s'] / fcl:.2f} |")
+    a, t = r["agreement"], r["truth"]
+    same, alone = r["batch_equals_single"]
+    lines += ["", f"Batched answers equal those of one query per configuration in {same} of the "
+              f"{alone} configurations queried alone."]
+    lines.append("")
+    if r["ray"]:
+        lines += [
+            "Ray rows exclude start-up (Ray's and the workers': "
+            + ", ".join(f"{row['startup_s']:.1f} s" for row in r["ray"])
+            + "); their answers equal the in-process ones: "
+            + ("yes" if all(row["equal_to_in_process"] for row in r["ray"]) else "**no**")
+            + ".", ""]
+    stages = ("validate", "broad phase", "tiles", "upload", "gpu", "decode", "total")
+    lines += ["Wall milliseconds per configuration, by stage (the host stages bound one worker's "
+              "rate whatever the GPU):", "", "| query | " + " | ".join(stages) + " |",
+              "|---|" + "---|" * len(stages)]
+    for name, ms in r["ms_per_configuration"].items():
+        lines.append(f"| {name} | " + " | ".join(f"{ms.get(k, 0.0):.3f}" for k in stages) + " |")
+    lines += [
+        "",
+        f"The driver alone reads and checks {r['loading_per_s']:.0f} manifest scenes per second "
+        f"(the data-loading limit of one driver; {r['manifest_bytes_per_scene']:.0f} bytes of "
+        "JSON per scene).", "",
+        f"Agreement with python-fcl: {a['configurations_equal']} of {r['configurations']} "
+        f"configurations give the same pairs; {a['only_pycinder']} pairs only pycinder reports, "
+        f"{a['only_fcl']} only python-fcl. Scored against exact geometry in "
+        f"{a['scored_configurations']} of the configurations where they differ: "
+        f"{a['scored_pairs']['ambiguous']} of those pairs lie within the tolerance band (closer "
+        "than a tolerance or less than two deep, where either answer keeps the contract), "
+        f"{a['scored_pairs']['must_only_fcl']} penetrate by two tolerances (pycinder missed "
+        f"them), {a['scored_pairs']['separate_only_pycinder']} are a tolerance or more apart "
+        "(pycinder reported them falsely). Against exact geometry on "
+        f"{t['pycinder']['configurations']} configurations: pycinder found "
+        f"{t['pycinder']['found']} of {t['pycinder']['must']} pairs that must be found, "
+        f"{t['pycinder']['false']} false; python-fcl {t['python-fcl']['found']} of "
+        f"{t['python-fcl']['must']}, {t['python-fcl']['false']} false.", "",
+    ]
+    return lines
