@@ -165,11 +165,15 @@ def markdown(results: dict[str, Any]) -> str:
         from .batch import markdown as batch_markdown
 
         lines += batch_markdown(results["batch"])
-    soak = results.get("soak")
-    if soak:
-        lines += ["## Memory over a long loop", "",
-                  f"{soak['frames']} frames of three small bodies passed as fresh (vertices, faces) "
-                  f"arrays every frame ({soak['seconds']:.0f} s): resident memory "
+    loops = {"soak": "three small bodies passed as fresh (vertices, faces) arrays every frame",
+             "soak-deforming": "a ball whose vertices change every frame, touching a box"}
+    for key, what in loops.items():
+        soak = results.get(key)
+        if not soak:
+            continue
+        if key == "soak" or "soak" not in results:
+            lines += ["## Memory over a long loop", ""]
+        lines += [f"{soak['frames']} frames of {what} ({soak['seconds']:.0f} s): resident memory "
                   f"{soak['rss_start_mib']:.1f} MiB after start-up, {soak['rss_end_mib']:.1f} MiB "
                   f"at the end, largest growth {soak['rss_growth_mib']:.1f} MiB; "
                   f"{soak['topology_builds']} topologies built; caches hold "
@@ -238,15 +242,19 @@ def plots(results: dict[str, Any], out: Path) -> list[Path]:
             ax.set_ylabel("recall")
             ax.set_xlabel(label)
         save(fig, name)
-    soak = results.get("soak")
-    if soak:
+    soaks = {"soak": "fresh (vertices, faces) arrays every frame",
+             "soak-deforming": "a body deforming every frame"}
+    if any(results.get(k) for k in soaks):
         fig, ax = plt.subplots(figsize=(6, 3))
-        frames = [k for k, _ in soak["samples"]]
-        ax.plot(frames, [r / 2**20 for _, r in soak["samples"]])
+        for key, label in soaks.items():
+            soak = results.get(key)
+            if soak:
+                ax.plot([k for k, _ in soak["samples"]],
+                        [r / 2**20 for _, r in soak["samples"]], label=label)
         ax.set_xlabel("frame")
         ax.set_ylabel("resident memory (MiB)")
         ax.set_ylim(0, None)
-        ax.set_title("Fresh (vertices, faces) arrays every frame", fontsize=9)
+        ax.legend(fontsize=8)
         save(fig, "soak")
     return paths
 

@@ -190,17 +190,19 @@ def run_modes(frames: int) -> list[dict[str, Any]]:
     return rows
 
 
-def run_soak(frames: int = 100_000, every: int = 1000, progress: Progress | None = None
-             ) -> dict[str, Any]:
-    """The memory soak (:mod:`.soak`) in a fresh process, so that its resident memory is its
-    own and not that of the scenes before it."""
+def run_soak(frames: int = 100_000, every: int = 1000, progress: Progress | None = None,
+             mode: str = "fresh") -> dict[str, Any]:
+    """The memory soak (:mod:`.soak`) of one ``mode`` ("fresh" arrays or a "deforming" body) in
+    a fresh process, so that its resident memory is its own and not that of the scenes before
+    it."""
     import json
     import subprocess
 
     if progress:
-        progress(f"soak: {frames} frames in a fresh process")
+        progress(f"soak ({mode}): {frames} frames in a fresh process")
     out = subprocess.run([sys.executable, "-m", "pycinder.benchmarks.soak", "--frames",
-                          str(frames), "--every", str(every)], capture_output=True, text=True)
+                          str(frames), "--every", str(every), "--mode", mode],
+                         capture_output=True, text=True)
     if out.returncode != 0:
         raise RuntimeError(f"the soak failed: {out.stderr.strip()[-2000:]}")
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -347,6 +349,7 @@ def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAUL
             continue
         if name == "soak":
             results["soak"] = run_soak(soak_frames, progress=say)
+            results["soak-deforming"] = run_soak(soak_frames, progress=say, mode="deforming")
             continue
         if name == "manager":
             results["manager"] = run_manager(repeat)
