@@ -207,7 +207,7 @@ def test_full_pixel_lists_are_retried_in_thinner_boxes():
         assert np.array_equal(mine, theirs)
     gap = cKDTree(normal.records["point"]).query(rec["point"])[0]
     assert gap.max() < squeezed.stats.tolerance[0]
-    points = tiles.to_world(rec["view"], rec["x"] + 0.5, rec["y"] + 0.5, rec["depth"])
+    points = tiles.to_world(rec["view"], rec["pixel_x"] + 0.5, rec["pixel_y"] + 0.5, rec["pixel_z"])
     assert np.allclose(points, rec["point"], atol=1e-6 * np.abs(rec["point"]).max())
     contacts = reduce_contacts(squeezed)
     assert sorted(map(tuple, np.unique(contacts.pair, axis=0).tolist())) == \
