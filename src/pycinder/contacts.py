@@ -24,7 +24,9 @@ Everything is vectorised over all records of a query.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -36,9 +38,47 @@ CELL_TOLERANCES = 4.0
 """Grid cell of the region search, in tolerances: records closer than this join a region."""
 
 
+class ContactData:
+    """One contact region of a colliding pair, shaped like trimesh's ``ContactData``.
+
+    Attributes
+    ----------
+    names : set
+        The two object names.
+    pair : (name, name)
+        The names in order: ``normal`` points from the first object into the second.
+    point : (3,) float
+        A point on the intersection of the two objects.
+    normal : (3,) float
+        Unit contact normal.
+    depth : float
+        Penetration depth along the normal.
+    """
+
+    def __init__(self, pair: tuple[Any, Any], point: np.ndarray, normal: np.ndarray,
+                 depth: float, faces: tuple[int, int]) -> None:
+        self.pair = pair
+        self.names = set(pair)
+        self._inds = {pair[0]: int(faces[0]), pair[1]: int(faces[1])}
+        self.point = point
+        self.normal = normal
+        self.depth = float(depth)
+
+    def index(self, name: Any) -> int:
+        """The face of object ``name`` at the contact (-1 where unknown)."""
+        return self._inds[name]
+
+    def __repr__(self) -> str:
+        return (f"ContactData(pair={self.pair}, point={np.round(self.point, 6).tolist()}, "
+                f"normal={np.round(self.normal, 6).tolist()}, depth={self.depth:.6g})")
+
+
 @dataclass
 class Contacts:
     """Contacts of a query, one row per contact region.
+
+    Iterating (or indexing) gives one :class:`ContactData` per contact, with the bodies named by
+    ``names`` (by their indices where there are none).
 
     Attributes
     ----------
@@ -57,6 +97,8 @@ class Contacts:
         body has no record in the region).
     samples : (C,) int64
         Records in the region.
+    names : list or None
+        The query's body names.
     """
 
     pair: np.ndarray
@@ -66,15 +108,44 @@ class Contacts:
     face: np.ndarray
     deepest: np.ndarray
     samples: np.ndarray
+    names: list[Any] | None = None
 
     def __len__(self) -> int:
         return len(self.pair)
 
+    def _name(self, i: int) -> Any:
+        if self.names is None or self.names[i] is None:
+            return i
+        return self.names[i]
 
-def _empty() -> Contacts:
-    return Contacts(np.zeros((0, 2), np.int64), np.zeros((0, 3)), np.zeros((0, 3)),
-                    np.zeros(0), np.zeros((0, 2), np.int64), np.zeros((0, 2, 3)),
-                    np.zeros(0, np.int64))
+    def __getitem__(self, k: int) -> ContactData:
+        a, b = self.pair[k].tolist()
+        return ContactData((self._name(a), self._name(b)), self.point[k], self.normal[k],
+                           float(self.depth[k]), tuple(self.face[k].tolist()))
+
+    def __iter__(self) -> Iterator[ContactData]:
+        return (self[k] for k in range(len(self)))
+
+    def __repr__(self) -> str:
+        pairs = len(np.unique(pair_keys(self.pair[:, 0], self.pair[:, 1]))) if len(self) else 0
+        deepest = f", deepest {self.depth.max():.4g}" if len(self) else ""
+        return f"Contacts({len(self)} contacts over {pairs} pairs{deepest})"
+
+    @classmethod
+    def empty(cls) -> Contacts:
+        return cls(np.zeros((0, 2), np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0),
+                   np.zeros((0, 2), np.int64), np.zeros((0, 2, 3)), np.zeros(0, np.int64))
+
+    def restricted_to(self, pairs: np.ndarray) -> Contacts:
+        """The contacts of ``pairs`` ((K, 2) int, ``i < j``) only."""
+        if not len(self):
+            return self
+        keep = np.isin(pair_keys(self.pair[:, 0], self.pair[:, 1]),
+                       pair_keys(pairs[:, 0], pairs[:, 1]))
+        if keep.all():
+            return self
+        return Contacts(self.pair[keep], self.point[keep], self.normal[keep], self.depth[keep],
+                        self.face[keep], self.deepest[keep], self.samples[keep], self.names)
 
 
 def _components(key: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -140,14 +211,15 @@ def _width(region: np.ndarray, n: int, along: np.ndarray, from_a: np.ndarray) ->
 
 
 def reduce_contacts(result: CollisionResult) -> Contacts:
-    """One contact per contact region of every colliding pair in ``result``.
+    """One contact per contact region of every colliding pair in ``result``, from its records
+    as they are (:meth:`CollisionResult.contacts` runs the query again for all of them first).
 
     The result should come from a focused query with ``records="all"`` (with fewer records the
     contacts are those of the records found).
     """
     rec = result.records
     if len(rec) == 0 or result.scene is None or result.tiles is None:
-        return _empty()
+        return Contacts.empty()
     scene = result.scene
     a = np.minimum(rec["penetrating"], rec["penetrated"]).astype(np.int64)
     b = np.maximum(rec["penetrating"], rec["penetrated"]).astype(np.int64)

@@ -18,7 +18,7 @@ import numpy as np
 from .focused import FocusedStrategy
 from .gpu.device import get_gpu
 from .request import RECORD_MODES, CollisionRequest
-from .result import CollisionResult, Stats
+from .result import CollisionResult, Stats, remember_query
 from .scene import ShapeCache, prepare_scene
 from .view import View
 from .wholescene import SceneStrategy
@@ -98,6 +98,8 @@ class Detector:
                 raise ValueError("records per call applies to strategy='focused'")
             if records not in RECORD_MODES:
                 raise ValueError(f"records must be one of {RECORD_MODES}, got {records!r}")
+        if not isinstance(bodies, Sequence):
+            bodies = list(bodies)  # kept on the result, to run it again for contacts
         scene = prepare_scene(bodies, transforms, names=names, strict=self.request.strict,
                               cache=self.shapes, max_bodies=self.request.max_bodies)
         stats = Stats(strategy=self.request.strategy, adapter=self.gpu.description,
@@ -115,6 +117,8 @@ class Detector:
         else:
             result = self.strategy.run(scene, stats, groups, records)
         stats.wall_ms["total"] = (time.perf_counter() - t0) * 1e3
+        remember_query(result, self, bodies, transforms, names, groups,
+                       records or self.request.records)
         return result
 
 

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .contacts import reduce_contacts
+from .contacts import ContactData
 from .detector import Detector
 from .optional import require
 from .request import CollisionRequest
@@ -60,41 +60,6 @@ def _transform(transform: Any) -> np.ndarray:
     if t.shape != (4, 4):
         raise ValueError("transform must be (4,4)!")
     return t
-
-
-class ContactData:
-    """One contact region of a colliding pair, shaped like trimesh's ``ContactData``.
-
-    Attributes
-    ----------
-    names : set of str
-        The two object names.
-    pair : (str, str)
-        The names in order: ``normal`` points from the first object into the second.
-    point : (3,) float
-        A point on the intersection of the two objects.
-    normal : (3,) float
-        Unit contact normal.
-    depth : float
-        Penetration depth along the normal.
-    """
-
-    def __init__(self, pair: tuple[str, str], point: np.ndarray, normal: np.ndarray,
-                 depth: float, faces: tuple[int, int]) -> None:
-        self.pair = pair
-        self.names = set(pair)
-        self._inds = {pair[0]: int(faces[0]), pair[1]: int(faces[1])}
-        self.point = point
-        self.normal = normal
-        self.depth = float(depth)
-
-    def index(self, name: str) -> int:
-        """The face of object ``name`` at the contact (-1 where unknown)."""
-        return self._inds[name]
-
-    def __repr__(self) -> str:
-        return (f"ContactData(pair={self.pair}, point={np.round(self.point, 6).tolist()}, "
-                f"normal={np.round(self.normal, 6).tolist()}, depth={self.depth:.6g})")
 
 
 class DistanceData:
@@ -214,7 +179,7 @@ class CollisionManager:
         names = list(self._objs)
         result = self._query([self._objs[n] for n in names], names, None, return_data)
         pairs = {tuple(sorted((names[i], names[j]))) for i, j in result.pairs.tolist()}
-        data = self._contacts(result, names) if return_data else []
+        data = self._contacts(result) if return_data else []
         return _answer(bool(pairs), pairs, data, return_names, return_data)
 
     def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None,
@@ -227,7 +192,7 @@ class CollisionManager:
         result = self._query([self._objs[n] for n in names] + [probe], names + [EXTERNAL],
                              groups, return_data)
         found = {names[i] for i, j in result.pairs.tolist()}
-        data = self._contacts(result, names + [EXTERNAL]) if return_data else []
+        data = self._contacts(result) if return_data else []
         return _answer(bool(found), found, data, return_names, return_data)
 
     def in_collision_other(self, other_manager: CollisionManager, return_names: bool = False,
@@ -240,7 +205,7 @@ class CollisionManager:
         result = self._query(objs, mine + theirs, groups, return_data)
         k = len(mine)
         found = {(mine[i], theirs[j - k]) for i, j in result.pairs.tolist()}
-        data = self._contacts(result, mine + theirs) if return_data else []
+        data = self._contacts(result) if return_data else []
         return _answer(bool(found), found, data, return_names, return_data)
 
     # -- distances ------------------------------------------------------------------------------
@@ -309,11 +274,9 @@ class CollisionManager:
             names=labels, groups=groups, records="all" if contacts else "none")
 
     @staticmethod
-    def _contacts(result: CollisionResult, names: list[str]) -> list[ContactData]:
-        c = reduce_contacts(result)
-        return [ContactData((names[a], names[b]), c.point[k], c.normal[k], c.depth[k],
-                            tuple(c.face[k]))
-                for k, (a, b) in enumerate(c.pair.tolist())]
+    def _contacts(result: CollisionResult) -> list[ContactData]:
+        """The result's contacts, named by the labels the query was given."""
+        return list(result.contacts())
 
     def _min_distance(self, objs: Sequence[CollisionObject], labels: list[str],
                       groups: np.ndarray | None
@@ -355,7 +318,7 @@ class CollisionManager:
             involved = np.unique(concave)
             sub = self._query([objs[i] for i in involved], [labels[i] for i in involved],
                               None if groups is None else groups[involved], contacts=True)
-            contacts = reduce_contacts(sub)
+            contacts = sub.contacts()
             contacts.pair = involved[contacts.pair]  # back to indices into objs
         best: tuple[float, tuple[str, str], DistanceData] | None = None
         for a, b in pairs.tolist():
