@@ -45,7 +45,7 @@ def flake_mesh(size: float = FLAKE_SIZE) -> trimesh.Trimesh:
     return mesh
 
 
-def load_bunny(scan: bool = False, close_holes: bool = False, target_vertices: int = 8000
+def load_bunny(scan: bool = False, close_holes: bool = False, subdivisions: int = 1
                ) -> tuple[trimesh.Trimesh, str]:
     """The demo's bunny, scaled to about 0.6 across with its feet at y = 0, and a note on it."""
     if close_holes and not scan:
@@ -67,8 +67,8 @@ def load_bunny(scan: bool = False, close_holes: bool = False, target_vertices: i
             trimesh.repair.fix_normals(mesh)
             note = f"scanned bunny, holes closed (watertight: {mesh.is_watertight})"
     else:
-        mesh = bunny(decimate_to=target_vertices)
-        note = f"Stanford bunny decimated to {len(mesh.vertices)} vertices"
+        mesh = bunny(subdivisions)
+        note = f"Stanford bunny, {len(mesh.faces)} triangles"
     mesh = mesh.copy()
     mesh.apply_translation(-mesh.bounds.mean(axis=0))
     mesh.apply_scale(0.6 / mesh.extents.max())
