@@ -25,7 +25,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal, TypeVar, Union, overload
 
 import numpy as np
 
@@ -37,6 +37,16 @@ from .result import CollisionResult
 
 EXTERNAL = "__external"
 """The name trimesh gives the probe of ``in_collision_single`` and ``min_distance_single``."""
+
+NamePairs = set[tuple[str, str]]
+"""Colliding pairs by name, each sorted (``in_collision_internal``) or (this, other)
+(``in_collision_other``)."""
+NamePair = Union[tuple[str, str], tuple[None, None]]
+"""The two names a distance query reports, or ``(None, None)`` with no pair to measure."""
+_N = TypeVar("_N")
+CollisionAnswer = Union[bool, tuple[bool, _N], tuple[bool, list[ContactData]],
+                        tuple[bool, _N, list[ContactData]]]
+"""What ``in_collision_*`` returns, by ``return_names`` and ``return_data``, as trimesh's."""
 
 NO_DISTANCE = sys.float_info.max
 """What trimesh (python-fcl) returns as the distance when there is no pair to measure."""
@@ -72,7 +82,7 @@ class DistanceData:
         Distance between the objects; negative: they overlap by that much.
     """
 
-    def __init__(self, pair: tuple[str, str], distance: float, points: Sequence[np.ndarray],
+    def __init__(self, pair: tuple[str, str], distance: float, points: Sequence[Any],
                  faces: Sequence[int]) -> None:
         self.names = set(pair)
         self.distance = float(distance)
@@ -87,6 +97,11 @@ class DistanceData:
     def index(self, name: str) -> int:
         """The closest face of object ``name`` (-1 where unknown)."""
         return self._inds[name]
+
+
+DistanceAnswer = Union[float, tuple[float, _N], tuple[float, DistanceData | None],
+                       tuple[float, _N, DistanceData | None]]
+"""What ``min_distance_*`` returns, by ``return_names`` and ``return_data``, as trimesh's."""
 
 
 @dataclass
@@ -113,7 +128,7 @@ class CollisionObject:
         return w.min(axis=0), w.max(axis=0)
 
 
-def _answer(hit: bool, names: Any, data: Any, return_names: bool, return_data: bool) -> Any:
+def _answer(hit: bool | float, names: Any, data: Any, return_names: bool, return_data: bool) -> Any:
     if return_names and return_data:
         return hit, names, data
     if return_names:
@@ -172,8 +187,24 @@ class CollisionManager:
 
     # -- collisions -----------------------------------------------------------------------------
 
+    @overload
+    def in_collision_internal(self, return_names: Literal[False] = False,
+            return_data: Literal[False] = False) -> bool: ...
+    @overload
+    def in_collision_internal(self, *, return_names: Literal[True],
+            return_data: Literal[False] = False) -> tuple[bool, NamePairs]: ...
+    @overload
+    def in_collision_internal(self, *, return_names: Literal[False] = False,
+            return_data: Literal[True]) -> tuple[bool, list[ContactData]]: ...
+    @overload
+    def in_collision_internal(self, *, return_names: Literal[True],
+            return_data: Literal[True]) -> tuple[bool, NamePairs, list[ContactData]]: ...
+    @overload
+    def in_collision_internal(self, return_names: bool = False,
+            return_data: bool = False) -> CollisionAnswer[NamePairs]: ...
+
     def in_collision_internal(self, return_names: bool = False, return_data: bool = False
-                              ) -> Any:
+                              ) -> CollisionAnswer[NamePairs]:
         """Whether any two objects collide; optionally the set of sorted name pairs and the
         contacts."""
         names = list(self._objs)
@@ -182,8 +213,27 @@ class CollisionManager:
         data = self._contacts(result) if return_data else []
         return _answer(bool(pairs), pairs, data, return_names, return_data)
 
+    @overload
     def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None,
-                            return_names: bool = False, return_data: bool = False) -> Any:
+            return_names: Literal[False] = False, return_data: Literal[False] = False) -> bool: ...
+    @overload
+    def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None, *,
+            return_names: Literal[True],
+            return_data: Literal[False] = False) -> tuple[bool, set[str]]: ...
+    @overload
+    def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None, *,
+            return_names: Literal[False] = False,
+            return_data: Literal[True]) -> tuple[bool, list[ContactData]]: ...
+    @overload
+    def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None, *,
+            return_names: Literal[True],
+            return_data: Literal[True]) -> tuple[bool, set[str], list[ContactData]]: ...
+    @overload
+    def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None,
+            return_names: bool = False, return_data: bool = False) -> CollisionAnswer[set[str]]: ...
+
+    def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None,
+                            return_names: bool = False, return_data: bool = False) -> CollisionAnswer[set[str]]:
         """Whether ``mesh`` at ``transform`` collides with any object; optionally the set of
         their names and the contacts. One query, whatever the number of objects."""
         names = list(self._objs)
@@ -195,8 +245,25 @@ class CollisionManager:
         data = self._contacts(result) if return_data else []
         return _answer(bool(found), found, data, return_names, return_data)
 
+    @overload
+    def in_collision_other(self, other_manager: CollisionManager,
+            return_names: Literal[False] = False, return_data: Literal[False] = False) -> bool: ...
+    @overload
+    def in_collision_other(self, other_manager: CollisionManager, *, return_names: Literal[True],
+            return_data: Literal[False] = False) -> tuple[bool, NamePairs]: ...
+    @overload
+    def in_collision_other(self, other_manager: CollisionManager, *,
+            return_names: Literal[False] = False,
+            return_data: Literal[True]) -> tuple[bool, list[ContactData]]: ...
+    @overload
+    def in_collision_other(self, other_manager: CollisionManager, *, return_names: Literal[True],
+            return_data: Literal[True]) -> tuple[bool, NamePairs, list[ContactData]]: ...
+    @overload
     def in_collision_other(self, other_manager: CollisionManager, return_names: bool = False,
-                           return_data: bool = False) -> Any:
+            return_data: bool = False) -> CollisionAnswer[NamePairs]: ...
+
+    def in_collision_other(self, other_manager: CollisionManager, return_names: bool = False,
+                           return_data: bool = False) -> CollisionAnswer[NamePairs]:
         """Whether any object of this manager collides with any of ``other_manager``; optionally
         the set of (this name, other name) pairs and the contacts."""
         mine, theirs = list(self._objs), list(other_manager._objs)
@@ -210,8 +277,25 @@ class CollisionManager:
 
     # -- distances ------------------------------------------------------------------------------
 
+    @overload
+    def min_distance_internal(self, name: str | None = None, return_names: Literal[False] = False,
+            return_data: Literal[False] = False) -> float: ...
+    @overload
+    def min_distance_internal(self, name: str | None = None, *, return_names: Literal[True],
+            return_data: Literal[False] = False) -> tuple[float, NamePair]: ...
+    @overload
+    def min_distance_internal(self, name: str | None = None, *,
+            return_names: Literal[False] = False,
+            return_data: Literal[True]) -> tuple[float, DistanceData | None]: ...
+    @overload
+    def min_distance_internal(self, name: str | None = None, *, return_names: Literal[True],
+            return_data: Literal[True]) -> tuple[float, NamePair, DistanceData | None]: ...
+    @overload
     def min_distance_internal(self, name: str | None = None, return_names: bool = False,
-                              return_data: bool = False) -> Any:
+            return_data: bool = False) -> DistanceAnswer[NamePair]: ...
+
+    def min_distance_internal(self, name: str | None = None, return_names: bool = False,
+                              return_data: bool = False) -> DistanceAnswer[NamePair]:
         """Smallest distance between two objects (from object ``name``, if given); negative when
         objects overlap. Optionally the sorted names and a :class:`DistanceData`."""
         names = list(self._objs)
@@ -226,8 +310,27 @@ class CollisionManager:
             return _answer(distance, (None, None), None, return_names, return_data)
         return _answer(distance, tuple(sorted(pair)), data, return_names, return_data)
 
+    @overload
     def min_distance_single(self, mesh: Any, transform: np.ndarray | None = None,
-                            return_name: bool = False, return_data: bool = False) -> Any:
+            return_name: Literal[False] = False, return_data: Literal[False] = False) -> float: ...
+    @overload
+    def min_distance_single(self, mesh: Any, transform: np.ndarray | None = None, *,
+            return_name: Literal[True],
+            return_data: Literal[False] = False) -> tuple[float, str | None]: ...
+    @overload
+    def min_distance_single(self, mesh: Any, transform: np.ndarray | None = None, *,
+            return_name: Literal[False] = False,
+            return_data: Literal[True]) -> tuple[float, DistanceData | None]: ...
+    @overload
+    def min_distance_single(self, mesh: Any, transform: np.ndarray | None = None, *,
+            return_name: Literal[True],
+            return_data: Literal[True]) -> tuple[float, str | None, DistanceData | None]: ...
+    @overload
+    def min_distance_single(self, mesh: Any, transform: np.ndarray | None = None,
+            return_name: bool = False, return_data: bool = False) -> DistanceAnswer[str | None]: ...
+
+    def min_distance_single(self, mesh: Any, transform: np.ndarray | None = None,
+                            return_name: bool = False, return_data: bool = False) -> DistanceAnswer[str | None]:
         """Smallest distance between ``mesh`` at ``transform`` and any object; negative when it
         overlaps one. Optionally the closest object's name and a :class:`DistanceData`."""
         names = list(self._objs)
@@ -238,8 +341,25 @@ class CollisionManager:
         closest = None if pair is None else (pair[0] if pair[1] == EXTERNAL else pair[1])
         return _answer(distance, closest, data, return_name, return_data)
 
+    @overload
+    def min_distance_other(self, other_manager: CollisionManager,
+            return_names: Literal[False] = False, return_data: Literal[False] = False) -> float: ...
+    @overload
+    def min_distance_other(self, other_manager: CollisionManager, *, return_names: Literal[True],
+            return_data: Literal[False] = False) -> tuple[float, NamePair]: ...
+    @overload
+    def min_distance_other(self, other_manager: CollisionManager, *,
+            return_names: Literal[False] = False,
+            return_data: Literal[True]) -> tuple[float, DistanceData | None]: ...
+    @overload
+    def min_distance_other(self, other_manager: CollisionManager, *, return_names: Literal[True],
+            return_data: Literal[True]) -> tuple[float, NamePair, DistanceData | None]: ...
+    @overload
     def min_distance_other(self, other_manager: CollisionManager, return_names: bool = False,
-                           return_data: bool = False) -> Any:
+            return_data: bool = False) -> DistanceAnswer[NamePair]: ...
+
+    def min_distance_other(self, other_manager: CollisionManager, return_names: bool = False,
+                           return_data: bool = False) -> DistanceAnswer[NamePair]:
         """Smallest distance between an object of this manager and one of ``other_manager``;
         optionally the (this name, other name) pair and a :class:`DistanceData`."""
         mine, theirs = list(self._objs), list(other_manager._objs)
@@ -331,6 +451,7 @@ class CollisionManager:
                 # distance, exact for convex meshes.
                 d, data = self._fcl_signed(oa, ob, pair)
             else:
+                assert contacts is not None  # mine is not empty
                 k = mine[np.argmax(contacts.depth[mine])]
                 d = -float(contacts.depth[k])
                 points = [np.where(np.isnan(p), contacts.point[k], p) for p in contacts.deepest[k]]
