@@ -16,7 +16,10 @@ from .manager import CollisionManager, ContactData, DistanceData, scene_to_colli
 from .records import RECORD_DTYPE
 from .request import DEFAULT_RELATIVE_TOLERANCE, MAX_BODIES, CollisionRequest
 from .result import CollisionResult, FocusedStats, SceneStats, Stats
+from .quiet import quiet_native_probes
 from .view import View
+
+quiet_native_probes()  # before the first query makes wgpu's instance
 
 __version__ = "0.2.0"
 

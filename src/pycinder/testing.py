@@ -268,7 +268,7 @@ def bunny(subdivisions: int = 2) -> trimesh.Trimesh:
 def sample_mesh_path(name: str) -> Path:
     """A mesh from pymeshlab's bundled samples (``bunny10k_textured.obj``: the scanned bunny,
     open at the bottom, which the snow demo's ``--scan`` shows). Needs pymeshlab."""
-    require("pymeshlab", f"the sample mesh {name}", "demo")
+    require("pymeshlab", f"the sample mesh {name}", "scan")
     import pymeshlab
 
     path = Path(pymeshlab.__file__).parent / "tests" / "sample_meshes" / name
