@@ -291,3 +291,10 @@ def test_files_in_different_units_are_compared_as_they_are(tmp_path, capsys):
     captured = capsys.readouterr()
     assert "a.glb:left  <->  b.3mf:left" in captured.out  # the same coordinates, unconverted
     assert "different units (a.glb in meters, b.3mf in millimeter)" in captured.err
+
+
+def test_demo_prints_progress_while_it_runs(capsys):
+    assert main(["demo", "stairs", "--frames", "3", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "stairs: frame 1/3" in out and "stairs: frame 3/3" in out
+    assert "stairs: 3 frames" in out  # and the summary at the end

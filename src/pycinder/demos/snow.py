@@ -18,9 +18,10 @@ from ..detector import Detector
 from ..scene import OpenMeshWarning
 from ..testing import bunny, sample_mesh_path
 from .display import Layer, Look
-from .marks import pair_points
 
 FLAKE_SIZE = 0.025
+BUNNY_REACH, BUNNY_TOP = 0.4, 0.65
+"""The turning bunny stays within this distance of the y axis and below this height."""
 FLOOR = (2.4, 0.1, 2.4)
 DT = 1.0 / 30.0
 FPS = 30
@@ -98,18 +99,26 @@ class SnowSim:
         self.frozen: list[Frozen] = []
         self.spin = spin
         self.angle = 0.0
-        self.detector = Detector(tolerance=tolerance)
+        self.detector = Detector(tolerance=tolerance, records="all")  # for contacts()
         self.warnings: list[str] = []
 
     def bunny_transform(self) -> np.ndarray:
         return trimesh.transformations.rotation_matrix(self.angle, (0, 1, 0))
 
     def _spawn(self) -> None:
-        n = min(4, self.capacity - len(self.position) - len(self.frozen))
+        """Four new flakes a frame above the scene; on the first frame a third of them at
+        every height, so that flakes land from the first frames on."""
+        first = not len(self.position) and not self.frozen
+        n = min(max(self.capacity // 3, 4) if first else 4,
+                self.capacity - len(self.position) - len(self.frozen))
         if n <= 0:
             return
-        p = np.c_[self.rng.uniform(-0.45, 0.45, n), self.rng.uniform(1.0, 1.2, n),
+        p = np.c_[self.rng.uniform(-0.45, 0.45, n),
+                  self.rng.uniform(0.15 if first else 1.0, 1.2, n),
                   self.rng.uniform(-0.45, 0.45, n)]
+        # None starts inside the (turning) bunny: those over its footprint start above it.
+        over = (np.hypot(p[:, 0], p[:, 2]) < BUNNY_REACH) & (p[:, 1] < BUNNY_TOP)
+        p[over, 1] += BUNNY_TOP
         v = np.c_[self.rng.normal(0, 0.05, n), self.rng.uniform(-0.7, -0.5, n),
                   self.rng.normal(0, 0.05, n)]
         self.position = np.vstack([self.position, p])
@@ -121,9 +130,10 @@ class SnowSim:
         Returns
         -------
         dict
-            ``result``, ``ms`` (detection time), ``pairs`` (colliding flake-bunny and
-            flake-floor pairs), ``frozen_now``, ``marks`` ((pairs, 3) one contact point per
-            such pair), ``frozen_at``.
+            ``result``, ``ms`` (detection and contact time), ``pairs`` (colliding flake-bunny
+            and flake-floor pairs), ``frozen_now``, ``marks`` and ``normals`` ((C, 3) the
+            contacts of those pairs and their normals, from the bunny or floor into the flake),
+            ``frozen_at``.
         """
         self._spawn()
         self.angle += self.spin * DT
@@ -133,10 +143,14 @@ class SnowSim:
         flakes[:, :3, 3] = self.position
         bodies = [self.bunny, self.floor] + [self.flake] * len(self.position)
         transforms = np.concatenate([bt[None], self.floor_t[None], flakes])
+        # Flakes fall through each other, and the bunny stands in the floor: only flakes
+        # against the bunny and the floor are tested.
+        groups = np.r_[0, 0, np.ones(len(self.position), np.int64)]
         t0 = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", OpenMeshWarning)
-            result = self.detector.find_collisions(bodies, transforms)
+            result = self.detector.find_collisions(bodies, transforms, groups=groups)
+            contacts = result.contacts()
         self.warnings += [str(w.message) for w in caught if issubclass(w.category, OpenMeshWarning)]
         ms = (time.perf_counter() - t0) * 1e3
         pairs = result.pairs
@@ -154,9 +168,9 @@ class SnowSim:
         keep[list(stuck)] = False
         keep &= self.position[:, 1] > -0.5
         self.position, self.velocity = self.position[keep], self.velocity[keep]
-        marks = pair_points(result.records, hits, transforms[hits[:, 1], :3, 3])
         return {"result": result, "ms": ms, "pairs": len(hits), "frozen_now": len(stuck),
-                "marks": marks, "frozen_at": [flakes[k] for k in stuck]}
+                "marks": contacts.point, "normals": contacts.normal,
+                "frozen_at": [flakes[k] for k in stuck]}
 
     def frozen_world(self) -> np.ndarray:
         bt = self.bunny_transform()
