@@ -4,7 +4,8 @@ A record is a point of one body's surface (or near one of its edges) found insid
 For a pair ``(a, b)``:
 
 * **regions**: the pair's records joined when they lie in neighbouring cells of a grid four
-  tolerances wide (connected components);
+  tolerances wide (connected components); a fragment of a few records that lies within a larger
+  region's box (where a surface seen at a grazing angle is sampled thinly) joins that region;
 * **normal**: per region, the outward normals of ``a``'s surface inside ``b`` minus those of
   ``b``'s surface inside ``a``, summed over the area each surface record stands for (a pixel
   over the cosine of the face's angle to the tile's view) and normalised: it points from ``a``
@@ -36,6 +37,9 @@ from .result import CollisionResult
 
 CELL_TOLERANCES = 4.0
 """Grid cell of the region search, in tolerances: records closer than this join a region."""
+FRAGMENT_SAMPLES = 8
+"""A region of at most this many records inside a larger region's box joins it (see
+:func:`_absorb_fragments`)."""
 
 
 class ContactData:
@@ -194,6 +198,56 @@ def _packer(cells: np.ndarray):
     return pack
 
 
+def _absorb_fragments(region: np.ndarray, point: np.ndarray, pair: np.ndarray,
+                      cell: np.ndarray) -> np.ndarray:
+    """Regions renumbered after joining fragments to the region they belong to.
+
+    Where a surface is seen at a grazing angle its samples thin out, and a few of them can lie
+    more than a grid cell from the rest. A region of at most :data:`FRAGMENT_SAMPLES` records
+    whose centre lies in the box of a larger region of the same pair (grown by a grid cell)
+    joins the largest such region; regions of more records are never joined.
+
+    Parameters
+    ----------
+    region : (n,) int64
+        Region of each record, numbered from 0.
+    point : (n, 3) float64
+    pair : (n,) int64
+        Pair of each record.
+    cell : (n,) float64
+        Grid cell size at each record.
+
+    Returns
+    -------
+    (n,) int64
+        Region of each record, numbered from 0.
+    """
+    n = int(region.max()) + 1
+    count = np.bincount(region, minlength=n)
+    small = np.flatnonzero(count <= FRAGMENT_SAMPLES)
+    big = np.flatnonzero(count > FRAGMENT_SAMPLES)
+    if not len(small) or not len(big):
+        return region
+    pair_of = np.zeros(n, np.int64)
+    pair_of[region] = pair
+    pad = np.zeros(n)
+    np.maximum.at(pad, region, cell)
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    np.minimum.at(lo, region, point)
+    np.maximum.at(hi, region, point)
+    centre = 0.5 * (lo[small] + hi[small])
+    inside = (pair_of[small][:, None] == pair_of[big][None, :]) & \
+        (centre[:, None, :] >= lo[big][None] - pad[big][None, :, None]).all(axis=2) & \
+        (centre[:, None, :] <= hi[big][None] + pad[big][None, :, None]).all(axis=2)
+    score = np.where(inside, count[big][None, :], -1)
+    best = np.argmax(score, axis=1)
+    joins = score[np.arange(len(small)), best] >= 0
+    target = np.arange(n)
+    target[small[joins]] = big[best[joins]]
+    return np.unique(target[region], return_inverse=True)[1]
+
+
 def _width(region: np.ndarray, n: int, along: np.ndarray, from_a: np.ndarray) -> np.ndarray:
     """Per region, the overlap's width along a direction: how far ``a``'s records reach along
     it minus how far back ``b``'s reach; for a region with records of one body only (one body
@@ -255,8 +309,9 @@ def reduce_contacts(result: CollisionResult) -> Contacts:
     ukey, cell_of = np.unique(keys, return_inverse=True)
     ucells = cells[np.unique(cell_of, return_index=True)[1]]
     region_of_cell = _components(ukey, ucells)
-    region_id, region = np.unique(region_of_cell[cell_of], return_inverse=True)
-    n = len(region_id)
+    region = np.unique(region_of_cell[cell_of], return_inverse=True)[1]
+    region = _absorb_fragments(region, point, group, cell_size)
+    n = int(region.max()) + 1
     count = np.bincount(region, minlength=n)
     area = np.bincount(region, weight, n)
     summed = np.stack([np.bincount(region, signed[:, k] * weight, n) for k in range(3)], axis=1)
