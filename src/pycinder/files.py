@@ -311,21 +311,20 @@ def _check_glb(c: _Check, head: bytes) -> None:
     if binary is not None and 28 + json_length + binary > c.size:
         raise c.fail(f"its binary chunk claims {human_bytes(binary)}, more than the file "
                      "holds: it is truncated or damaged")
-    try:
-        doc = json.loads(text)
-    except ValueError as exc:
-        raise c.fail(f"could not parse its glTF JSON: {exc}") from None
-    _check_gltf_document(c, doc, binary)
+    _check_gltf_json(c, text, binary)
 
 
 def _check_gltf(c: _Check, head: bytes) -> None:
     with open(c.path, "rb") as f:
-        text = f.read()
+        _check_gltf_json(c, f.read(), None)
+
+
+def _check_gltf_json(c: _Check, text: bytes, binary_chunk: int | None) -> None:
     try:
         doc = json.loads(text)
     except ValueError as exc:
-        raise c.fail(f"could not parse it as glTF JSON: {exc}") from None
-    _check_gltf_document(c, doc, None)
+        raise c.fail(f"could not parse its glTF JSON: {exc}") from None
+    _check_gltf_document(c, doc, binary_chunk)
 
 
 def _check_3mf(c: _Check, head: bytes) -> None:
