@@ -119,3 +119,21 @@ def test_records_carry_pixels_and_normals_when_asked(options):
     assert np.allclose(np.linalg.norm(normal, axis=1), 1, atol=2e-3)
     outward = rec["point"] - centres[rec["penetrating"]]
     assert (np.einsum("ij,ij->i", normal, outward) > 0).all()
+
+
+def test_a_warning_comes_once_per_cause_not_per_frame():
+    """An open body in a loop of 5 frames, passed as the same mesh and as fresh arrays: one
+    warning for it, not one per frame."""
+    import warnings
+
+    box = trimesh.creation.box((1, 1, 1))
+    open_box = trimesh.Trimesh(box.vertices, box.faces[:-2], process=False)
+    ball = trimesh.creation.icosphere(radius=0.3)
+    det = pycinder.Detector()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for k in range(5):
+            det.find_collisions([open_box, ball])
+            det.find_collisions([(np.array(open_box.vertices), np.array(open_box.faces)), ball])
+    about = [w for w in caught if issubclass(w.category, pycinder.OpenMeshWarning)]
+    assert len(about) == 1, [str(w.message) for w in about]
