@@ -121,9 +121,10 @@ def test_records_carry_pixels_and_normals_when_asked(options):
     assert (np.einsum("ij,ij->i", normal, outward) > 0).all()
 
 
-def test_a_warning_comes_once_per_cause_not_per_frame():
-    """An open body in a loop of 5 frames, passed as the same mesh and as fresh arrays: one
-    warning for it, not one per frame."""
+@pytest.mark.parametrize("fresh_arrays", [False, True])
+def test_a_warning_comes_once_per_cause_not_per_frame(fresh_arrays):
+    """An open body in a loop of 5 frames, passed as the same mesh or as fresh arrays every
+    frame: one warning for it, not one per frame."""
     import warnings
 
     box = trimesh.creation.box((1, 1, 1))
@@ -132,8 +133,9 @@ def test_a_warning_comes_once_per_cause_not_per_frame():
     det = pycinder.Detector()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        for k in range(5):
-            det.find_collisions([open_box, ball])
-            det.find_collisions([(np.array(open_box.vertices), np.array(open_box.faces)), ball])
+        for _ in range(5):
+            body = (np.array(open_box.vertices), np.array(open_box.faces)) if fresh_arrays \
+                else open_box
+            det.find_collisions([body, ball])
     about = [w for w in caught if issubclass(w.category, pycinder.OpenMeshWarning)]
     assert len(about) == 1, [str(w.message) for w in about]
