@@ -40,6 +40,9 @@ class FocusedStats:
     undecided: int = 0
     """Samples whose pixel held more crossings than its list (retried with thinner boxes)."""
     retries: int = 0
+    dropped_records: int = 0
+    """Records found but not kept because they outnumber what one buffer of the device holds
+    (``records="all"`` at a fine tolerance); pairs are unaffected."""
     incomplete_records: int = 0
     """Reported pairs some of whose records may be missing (``records="all"``: a tile of theirs
     still undecided after retries); their contacts come from the records found."""
