@@ -204,7 +204,7 @@ def _extra(demo: Demo) -> dict[str, Any]:
         return {"descents (a sphere on all 11 steps)": sim.descents,
                 "sphere-sphere contacts resolved": sim.sphere_contacts}
     if demo.name == "snow-bunny":
-        extra = {"frozen flakes": len(sim.frozen)}
+        extra = {"flakes landed": sim.landed}
         if sim.warnings:
             extra["warning"] = sim.warnings[0]
         return extra

@@ -1,7 +1,8 @@
 """Snow Bunny (paper 5.2): snowflakes of 6 triangles fall on the Stanford bunny and a floor.
 
 A flake that hits freezes, is enlarged, and moves to a list that detection no longer checks; flakes
-frozen on the bunny turn with it. ``scan=True`` uses pymeshlab's scanned 10k bunny, which is open at
+frozen on the bunny turn with it. The scene holds at most ``flakes`` flakes: once it is full, the
+oldest frozen flakes melt as new ones fall, so that it snows for as long as the demo runs. ``scan=True`` uses pymeshlab's scanned 10k bunny, which is open at
 the bottom (the paper's hole problem): pycinder warns, and ``close_holes=True`` repairs it first.
 """
 
@@ -97,6 +98,8 @@ class SnowSim:
         self.position = np.zeros((0, 3))
         self.velocity = np.zeros((0, 3))
         self.frozen: list[Frozen] = []
+        self.landed = 0
+        """Flakes that have landed so far (the oldest frozen ones melt away)."""
         self.spin = spin
         self.angle = 0.0
         self.detector = Detector(tolerance=tolerance, records="all")  # for contacts()
@@ -106,13 +109,18 @@ class SnowSim:
         return trimesh.transformations.rotation_matrix(self.angle, (0, 1, 0))
 
     def _spawn(self) -> None:
-        """Four new flakes a frame above the scene; on the first frame a third of them at
-        every height, so that flakes land from the first frames on."""
-        first = not len(self.position) and not self.frozen
-        n = min(max(self.capacity // 3, 4) if first else 4,
-                self.capacity - len(self.position) - len(self.frozen))
+        """Four new flakes a frame above the scene, up to a third of ``flakes`` in the air; on
+        the first frame that third at every height, so that flakes land from the first frames
+        on."""
+        first = not len(self.position) and not self.landed
+        falling = max(self.capacity // 3, 4)  # at most this many in the air at once
+        n = min(falling if first else 4, falling - len(self.position))
         if n <= 0:
             return
+        # The scene holds at most `capacity` flakes: the oldest frozen ones melt to make room.
+        melt = len(self.position) + len(self.frozen) + n - self.capacity
+        if melt > 0:
+            del self.frozen[:melt]
         p = np.c_[self.rng.uniform(-0.45, 0.45, n),
                   self.rng.uniform(0.15 if first else 1.0, 1.2, n),
                   self.rng.uniform(-0.45, 0.45, n)]
@@ -158,6 +166,7 @@ class SnowSim:
         stuck = {}
         for target, flake in hits.tolist():
             stuck.setdefault(flake - 2, target)
+        self.landed += len(stuck)
         for k, target in stuck.items():
             t = flakes[k].copy()
             if target == 0:
