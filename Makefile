@@ -3,7 +3,6 @@
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
-export XDG_RUNTIME_DIR ?= /tmp
 export PYTHONUNBUFFERED := 1
 
 .PHONY: demo test venv lint bench clean

@@ -49,7 +49,7 @@ def write_manifest(path: Path, entries: list[dict]) -> Path:
 
 def expected_pairs(entries: list[dict], detector, base: Path | None = None) -> dict:
     """Each scene's pairs from a query of that scene alone, meshes read as the CLI reads them."""
-    from pycinder.cli import _load_meshes
+    from pycinder.files import display_name, load_file
 
     cache: dict[str, object] = {}
     out = {}
@@ -58,7 +58,8 @@ def expected_pairs(entries: list[dict], detector, base: Path | None = None) -> d
         for b in e["bodies"]:
             path = str(Path(base, b["mesh"])) if base else b["mesh"]
             if path not in cache:
-                cache[path] = _load_meshes([path])[0][0]
+                (body,) = load_file(path, display_name(path))  # one mesh per file here
+                cache[path] = body.mesh
             meshes.append(cache[path])
         transforms = np.array([b["transform"] for b in e["bodies"]])
         out[e["id"]] = detector.find_collisions(meshes, transforms).pairs.tolist()

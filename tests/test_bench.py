@@ -86,3 +86,15 @@ def test_missing_optional_packages_name_their_extra(monkeypatch, capsys):
     manager = pycinder.CollisionManager()
     with pytest.raises(ImportError, match=r"python-fcl: pip install 'pycinder\[distance\]'"):
         manager.min_distance_internal()
+
+
+def test_floor_times_the_first_query_and_the_least_a_query_costs():
+    """One fresh process on the backend this suite runs on: every figure measured, pycinder's
+    and python-fcl's side by side, and the report's table names the adapter."""
+    (row,) = runner.run_floor(calls=3, backends=(None,))
+    assert "error" not in row, row
+    assert row["import_ms"] > 0 and row["detector_ms"] > 0 and row["first_call_ms"] > 0
+    assert row["pycinder_ms"]["apart"] > 0 and row["pycinder_ms"]["touching"] > 0
+    assert row["python-fcl"]["ms"]["touching"] > 0
+    text = "\n".join(report.floor_table([row, {"backend": "Metal", "error": "no adapter"}]))
+    assert row["adapter"] in text and "| Metal | not available: no adapter |" in text

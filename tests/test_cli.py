@@ -1,15 +1,22 @@
-"""The pycinder command: exit codes, output, and the debug buffers of the paper's scene."""
+"""The pycinder command: exit codes, output, messages, scene files, hostile files, and the debug
+buffers of the paper's scene."""
 
 import json
+import os
+import struct
 import subprocess
 import sys
+import zipfile
 
+import numpy as np
 import pytest
 import trimesh
 
+from pycinder import Detector, __version__
 from pycinder.cli import main
 from pycinder.debug import BufferCapture, three_boxes
-from pycinder import Detector
+
+T = trimesh.transformations.translation_matrix
 
 
 @pytest.fixture(scope="module")
@@ -25,23 +32,32 @@ def files(tmp_path_factory):
     return d
 
 
+def run_cli(*args, env=None):
+    """``python -m pycinder ARGS`` in a fresh process: (exit status, stdout, stderr)."""
+    out = subprocess.run([sys.executable, "-m", "pycinder", *map(str, args)],
+                         capture_output=True, text=True, env=env)
+    return out.returncode, out.stdout, out.stderr
+
+
 def test_check_exit_codes(files, capsys):
     assert main(["check", str(files / "box.stl"), str(files / "ball.obj"), str(files / "far.ply")]) == 1
     assert "box.stl  <->  ball.obj" in capsys.readouterr().out
     assert main(["check", str(files / "box.stl"), str(files / "far.ply")]) == 0
     assert "no collisions" in capsys.readouterr().out
     assert main(["check", str(files / "missing.stl")]) == 2
-    assert "missing.stl" in capsys.readouterr().err
+    assert "missing.stl: no such file" in capsys.readouterr().err
 
 
 def test_check_json(files, capsys):
     code = main(["check", "--json", "--tolerance", "0.005", str(files / "box.stl"),
                  str(files / "ball.obj")])
-    data = json.loads(capsys.readouterr().out)
-    assert code == 1 and data["collision"] is True
+    captured = capsys.readouterr()
+    data = json.loads(captured.out)
+    assert code == 1 and data["collision"] is True and captured.err == ""
     assert [(p["a"], p["b"]) for p in data["pairs"]] == [("box.stl", "ball.obj")]
     assert data["pairs"][0]["samples"] > 0
     assert data["strategy"] == "focused" and data["tolerance"] == [0.005, 0.005]
+    assert data["warnings"] == [] and data["errors"] == []
     code = main(["check", "--json", "--strategy", "scene", "--resolution", "256",
                  str(files / "box.stl"), str(files / "ball.obj")])
     assert code == 1 and json.loads(capsys.readouterr().out)["resolution"] == 256
@@ -49,34 +65,194 @@ def test_check_json(files, capsys):
     assert "--strategy scene" in capsys.readouterr().err
 
 
-def test_check_bad_file_is_exit_2(tmp_path, capsys):
-    bad = tmp_path / "bad.stl"
-    bad.write_text("solid nothing\nendsolid\n")
-    assert main(["check", str(bad)]) == 2
+def test_json_carries_warnings_and_errors(tmp_path, files, capsys):
+    box = trimesh.creation.box((1, 1, 1))
+    trimesh.Trimesh(box.vertices, box.faces[:-2]).export(tmp_path / "open.stl")
+    assert main(["check", "--json", str(tmp_path / "open.stl"), str(files / "far.ply")]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    data = json.loads(captured.out)
+    assert data["errors"] == [] and len(data["warnings"]) == 1
+    assert data["warnings"][0]["category"] == "OpenMeshWarning"
+    assert "open.stl" in data["warnings"][0]["message"]
+    assert main(["check", "--json", str(tmp_path / "nothing.stl")]) == 2
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    data = json.loads(captured.out)
+    assert data["collision"] is None and data["errors"] == ["nothing.stl: no such file"]
+
+
+def test_messages_say_what_is_wrong(tmp_path, capsys):
+    garbage = tmp_path / "garbage.stl"
+    garbage.write_bytes(bytes(range(256)) * 3)
+    assert main(["check", str(garbage)]) == 2
+    assert "garbage.stl: could not parse it as STL" in capsys.readouterr().err
+    empty = tmp_path / "empty.stl"
+    empty.write_text("solid nothing\nendsolid\n")
+    assert main(["check", str(empty)]) == 2
+    assert "empty.stl: holds no triangles" in capsys.readouterr().err
     unknown = tmp_path / "part.step"
     unknown.write_text("ISO-10303-21;")
     assert main(["check", str(unknown)]) == 2
-    assert "unknown mesh format '.step'" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "unknown mesh format '.step'" in err
+    points = tmp_path / "cloud.xyz"  # trimesh reads point clouds; they are not meshes
+    points.write_text("0 0 0\n1 0 0\n0 1 0\n")
+    assert main(["check", str(points)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown mesh format '.xyz'" in err and ".xyz" not in err.split("formats read")[1]
+    folder = tmp_path / "parts"
+    folder.mkdir()
+    assert main(["check", str(folder)]) == 2
+    assert "parts: is a directory, not a mesh file" in capsys.readouterr().err
     nan = tmp_path / "nan.obj"
     nan.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\n")
     assert main(["check", str(nan)]) == 2
-    assert "nan.obj: 1 vertices are NaN" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "nan.obj: 1 vertex is NaN or infinite (first: vertex 4 on line 4, counting from 1" \
+        in err, err
 
 
-def test_check_open_mesh_names_the_cli_option(tmp_path, capsys):
+def test_strict_errors_do_not_advise_strict(tmp_path, capsys):
     box = trimesh.creation.box((1, 1, 1))
     trimesh.Trimesh(box.vertices, box.faces[:-2]).export(tmp_path / "open.stl")
     assert main(["check", str(tmp_path / "open.stl")]) == 0
     err = capsys.readouterr().err
-    assert "not a closed" in err and "--strict" in err and "strict=True" not in err
+    assert "not a closed" in err and "pass --strict" in err and "strict=True" not in err
     assert main(["check", "--strict", str(tmp_path / "open.stl")]) == 2
-    assert "--strict" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "open.stl" in err and "not a closed" in err and "strict" not in err, err
 
 
-def test_console_script_runs(files):
-    out = subprocess.run([sys.executable, "-m", "pycinder.cli", "check", str(files / "box.stl"),
-                          str(files / "ball.obj")], capture_output=True, text=True)
-    assert out.returncode == 1, out.stderr
+def two_overlapping_parts():
+    """One box geometry placed three times: "left" and "right" overlap by 0.5, "away" is far.
+    Only the instance transforms make them overlap."""
+    scene = trimesh.Scene()
+    box = trimesh.creation.box((1, 1, 1))
+    scene.add_geometry(box, node_name="left", geom_name="box")
+    scene.add_geometry(box, node_name="right", geom_name="box", transform=T((0.5, 0.2, 0)))
+    scene.add_geometry(box, node_name="away", geom_name="box", transform=T((5, 0, 0)))
+    return scene
+
+
+@pytest.mark.parametrize("ext", ["glb", "gltf", "3mf", "obj"])
+def test_scene_files_give_one_body_per_part(tmp_path, capsys, ext):
+    scene = two_overlapping_parts()
+    if ext == "gltf":  # a .gltf with its buffers in files beside it
+        for name, data in scene.export(file_type="gltf").items():
+            (tmp_path / name).write_bytes(data)
+        path = tmp_path / "model.gltf"
+    else:
+        path = tmp_path / f"parts.{ext}"
+        path.write_bytes(scene.export(file_type=ext).encode() if ext == "obj"
+                         else scene.export(file_type=ext))
+    assert main(["check", "--json", str(path)]) == 1
+    data = json.loads(capsys.readouterr().out)
+    stem = path.name
+    bodies = sorted(data["bodies"])
+    assert len(bodies) == 3 and all(b.startswith(f"{stem}:") for b in bodies), bodies
+    pairs = [(p["a"], p["b"]) for p in data["pairs"]]
+    assert len(pairs) == 1, pairs
+    a, b = pairs[0]
+    assert "away" not in a + b  # the far instance touches nothing
+    if ext != "obj":  # OBJ names objects after their geometry; the others keep node names
+        assert {a, b} == {f"{stem}:left", f"{stem}:right"}
+
+
+def test_file_names_with_any_bytes(tmp_path, files, capsys):
+    name = os.fsdecode(b"box-\xff\xfe.stl")
+    trimesh.creation.box((1, 1, 1)).export(os.path.join(str(tmp_path), name))
+    assert main(["check", os.path.join(str(tmp_path), name), str(files / "ball.obj")]) == 1
+    assert "box-\\xff\\xfe.stl  <->  ball.obj" in capsys.readouterr().out
+    assert main(["check", "--json", os.path.join(str(tmp_path), name)]) == 0
+    assert json.loads(capsys.readouterr().out)["bodies"] == ["box-\\xff\\xfe.stl"]
+
+
+def test_limits_are_checked_before_loading(tmp_path, files, capsys):
+    # An STL whose header claims 2**31 triangles, in 84 bytes.
+    claims = tmp_path / "claims.stl"
+    claims.write_bytes(b"\0" * 80 + struct.pack("<I", 2**31))
+    assert main(["check", str(claims)]) == 2
+    assert "claims 2,147,483,648 triangles" in capsys.readouterr().err
+    box = str(files / "box.stl")  # 12 triangles, 684 bytes
+    assert main(["check", "--max-triangles", "10", box]) == 2
+    err = capsys.readouterr().err
+    assert "box.stl: its header claims 12 triangles, over the limit of 10" in err
+    assert "--max-triangles" in err
+    assert main(["check", "--max-file-size", "600", box]) == 2
+    assert "box.stl: is 684 bytes, over the limit of 600 bytes (raise it with --max-file-size)" \
+        in capsys.readouterr().err
+    assert main(["check", "--max-file-size", "1K", "--max-triangles", "12", box]) == 0
+    capsys.readouterr()
+
+
+def test_bad_limit_values_are_usage_errors(files, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["check", "--max-file-size", "lots", str(files / "box.stl")])
+    assert exc.value.code == 2
+    assert "'lots' is not a size" in capsys.readouterr().err
+
+
+def test_archive_bombs_are_refused_before_unpacking(tmp_path, capsys):
+    # A 3MF package (a zip) whose model claims to unpack to 4 GiB ...
+    bomb = tmp_path / "bomb.3mf"
+    with zipfile.ZipFile(bomb, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("3D/3dmodel.model", b"<model/>")
+    data = bytearray(bomb.read_bytes())
+    central = data.rfind(b"PK\x01\x02")
+    data[central + 24:central + 28] = struct.pack("<I", 0xFFFF0000)  # declared size
+    bomb.write_bytes(bytes(data))
+    assert main(["check", str(bomb)]) == 2
+    assert "bomb.3mf: its package unpacks to 4 GiB, over the limit" in capsys.readouterr().err
+    # ... and one that really does unpack to far more than it weighs.
+    real = tmp_path / "zeros.3mf"
+    with zipfile.ZipFile(real, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("3D/3dmodel.model", b"\0" * (24 << 20))
+    assert real.stat().st_size < 100_000
+    assert main(["check", "--max-file-size", "16M", str(real)]) == 2
+    assert "zeros.3mf: its package unpacks to 24 MiB, over the limit of 16 MiB" \
+        in capsys.readouterr().err
+
+
+def test_gltf_claiming_huge_buffers_is_refused(tmp_path, capsys):
+    doc = json.dumps({"asset": {"version": "2.0"},
+                      "buffers": [{"byteLength": 10 * 2**30}]}).encode()
+    doc += b" " * (-len(doc) % 4)
+    binary = b"\0" * 8
+    glb = b"glTF" + struct.pack("<II", 2, 12 + 8 + len(doc) + 8 + len(binary)) + \
+        struct.pack("<I", len(doc)) + b"JSON" + doc + struct.pack("<I", len(binary)) + \
+        b"BIN\0" + binary
+    (tmp_path / "huge.glb").write_bytes(glb)
+    assert main(["check", str(tmp_path / "huge.glb")]) == 2
+    assert "huge.glb: buffer 0 claims 10 GiB, but the file's binary chunk holds 8 bytes" \
+        in capsys.readouterr().err
+
+
+def test_progress_bar_when_asked(files, capsys):
+    assert main(["check", "--progress", str(files / "box.stl"), str(files / "far.ply")]) == 0
+    captured = capsys.readouterr()
+    assert "no collisions" in captured.out and "loading" in captured.err
+
+
+def test_example_says_it_needs_pillow_before_writing(tmp_path, monkeypatch, capsys):
+    for module in ("PIL", "PIL.Image", "PIL.ImageDraw", "PIL.ImageFont"):
+        monkeypatch.setitem(sys.modules, module, None)
+    assert main(["example", "--out", str(tmp_path)]) == 2
+    assert "pillow" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+
+def test_python_m_pycinder_version_help_and_a_clean_stderr(files):
+    """``python -m pycinder`` works; a correct run prints nothing on stderr, even without
+    XDG_RUNTIME_DIR (on the backend this suite runs on: WGPU_BACKEND_TYPE is inherited)."""
+    code, out, err = run_cli("--version")
+    assert code == 0 and out.strip() == f"pycinder {__version__}"
+    code, out, err = run_cli("--help")
+    assert code == 0 and "``" not in out and out.startswith("usage: pycinder")
+    env = {k: v for k, v in os.environ.items() if k != "XDG_RUNTIME_DIR"}
+    code, out, err = run_cli("check", files / "box.stl", files / "ball.obj", env=env)
+    assert code == 1 and "box.stl  <->  ball.obj" in out
+    assert err == "", err
 
 
 def test_debug_buffers_writes_the_papers_figures(tmp_path):
@@ -105,3 +281,20 @@ def test_captured_buffers_follow_the_algorithm():
     ids = {tuple(sorted(p)) for p in filtered[..., :2].reshape(-1, 2).tolist() if p[0]}
     assert ids == {(1, 2), (2, 3)}                        # red-green, green-blue (Figure 13)
     assert (filtered[..., 0] != filtered[..., 1])[filtered[..., 0] > 0].all()
+
+
+def test_files_in_different_units_are_compared_as_they_are(tmp_path, capsys):
+    scene = two_overlapping_parts()
+    (tmp_path / "a.glb").write_bytes(scene.export(file_type="glb"))   # glTF: metres
+    (tmp_path / "b.3mf").write_bytes(scene.export(file_type="3mf"))   # 3MF: millimetres
+    assert main(["check", str(tmp_path / "a.glb"), str(tmp_path / "b.3mf")]) == 1
+    captured = capsys.readouterr()
+    assert "a.glb:left  <->  b.3mf:left" in captured.out  # the same coordinates, unconverted
+    assert "different units (a.glb in meters, b.3mf in millimeter)" in captured.err
+
+
+def test_demo_prints_progress_while_it_runs(capsys):
+    assert main(["demo", "stairs", "--frames", "3", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "stairs: frame 1/3" in out and "stairs: frame 3/3" in out
+    assert "stairs: 3 frames" in out  # and the summary at the end

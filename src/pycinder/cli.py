@@ -1,94 +1,135 @@
-"""The ``pycinder`` command.
+"""The ``pycinder`` command (also ``python -m pycinder``).
 
-    pycinder check FILE... [--tolerance T] [--strict] [--json]
-                     [--strategy scene [--resolution N]]   exit 0: no collision, 1: collisions, 2: error
-    pycinder debug-buffers [FILE...] --out DIR              PNGs of the buffers after each pass
-    pycinder demo {stairs,snow-bunny,normals} [--frames N] [--out FILE.mp4|FILE.gif|DIR] [--window]
+    pycinder check FILE... [--tolerance T] [--strict] [--json] [--max-file-size SIZE]
+                   [--max-triangles N] [--strategy scene [--resolution N]]
+    pycinder debug-buffers [FILE...] --out DIR
+    pycinder demo {stairs,snow-bunny,normals} [--frames N] [--out FILE.mp4|FILE.gif|DIR]
     pycinder bench [SCENE...] [--repeat N] [--peers ...] [--out DIR]
-                                                            timings against python-fcl, coal,
-                                                            trimesh and Warp, scored against
-                                                            exact geometry
-    pycinder example [--out DIR]                            the paper's three boxes: buffers and
-                                                            a labelled montage
+    pycinder example [--out DIR]
+
+``check`` exits 0 when nothing collides, 1 when something does and 2 on an error; every error
+names the file or body and what is wrong with it.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import os
+import re
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from . import __version__
+from .files import DEFAULT_MAX_BYTES, DEFAULT_MAX_TRIANGLES, Limits, human_bytes, parse_size
 
-def _load_meshes(files: Sequence[str]) -> tuple[list, list[str]]:
-    """Meshes from files, with what is wrong with a file named in the error."""
-    import trimesh
+DESCRIPTION = f"""\
+pycinder {__version__}: collision detection on the GPU for closed triangle meshes
+(CInDeR, an image-space interference test, on WebGPU)."""
 
-    formats = set(trimesh.available_formats())
-    meshes, names = [], []
-    for f in files:
-        path = Path(f)
-        if not path.exists():
-            raise FileNotFoundError(f"{f}: no such file")
-        suffixes = "".join(path.suffixes).lower().lstrip(".")
-        ext = path.suffix.lower().lstrip(".")
-        if ext not in formats and suffixes not in formats:
-            raise ValueError(f"{f}: unknown mesh format '.{ext}' (formats read: "
-                             f"{', '.join(sorted(formats))})")
-        try:
-            # process=False keeps vertices trimesh would silently drop (NaN); merge afterwards.
-            mesh = trimesh.load(path, force="mesh", process=False)
-        except Exception as exc:
-            raise ValueError(f"{f}: trimesh could not read it ({exc})") from exc
-        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-            raise ValueError(f"{f}: no triangles in this file")
-        bad = ~np.isfinite(np.asarray(mesh.vertices)).all(axis=1)
-        if bad.any():
-            raise ValueError(f"{f}: {int(bad.sum())} vertices are NaN or infinite (first: vertex "
-                             f"{int(np.flatnonzero(bad)[0])})")
-        mesh.merge_vertices()
-        meshes.append(mesh)
-        names.append(path.name)
-    if len(set(names)) < len(names):
-        names = [str(f) for f in files]
-    return meshes, names
+EPILOG = "Run 'pycinder COMMAND --help' for a command's options."
+
+CHECK_EPILOG = """\
+exit status: 0 no collision, 1 collisions, 2 error.
+Files are checked before they are loaded: at most --max-file-size bytes (also what a 3MF
+package unpacks to, or a glTF file's buffers) and --max-triangles triangles (as a header claims
+them). Coordinates are used as they are in each file: no unit conversion; --tolerance is in the
+files' units.
+"""
+
+
+def _cli_words(message: str, strict: bool) -> str:
+    """Library messages name the library's option; on the command line it is --strict, and
+    under --strict the advice to pass it is dropped."""
+    if strict:
+        return re.sub(r",?\s*or ask for strict checking to make this an error", "", message)
+    return message.replace("ask for strict checking", "pass --strict")
+
+
+def _warning_entry(w: warnings.WarningMessage, strict: bool) -> dict[str, str]:
+    return {"category": w.category.__name__, "message": _cli_words(str(w.message), strict)}
+
+
+@contextlib.contextmanager
+def _progress(enabled: bool | None, description: str
+              ) -> Iterator[Callable[[int, int, str], None]]:
+    """A rich progress bar on stderr (transient) while the block runs, shown when ``enabled``
+    (default: when stderr is a terminal and rich is installed). Yields ``update(done, total,
+    text)``."""
+    if enabled is None:
+        enabled = sys.stderr.isatty()
+    try:
+        from rich.console import Console
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    except ImportError:  # rich comes with the demo and bench extras
+        enabled = False
+    if not enabled:
+        yield lambda done, total, text: None
+        return
+    console = Console(file=sys.stderr, force_terminal=True)
+    with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
+                  console=console, transient=True) as bar:
+        task = bar.add_task(description, total=None)
+
+        def update(done: int, total: int, text: str) -> None:
+            bar.update(task, completed=done, total=total, description=text)
+
+        yield update
+
+
+def _limits(args: argparse.Namespace) -> Limits:
+    return Limits(max_bytes=args.max_file_size, max_triangles=args.max_triangles)
+
+
+def _load(args: argparse.Namespace, update: Callable[[int, int, str], None]) -> list:
+    from .files import load_bodies
+
+    steps = len(args.files) + 1
+    return load_bodies(args.files, _limits(args),
+                       progress=lambda k, n, label: update(k, steps, f"loading {label}"))
 
 
 def _detector_options(args: argparse.Namespace) -> dict:
     options: dict = {"strict": args.strict}
     if args.strategy == "scene":
+        if args.tolerance is not None:
+            raise ValueError("--tolerance sizes the focused strategy's pixels; --strategy scene "
+                             "has one image of --resolution pixels instead")
         options.update(strategy="scene", resolution=args.resolution or 1024)
     else:
         if args.resolution is not None:
             raise ValueError("--resolution sets the image of --strategy scene; the focused "
                              "strategy sizes its pixels by --tolerance")
         options["tolerance"] = args.tolerance
-    if args.strategy == "scene" and args.tolerance is not None:
-        raise ValueError("--tolerance sizes the focused strategy's pixels; --strategy scene "
-                         "has one image of --resolution pixels instead")
     return options
-
-
-def _strict_words(message: str) -> str:
-    """Messages name the library's option; on the command line it is --strict."""
-    return message.replace("ask for strict checking", "pass --strict")
 
 
 def cmd_check(args: argparse.Namespace) -> int:
     from .detector import Detector
     from .records import pair_keys
 
-    meshes, names = _load_meshes(args.files)
-    det = Detector(**_detector_options(args))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = det.find_collisions(meshes, names=names)
-    for w in caught:
-        print(f"warning: {_strict_words(str(w.message))}", file=sys.stderr)
+        try:
+            options = _detector_options(args)
+            with _progress(args.progress, "loading") as update:
+                bodies = _load(args, update)
+                names = [b.name for b in bodies]
+                update(len(args.files), len(args.files) + 1,
+                       f"checking {len(bodies)} bodies")
+                det = Detector(**options)
+                result = det.find_collisions([b.mesh for b in bodies],
+                                             np.array([b.transform for b in bodies]),
+                                             names=names)
+        except (ValueError, RuntimeError, OSError, TypeError, ImportError, MemoryError) as exc:
+            return _fail(args, str(exc), caught)
+    notes = [_warning_entry(w, args.strict) for w in caught]
     pairs = [(names[i], names[j]) for i, j in result.pairs.tolist()]
     st = result.stats
     if args.json:
@@ -100,13 +141,18 @@ def cmd_check(args: argparse.Namespace) -> int:
             "collision": bool(pairs),
             "pairs": [{"a": names[i], "b": names[j], "samples": per_pair.get(i << 32 | j, 0)}
                       for i, j in result.pairs.tolist()],
+            "bodies": names,
             "strategy": st.strategy,
             "tolerance": list(st.tolerance) if st.strategy == "focused" else None,
-            "resolution": args.resolution if st.strategy == "scene" else None,
-            "candidates": st.candidates,
+            "resolution": st.resolution[0] if st.strategy == "scene" else None,
+            "candidates": st.candidates if st.strategy == "focused" else None,
             "adapter": st.adapter,
+            "warnings": notes,
+            "errors": [],
         }, indent=2))
     else:
+        for note in notes:
+            print(f"warning: {note['message']}", file=sys.stderr)
         if pairs:
             for a, b in pairs:
                 print(f"{a}  <->  {b}")
@@ -115,12 +161,31 @@ def cmd_check(args: argparse.Namespace) -> int:
     return 1 if pairs else 0
 
 
+def _fail(args: argparse.Namespace, message: str, caught: list) -> int:
+    """Report an error (with the warnings before it) and return exit status 2."""
+    message = _cli_words(message, args.strict)
+    notes = [_warning_entry(w, args.strict) for w in caught]
+    if args.json:
+        print(json.dumps({"collision": None, "pairs": [], "warnings": notes,
+                          "errors": [message]}, indent=2))
+    else:
+        for note in notes:
+            print(f"warning: {note['message']}", file=sys.stderr)
+        print(f"pycinder: error: {message}", file=sys.stderr)
+    return 2
+
+
 def cmd_debug_buffers(args: argparse.Namespace) -> int:
     from .debug import write_debug_buffers
 
-    bodies = _load_meshes(args.files)[0] if args.files else None
+    bodies, transforms = None, None
+    if args.files:
+        with _progress(args.progress, "loading") as update:
+            loaded = _load(args, update)
+        bodies = [b.mesh for b in loaded]
+        transforms = np.array([b.transform for b in loaded])
     paths = write_debug_buffers(bodies, args.out, resolution=args.resolution,
-                                self_interference=args.self_interference)
+                                self_interference=args.self_interference, transforms=transforms)
     for p in paths:
         print(p)
     return 0
@@ -130,10 +195,17 @@ def cmd_example(args: argparse.Namespace) -> int:
     """Check the paper's three-box scene, write its debug buffers and their montage."""
     from .debug import three_boxes, write_debug_buffers
     from .detector import Detector
-    from .montage import write_montage
+    from .montage import pillow, write_montage
 
+    pillow()  # the montage needs it: say so before writing anything
     boxes, names, view = three_boxes()
-    result = Detector().find_collisions(boxes, names=names)
+    with _progress(args.progress, "example") as update:
+        update(0, 3, "checking the three boxes")
+        result = Detector().find_collisions(boxes, names=names)
+        update(1, 3, "capturing the buffers")
+        paths = write_debug_buffers(None, args.out, resolution=args.resolution)
+        update(2, 3, "drawing the montage")
+        montage = write_montage(Path(args.out) / "montage.png", resolution=args.resolution)
     print(f"three boxes ({', '.join(names)}), {result.stats.adapter}")
     for i, j in result.pairs.tolist():
         print(f"  {names[i]} <-> {names[j]}")
@@ -141,9 +213,8 @@ def cmd_example(args: argparse.Namespace) -> int:
     print(f"  focused: {st.candidates} candidate pairs, {st.tiles} tiles, {st.pixels} pixels, "
           f"tolerance {st.tolerance[0]:.3g}, {st.bytes_read} bytes read back, "
           f"{st.wall_ms['total']:.1f} ms")
-    for p in write_debug_buffers(None, args.out, resolution=args.resolution):
+    for p in paths:
         print(f"  wrote {p}")
-    montage = write_montage(Path(args.out) / "montage.png", resolution=args.resolution)
     print(f"  wrote {montage} (Figures 9-13 with a legend)")
     return 0
 
@@ -153,18 +224,17 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
     scenes = args.scenes or runner.DEFAULT_SCENES
     report.require_matplotlib()  # before a long run, not after it
-    try:
-        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-    except ImportError:  # pragma: no cover - rich comes with the bench extra
-        Progress = None
     options = {"repeat": args.repeat, "peers": args.peers, "soak_frames": args.soak_frames}
-    if Progress is not None:
-        with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn()) as bar:
-            task = bar.add_task("benchmarks", total=None)
-            results = runner.run(scenes, **options,
-                                 progress=lambda msg: bar.update(task, description=msg))
-    else:
-        results = runner.run(scenes, **options, progress=lambda msg: print(msg, flush=True))
+    enabled = args.progress
+    with _progress(enabled, "benchmarks") as update:
+        shown = enabled if enabled is not None else sys.stderr.isatty()
+
+        def note(msg: str) -> None:
+            update(0, 0, msg)
+            if not shown:
+                print(msg, flush=True)
+
+        results = runner.run(scenes, **options, progress=note)
     for p in report.write(results, args.out, stem=args.stem):
         print(f"wrote {p}")
     return 0
@@ -182,25 +252,76 @@ def cmd_demo(args: argparse.Namespace) -> int:
         run(args.name, frames=args.frames, **options)
         return 0
     frames = args.frames or 120
-    try:
-        from rich.progress import Progress
-    except ImportError:  # pragma: no cover - rich comes with the demo extra
-        run(args.name, frames=frames, **options)
-        return 0
-    with Progress(transient=True) as bar:
-        task = bar.add_task(args.name, total=frames)
-        run(args.name, frames=frames, progress=lambda k, n: bar.update(task, completed=k),
-            **options)
+    enabled = args.progress if args.progress is not None else sys.stderr.isatty()
+    if enabled:
+        with _progress(True, args.name) as update:
+            run(args.name, frames=frames, progress=lambda k, n: update(k, n, args.name),
+                **options)
+    else:
+        run(args.name, frames=frames, progress=_printed_progress(args.name), **options)
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="pycinder", description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = parser.add_subparsers(dest="command", required=True)
+def _printed_progress(name: str) -> Callable[[int, int], None]:
+    """Progress as a line on stdout about every tenth of the frames (for logs and pipes)."""
+    import time
 
-    p = sub.add_parser("check", help="print the interfering pairs among mesh files")
-    p.add_argument("files", nargs="+", metavar="FILE", help="meshes in world coordinates")
+    start = time.perf_counter()
+
+    def progress(done: int, total: int) -> None:
+        step = max(total // 10, 1)
+        if done == 1 or done % step == 0 or done == total:
+            print(f"{name}: frame {done}/{total}, {time.perf_counter() - start:.0f} s",
+                  flush=True)
+
+    return progress
+
+
+def _size(text: str) -> int:
+    try:
+        return parse_size(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _count(text: str) -> int:
+    try:
+        value = int(text.replace("_", "").replace(",", ""))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a positive number")
+    return value
+
+
+def _add_file_limits(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--max-file-size", type=_size, default=DEFAULT_MAX_BYTES, metavar="SIZE",
+                   help="largest file (and 3MF contents, glTF buffers) to load, e.g. 2G "
+                        f"(default {human_bytes(DEFAULT_MAX_BYTES)})")
+    p.add_argument("--max-triangles", type=_count, default=DEFAULT_MAX_TRIANGLES, metavar="N",
+                   help=f"most triangles a file may hold (default {DEFAULT_MAX_TRIANGLES:,})")
+
+
+def _add_progress(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="show a progress bar on stderr (default: when it is a terminal)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="pycinder", description=DESCRIPTION, epilog=EPILOG,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"pycinder {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                                title="commands")
+
+    p = sub.add_parser("check", help="print the pairs of bodies that collide among mesh files "
+                                     "(exit 0: none, 1: some, 2: error); scene files give one "
+                                     "body per part, named FILE:NODE",
+                       description="Print the pairs of bodies that collide among mesh files "
+                                   "(STL, OBJ, PLY, OFF, glTF/GLB, 3MF).",
+                       epilog=CHECK_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("files", nargs="+", metavar="FILE",
+                   help="meshes in world coordinates; scene files give one body per part")
     p.add_argument("--tolerance", type=float, default=None, metavar="T",
                    help="world units: pairs T apart are never reported, pairs overlapping by 2T "
                         "always are (default: 1%% of the smaller body's size, per pair)")
@@ -209,20 +330,27 @@ def build_parser() -> argparse.ArgumentParser:
                         "whole-scene image")
     p.add_argument("--resolution", type=int, default=None,
                    help="image size of --strategy scene (default 1024)")
-    p.add_argument("--json", action="store_true", help="print JSON")
+    p.add_argument("--json", action="store_true",
+                   help="print JSON on stdout, warnings and errors included")
     p.add_argument("--strict", action="store_true",
                    help="open, inside-out and zero-area meshes are errors")
+    _add_file_limits(p)
+    _add_progress(p)
     p.set_defaults(func=cmd_check)
 
-    p = sub.add_parser("debug-buffers", help="write PNGs of the buffers after each pass")
+    p = sub.add_parser("debug-buffers", help="write PNGs of the buffers after the paper's "
+                                             "passes 1-7 (three boxes, or your files)")
     p.add_argument("files", nargs="*", metavar="FILE",
                    help="meshes (default: the paper's three boxes, Figure 7)")
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--resolution", type=int, default=512)
     p.add_argument("--self-interference", default="filter", choices=["filter", "prevent", "offset"])
-    p.set_defaults(func=cmd_debug_buffers)
+    _add_file_limits(p)
+    _add_progress(p)
+    p.set_defaults(func=cmd_debug_buffers, strict=False, json=False)
 
-    p = sub.add_parser("demo", help="the paper's demos: stairs, snow-bunny, normals")
+    p = sub.add_parser("demo", help="the paper's demos, as a video or in a window: stairs, "
+                                    "snow-bunny, normals")
     p.add_argument("name", choices=["stairs", "snow-bunny", "normals"])
     p.add_argument("--frames", type=int, default=None,
                    help="frames to run (default 120 headless; a window runs until closed)")
@@ -235,14 +363,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--spheres", type=int, help="spheres (stairs, normals) or flakes (snow-bunny)")
     p.add_argument("--scan", action="store_true",
-                   help="snow-bunny: use the scanned bunny, which is open at the bottom")
+                   help="snow-bunny: use the scanned bunny, which is open at the bottom "
+                        "(needs pymeshlab: pip install 'pycinder[scan]')")
     p.add_argument("--close-holes", action="store_true",
                    help="snow-bunny with --scan: repair the holes first")
-    p.set_defaults(func=cmd_demo)
+    _add_progress(p)
+    p.set_defaults(func=cmd_demo, strict=False, json=False)
 
     p = sub.add_parser("bench", help="time pycinder against python-fcl, coal, trimesh and Warp")
     p.add_argument("scenes", nargs="*", metavar="SCENE",
-                   help="stairs, many, deforming, narrow, sweep-extent, sweep-bodies, "
+                   help="floor, stairs, many, deforming, narrow, sweep-extent, sweep-bodies, "
                         "sweep-triangles, sweep-tolerance, manager, contacts, modes, soak "
                         "(default: all; the soak alone takes several minutes)")
     p.add_argument("--repeat", type=int, default=5, help="frames timed per scene")
@@ -253,14 +383,17 @@ def build_parser() -> argparse.ArgumentParser:
                    help="frames of the memory soak (scene 'soak')")
     p.add_argument("--out", default="benchmarks/results", metavar="DIR")
     p.add_argument("--stem", default="results", help="file name stem of the JSON and Markdown")
-    p.set_defaults(func=cmd_bench)
+    _add_progress(p)
+    p.set_defaults(func=cmd_bench, strict=False, json=False)
 
     p = sub.add_parser("example", help="check the built-in three-box scene and write its buffers "
                                        "and a labelled montage of them (montage.png)")
     p.add_argument("--out", default="out/buffers", metavar="DIR")
     p.add_argument("--resolution", type=int, default=512)
-    p.set_defaults(func=cmd_example)
+    _add_progress(p)
+    p.set_defaults(func=cmd_example, strict=False, json=False)
     from .batch.cli import add_parser as add_batch_parser
+
     add_batch_parser(sub)
     return parser
 
@@ -270,9 +403,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     np.set_printoptions(suppress=True)
     try:
         return args.func(args)
-    except (ValueError, RuntimeError, FileNotFoundError, TypeError, ImportError) as exc:
-        print(f"pycinder: error: {_strict_words(str(exc))}", file=sys.stderr)
-        return 2
+    except BrokenPipeError:  # the reader went away (``pycinder check ... | head``)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
+    except (ValueError, RuntimeError, OSError, TypeError, ImportError, MemoryError) as exc:
+        return _fail(args, str(exc) or type(exc).__name__, [])
 
 
 if __name__ == "__main__":

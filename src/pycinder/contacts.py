@@ -4,7 +4,8 @@ A record is a point of one body's surface (or near one of its edges) found insid
 For a pair ``(a, b)``:
 
 * **regions**: the pair's records joined when they lie in neighbouring cells of a grid four
-  tolerances wide (connected components);
+  tolerances wide (connected components); a fragment of a few records that lies within a larger
+  region's box (where a surface seen at a grazing angle is sampled thinly) joins that region;
 * **normal**: per region, the outward normals of ``a``'s surface inside ``b`` minus those of
   ``b``'s surface inside ``a``, summed over the area each surface record stands for (a pixel
   over the cosine of the face's angle to the tile's view) and normalised: it points from ``a``
@@ -24,7 +25,9 @@ Everything is vectorised over all records of a query.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -34,11 +37,52 @@ from .result import CollisionResult
 
 CELL_TOLERANCES = 4.0
 """Grid cell of the region search, in tolerances: records closer than this join a region."""
+FRAGMENT_SAMPLES = 8
+"""A region of at most this many records inside a larger region's box joins it (see
+:func:`_absorb_fragments`)."""
+
+
+class ContactData:
+    """One contact region of a colliding pair, shaped like trimesh's ``ContactData``.
+
+    Attributes
+    ----------
+    names : set
+        The two object names.
+    pair : (name, name)
+        The names in order: ``normal`` points from the first object into the second.
+    point : (3,) float
+        A point on the intersection of the two objects.
+    normal : (3,) float
+        Unit contact normal.
+    depth : float
+        Penetration depth along the normal.
+    """
+
+    def __init__(self, pair: tuple[Any, Any], point: np.ndarray, normal: np.ndarray,
+                 depth: float, faces: tuple[int, int]) -> None:
+        self.pair = pair
+        self.names = set(pair)
+        self._inds = {pair[0]: int(faces[0]), pair[1]: int(faces[1])}
+        self.point = point
+        self.normal = normal
+        self.depth = float(depth)
+
+    def index(self, name: Any) -> int:
+        """The face of object ``name`` at the contact (-1 where unknown)."""
+        return self._inds[name]
+
+    def __repr__(self) -> str:
+        return (f"ContactData(pair={self.pair}, point={np.round(self.point, 6).tolist()}, "
+                f"normal={np.round(self.normal, 6).tolist()}, depth={self.depth:.6g})")
 
 
 @dataclass
 class Contacts:
     """Contacts of a query, one row per contact region.
+
+    Iterating (or indexing) gives one :class:`ContactData` per contact, with the bodies named by
+    ``names`` (by their indices where there are none).
 
     Attributes
     ----------
@@ -57,6 +101,8 @@ class Contacts:
         body has no record in the region).
     samples : (C,) int64
         Records in the region.
+    names : list or None
+        The query's body names.
     """
 
     pair: np.ndarray
@@ -66,15 +112,44 @@ class Contacts:
     face: np.ndarray
     deepest: np.ndarray
     samples: np.ndarray
+    names: list[Any] | None = None
 
     def __len__(self) -> int:
         return len(self.pair)
 
+    def _name(self, i: int) -> Any:
+        if self.names is None or self.names[i] is None:
+            return i
+        return self.names[i]
 
-def _empty() -> Contacts:
-    return Contacts(np.zeros((0, 2), np.int64), np.zeros((0, 3)), np.zeros((0, 3)),
-                    np.zeros(0), np.zeros((0, 2), np.int64), np.zeros((0, 2, 3)),
-                    np.zeros(0, np.int64))
+    def __getitem__(self, k: int) -> ContactData:
+        a, b = self.pair[k].tolist()
+        return ContactData((self._name(a), self._name(b)), self.point[k], self.normal[k],
+                           float(self.depth[k]), tuple(self.face[k].tolist()))
+
+    def __iter__(self) -> Iterator[ContactData]:
+        return (self[k] for k in range(len(self)))
+
+    def __repr__(self) -> str:
+        pairs = len(np.unique(pair_keys(self.pair[:, 0], self.pair[:, 1]))) if len(self) else 0
+        deepest = f", deepest {self.depth.max():.4g}" if len(self) else ""
+        return f"Contacts({len(self)} contacts over {pairs} pairs{deepest})"
+
+    @classmethod
+    def empty(cls) -> Contacts:
+        return cls(np.zeros((0, 2), np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0),
+                   np.zeros((0, 2), np.int64), np.zeros((0, 2, 3)), np.zeros(0, np.int64))
+
+    def restricted_to(self, pairs: np.ndarray) -> Contacts:
+        """The contacts of ``pairs`` ((K, 2) int, ``i < j``) only."""
+        if not len(self):
+            return self
+        keep = np.isin(pair_keys(self.pair[:, 0], self.pair[:, 1]),
+                       pair_keys(pairs[:, 0], pairs[:, 1]))
+        if keep.all():
+            return self
+        return Contacts(self.pair[keep], self.point[keep], self.normal[keep], self.depth[keep],
+                        self.face[keep], self.deepest[keep], self.samples[keep], self.names)
 
 
 def _components(key: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -123,6 +198,56 @@ def _packer(cells: np.ndarray):
     return pack
 
 
+def _absorb_fragments(region: np.ndarray, point: np.ndarray, pair: np.ndarray,
+                      cell: np.ndarray) -> np.ndarray:
+    """Regions renumbered after joining fragments to the region they belong to.
+
+    Where a surface is seen at a grazing angle its samples thin out, and a few of them can lie
+    more than a grid cell from the rest. A region of at most :data:`FRAGMENT_SAMPLES` records
+    whose centre lies in the box of a larger region of the same pair (grown by a grid cell)
+    joins the largest such region; regions of more records are never joined.
+
+    Parameters
+    ----------
+    region : (n,) int64
+        Region of each record, numbered from 0.
+    point : (n, 3) float64
+    pair : (n,) int64
+        Pair of each record.
+    cell : (n,) float64
+        Grid cell size at each record.
+
+    Returns
+    -------
+    (n,) int64
+        Region of each record, numbered from 0.
+    """
+    n = int(region.max()) + 1
+    count = np.bincount(region, minlength=n)
+    small = np.flatnonzero(count <= FRAGMENT_SAMPLES)
+    big = np.flatnonzero(count > FRAGMENT_SAMPLES)
+    if not len(small) or not len(big):
+        return region
+    pair_of = np.zeros(n, np.int64)
+    pair_of[region] = pair
+    pad = np.zeros(n)
+    np.maximum.at(pad, region, cell)
+    lo = np.full((n, 3), np.inf)
+    hi = np.full((n, 3), -np.inf)
+    np.minimum.at(lo, region, point)
+    np.maximum.at(hi, region, point)
+    centre = 0.5 * (lo[small] + hi[small])
+    inside = (pair_of[small][:, None] == pair_of[big][None, :]) & \
+        (centre[:, None, :] >= lo[big][None] - pad[big][None, :, None]).all(axis=2) & \
+        (centre[:, None, :] <= hi[big][None] + pad[big][None, :, None]).all(axis=2)
+    score = np.where(inside, count[big][None, :], -1)
+    best = np.argmax(score, axis=1)
+    joins = score[np.arange(len(small)), best] >= 0
+    target = np.arange(n)
+    target[small[joins]] = big[best[joins]]
+    return np.unique(target[region], return_inverse=True)[1]
+
+
 def _width(region: np.ndarray, n: int, along: np.ndarray, from_a: np.ndarray) -> np.ndarray:
     """Per region, the overlap's width along a direction: how far ``a``'s records reach along
     it minus how far back ``b``'s reach; for a region with records of one body only (one body
@@ -140,14 +265,15 @@ def _width(region: np.ndarray, n: int, along: np.ndarray, from_a: np.ndarray) ->
 
 
 def reduce_contacts(result: CollisionResult) -> Contacts:
-    """One contact per contact region of every colliding pair in ``result``.
+    """One contact per contact region of every colliding pair in ``result``, from its records
+    as they are (:meth:`CollisionResult.contacts` runs the query again for all of them first).
 
     The result should come from a focused query with ``records="all"`` (with fewer records the
     contacts are those of the records found).
     """
     rec = result.records
     if len(rec) == 0 or result.scene is None or result.tiles is None:
-        return _empty()
+        return Contacts.empty()
     scene = result.scene
     a = np.minimum(rec["penetrating"], rec["penetrated"]).astype(np.int64)
     b = np.maximum(rec["penetrating"], rec["penetrated"]).astype(np.int64)
@@ -183,8 +309,9 @@ def reduce_contacts(result: CollisionResult) -> Contacts:
     ukey, cell_of = np.unique(keys, return_inverse=True)
     ucells = cells[np.unique(cell_of, return_index=True)[1]]
     region_of_cell = _components(ukey, ucells)
-    region_id, region = np.unique(region_of_cell[cell_of], return_inverse=True)
-    n = len(region_id)
+    region = np.unique(region_of_cell[cell_of], return_inverse=True)[1]
+    region = _absorb_fragments(region, point, group, cell_size)
+    n = int(region.max()) + 1
     count = np.bincount(region, minlength=n)
     area = np.bincount(region, weight, n)
     summed = np.stack([np.bincount(region, signed[:, k] * weight, n) for k in range(3)], axis=1)

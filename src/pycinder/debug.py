@@ -167,9 +167,31 @@ class BufferCapture:
         return out
 
 
+DEPTH_NEAR, DEPTH_FAR = 0.3, 1.0
+"""Grey levels of the nearest and the farthest edge in a depth image."""
+
+
+def depth_image(depth: np.ndarray) -> np.ndarray:
+    """Depth after pass 1 ((H, W) float32, 0 where no edge was drawn) as (H, W, 3) uint8 grey.
+
+    A perspective depth buffer puts every edge close to 1, so the depths are stretched over the
+    range the edges span: the nearest edge grey :data:`DEPTH_NEAR`, the farthest white, no edge
+    black.
+    """
+    edge = depth > 0
+    grey = np.zeros(depth.shape, np.float64)
+    if edge.any():
+        lo, hi = float(depth[edge].min()), float(depth[edge].max())
+        t = (depth[edge] - lo) / (hi - lo) if hi > lo else np.ones(int(edge.sum()))
+        grey[edge] = DEPTH_NEAR + (DEPTH_FAR - DEPTH_NEAR) * t
+    return np.repeat(np.round(grey * 255).astype(np.uint8)[..., None], 3, axis=2)
+
+
 def to_image(name: str, data: np.ndarray) -> np.ndarray:
+    """A captured buffer as an (H, W, 3) uint8 image: depth as grey, stencil counts as colours,
+    records by body colour."""
     if name.endswith("depth"):
-        return np.repeat((np.clip(data, 0, 1) * 255).astype(np.uint8)[..., None], 3, axis=2)
+        return depth_image(data)
     if name.endswith("stencil"):
         return stencil_image(data)
     return record_image(data)

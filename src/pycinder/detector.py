@@ -21,7 +21,7 @@ from .errors import GpuError, GpuTimeoutError
 from .focused import FocusedStrategy
 from .gpu.device import get_gpu
 from .request import RECORD_MODES, CollisionRequest
-from .result import CollisionResult, Stats
+from .result import CollisionResult, Stats, remember_query
 from .scene import ShapeCache, prepare_scene
 from .view import View
 from .wholescene import SceneStrategy
@@ -131,11 +131,14 @@ class Detector:
         ...     handle(pending.result())
         ...     pending = following
         """
+        if not isinstance(bodies, Sequence):
+            bodies = list(bodies)  # kept on the result, to run it again for contacts
         with self._lock:  # one query at a time: the GPU buffers are the detector's own
             t0 = time.perf_counter()
             try:
                 return PendingQuery(self, self._submit(bodies, transforms, names, groups, view,
-                                                       records, t0), t0)
+                                                       records, t0), t0,
+                                    (bodies, transforms, names, groups, records))
             except (GpuTimeoutError, wgpu.GPUError) as exc:
                 raise self._recover(exc) from exc
 
@@ -153,13 +156,16 @@ class Detector:
             except (GpuTimeoutError, wgpu.GPUError) as exc:
                 raise self._recover(exc) from exc
 
-    def _finish(self, pending: Any, t0: float) -> CollisionResult:
+    def _finish(self, pending: Any, t0: float, query: tuple) -> CollisionResult:
         with self._lock:
             try:
                 result = pending.result()
             except (GpuTimeoutError, wgpu.GPUError) as exc:
                 raise self._recover(exc) from exc
             result.stats.wall_ms["total"] = (time.perf_counter() - t0) * 1e3
+            bodies, transforms, names, groups, records = query
+            remember_query(result, self, bodies, transforms, names, groups,
+                           records or self.request.records)
             return result
 
     def _submit(self, bodies: Sequence[Any], transforms: Any,
@@ -192,8 +198,8 @@ class Detector:
 class PendingQuery:
     """A query submitted with :meth:`Detector.submit`; :meth:`result` waits for it."""
 
-    def __init__(self, detector: Detector, pending: Any, t0: float) -> None:
-        self._detector, self._pending, self._t0 = detector, pending, t0
+    def __init__(self, detector: Detector, pending: Any, t0: float, query: tuple) -> None:
+        self._detector, self._pending, self._t0, self._query = detector, pending, t0, query
         self._result: CollisionResult | None = None
 
     @property
@@ -206,7 +212,7 @@ class PendingQuery:
         """The query's result, waiting for the GPU if it has not finished (at most the request's
         ``timeout`` per wait)."""
         if self._result is None:
-            self._result = self._detector._finish(self._pending, self._t0)
+            self._result = self._detector._finish(self._pending, self._t0, self._query)
         return self._result
 
 

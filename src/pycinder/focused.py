@@ -313,7 +313,7 @@ class FocusedStrategy:
         rec["edge"] = np.where(surface, -1, pack.edge_original[np.where(surface, 0, ident)])
         rec["face"] = np.where(surface, pack.face_original[np.where(surface, ident, 0)], -1)
         rec["view"] = tile + first_tile
-        rec["x"], rec["y"], rec["depth"] = u, v, z
+        rec["pixel_x"], rec["pixel_y"], rec["pixel_z"] = u, v, z
         rec["point"] = plan.to_world(tile, u + 0.5, v + 0.5, z)
         rec["normal"] = np.nan
         if self.request.encode == "normal":

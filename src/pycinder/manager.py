@@ -22,14 +22,16 @@ errors as trimesh's class (which runs python-fcl). What backs each answer:
 
 from __future__ import annotations
 
+import functools
 import sys
+import threading
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable, Literal, TypeVar, Union, cast, overload
 
 import numpy as np
 
-from .contacts import reduce_contacts
+from .contacts import ContactData
 from .detector import Detector
 from .optional import require
 from .request import CollisionRequest
@@ -37,6 +39,16 @@ from .result import CollisionResult
 
 EXTERNAL = "__external"
 """The name trimesh gives the probe of ``in_collision_single`` and ``min_distance_single``."""
+
+NamePairs = set[tuple[str, str]]
+"""Colliding pairs by name, each sorted (``in_collision_internal``) or (this, other)
+(``in_collision_other``)."""
+NamePair = Union[tuple[str, str], tuple[None, None]]
+"""The two names a distance query reports, or ``(None, None)`` with no pair to measure."""
+_N = TypeVar("_N")
+CollisionAnswer = Union[bool, tuple[bool, _N], tuple[bool, list[ContactData]],
+                        tuple[bool, _N, list[ContactData]]]
+"""What ``in_collision_*`` returns, by ``return_names`` and ``return_data``, as trimesh's."""
 
 NO_DISTANCE = sys.float_info.max
 """What trimesh (python-fcl) returns as the distance when there is no pair to measure."""
@@ -62,41 +74,6 @@ def _transform(transform: Any) -> np.ndarray:
     return t
 
 
-class ContactData:
-    """One contact region of a colliding pair, shaped like trimesh's ``ContactData``.
-
-    Attributes
-    ----------
-    names : set of str
-        The two object names.
-    pair : (str, str)
-        The names in order: ``normal`` points from the first object into the second.
-    point : (3,) float
-        A point on the intersection of the two objects.
-    normal : (3,) float
-        Unit contact normal.
-    depth : float
-        Penetration depth along the normal.
-    """
-
-    def __init__(self, pair: tuple[str, str], point: np.ndarray, normal: np.ndarray,
-                 depth: float, faces: tuple[int, int]) -> None:
-        self.pair = pair
-        self.names = set(pair)
-        self._inds = {pair[0]: int(faces[0]), pair[1]: int(faces[1])}
-        self.point = point
-        self.normal = normal
-        self.depth = float(depth)
-
-    def index(self, name: str) -> int:
-        """The face of object ``name`` at the contact (-1 where unknown)."""
-        return self._inds[name]
-
-    def __repr__(self) -> str:
-        return (f"ContactData(pair={self.pair}, point={np.round(self.point, 6).tolist()}, "
-                f"normal={np.round(self.normal, 6).tolist()}, depth={self.depth:.6g})")
-
-
 class DistanceData:
     """What a distance query found, shaped like trimesh's ``DistanceData``.
 
@@ -107,7 +84,7 @@ class DistanceData:
         Distance between the objects; negative: they overlap by that much.
     """
 
-    def __init__(self, pair: tuple[str, str], distance: float, points: Sequence[np.ndarray],
+    def __init__(self, pair: tuple[str, str], distance: float, points: Sequence[Any],
                  faces: Sequence[int]) -> None:
         self.names = set(pair)
         self.distance = float(distance)
@@ -122,6 +99,11 @@ class DistanceData:
     def index(self, name: str) -> int:
         """The closest face of object ``name`` (-1 where unknown)."""
         return self._inds[name]
+
+
+DistanceAnswer = Union[float, tuple[float, _N], tuple[float, DistanceData | None],
+                       tuple[float, _N, DistanceData | None]]
+"""What ``min_distance_*`` returns, by ``return_names`` and ``return_data``, as trimesh's."""
 
 
 @dataclass
@@ -148,7 +130,7 @@ class CollisionObject:
         return w.min(axis=0), w.max(axis=0)
 
 
-def _answer(hit: bool, names: Any, data: Any, return_names: bool, return_data: bool) -> Any:
+def _answer(hit: bool | float, names: Any, data: Any, return_names: bool, return_data: bool) -> Any:
     if return_names and return_data:
         return hit, names, data
     if return_names:
@@ -156,6 +138,21 @@ def _answer(hit: bool, names: Any, data: Any, return_names: bool, return_data: b
     if return_data:
         return hit, data
     return hit
+
+
+_Method = TypeVar("_Method", bound=Callable[..., Any])
+
+
+def _serialised(method: _Method) -> _Method:
+    """One call of a manager at a time, from any thread: its objects and its detector are
+    shared by every call."""
+
+    @functools.wraps(method)
+    def call(self: CollisionManager, *args: Any, **kwargs: Any) -> Any:
+        with self._lock:
+            return method(self, *args, **kwargs)
+
+    return cast(_Method, call)
 
 
 class CollisionManager:
@@ -177,9 +174,11 @@ class CollisionManager:
         self._request = CollisionRequest(**options)  # options checked now, not at first use
         self._detector_: Detector | None = None
         self._objs: dict[str, CollisionObject] = {}
+        self._lock = threading.RLock()
 
     # -- objects --------------------------------------------------------------------------------
 
+    @_serialised
     def add_object(self, name: str, mesh: Any, transform: np.ndarray | None = None
                    ) -> CollisionObject:
         """Add an object, or replace the one of the same name.
@@ -195,11 +194,13 @@ class CollisionManager:
         self._objs[name] = obj
         return obj
 
+    @_serialised
     def remove_object(self, name: str) -> None:
         if name not in self._objs:
             raise ValueError(f"{name} not in collision manager!")
         del self._objs[name]
 
+    @_serialised
     def set_transform(self, name: str, transform: np.ndarray) -> None:
         if name not in self._objs:
             raise ValueError(f"{name} not in collision manager!")
@@ -207,18 +208,55 @@ class CollisionManager:
 
     # -- collisions -----------------------------------------------------------------------------
 
+    @overload
+    def in_collision_internal(self, return_names: Literal[False] = False,
+            return_data: Literal[False] = False) -> bool: ...
+    @overload
+    def in_collision_internal(self, *, return_names: Literal[True],
+            return_data: Literal[False] = False) -> tuple[bool, NamePairs]: ...
+    @overload
+    def in_collision_internal(self, *, return_names: Literal[False] = False,
+            return_data: Literal[True]) -> tuple[bool, list[ContactData]]: ...
+    @overload
+    def in_collision_internal(self, *, return_names: Literal[True],
+            return_data: Literal[True]) -> tuple[bool, NamePairs, list[ContactData]]: ...
+    @overload
+    def in_collision_internal(self, return_names: bool = False,
+            return_data: bool = False) -> CollisionAnswer[NamePairs]: ...
+
+    @_serialised
     def in_collision_internal(self, return_names: bool = False, return_data: bool = False
-                              ) -> Any:
+                              ) -> CollisionAnswer[NamePairs]:
         """Whether any two objects collide; optionally the set of sorted name pairs and the
         contacts."""
         names = list(self._objs)
         result = self._query([self._objs[n] for n in names], names, None, return_data)
         pairs = {tuple(sorted((names[i], names[j]))) for i, j in result.pairs.tolist()}
-        data = self._contacts(result, names) if return_data else []
+        data = self._contacts(result) if return_data else []
         return _answer(bool(pairs), pairs, data, return_names, return_data)
 
+    @overload
     def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None,
-                            return_names: bool = False, return_data: bool = False) -> Any:
+            return_names: Literal[False] = False, return_data: Literal[False] = False) -> bool: ...
+    @overload
+    def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None, *,
+            return_names: Literal[True],
+            return_data: Literal[False] = False) -> tuple[bool, set[str]]: ...
+    @overload
+    def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None, *,
+            return_names: Literal[False] = False,
+            return_data: Literal[True]) -> tuple[bool, list[ContactData]]: ...
+    @overload
+    def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None, *,
+            return_names: Literal[True],
+            return_data: Literal[True]) -> tuple[bool, set[str], list[ContactData]]: ...
+    @overload
+    def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None,
+            return_names: bool = False, return_data: bool = False) -> CollisionAnswer[set[str]]: ...
+
+    @_serialised
+    def in_collision_single(self, mesh: Any, transform: np.ndarray | None = None,
+                            return_names: bool = False, return_data: bool = False) -> CollisionAnswer[set[str]]:
         """Whether ``mesh`` at ``transform`` collides with any object; optionally the set of
         their names and the contacts. One query, whatever the number of objects."""
         names = list(self._objs)
@@ -227,11 +265,29 @@ class CollisionManager:
         result = self._query([self._objs[n] for n in names] + [probe], names + [EXTERNAL],
                              groups, return_data)
         found = {names[i] for i, j in result.pairs.tolist()}
-        data = self._contacts(result, names + [EXTERNAL]) if return_data else []
+        data = self._contacts(result) if return_data else []
         return _answer(bool(found), found, data, return_names, return_data)
 
+    @overload
+    def in_collision_other(self, other_manager: CollisionManager,
+            return_names: Literal[False] = False, return_data: Literal[False] = False) -> bool: ...
+    @overload
+    def in_collision_other(self, other_manager: CollisionManager, *, return_names: Literal[True],
+            return_data: Literal[False] = False) -> tuple[bool, NamePairs]: ...
+    @overload
+    def in_collision_other(self, other_manager: CollisionManager, *,
+            return_names: Literal[False] = False,
+            return_data: Literal[True]) -> tuple[bool, list[ContactData]]: ...
+    @overload
+    def in_collision_other(self, other_manager: CollisionManager, *, return_names: Literal[True],
+            return_data: Literal[True]) -> tuple[bool, NamePairs, list[ContactData]]: ...
+    @overload
     def in_collision_other(self, other_manager: CollisionManager, return_names: bool = False,
-                           return_data: bool = False) -> Any:
+            return_data: bool = False) -> CollisionAnswer[NamePairs]: ...
+
+    @_serialised
+    def in_collision_other(self, other_manager: CollisionManager, return_names: bool = False,
+                           return_data: bool = False) -> CollisionAnswer[NamePairs]:
         """Whether any object of this manager collides with any of ``other_manager``; optionally
         the set of (this name, other name) pairs and the contacts."""
         mine, theirs = list(self._objs), list(other_manager._objs)
@@ -240,13 +296,31 @@ class CollisionManager:
         result = self._query(objs, mine + theirs, groups, return_data)
         k = len(mine)
         found = {(mine[i], theirs[j - k]) for i, j in result.pairs.tolist()}
-        data = self._contacts(result, mine + theirs) if return_data else []
+        data = self._contacts(result) if return_data else []
         return _answer(bool(found), found, data, return_names, return_data)
 
     # -- distances ------------------------------------------------------------------------------
 
+    @overload
+    def min_distance_internal(self, name: str | None = None, return_names: Literal[False] = False,
+            return_data: Literal[False] = False) -> float: ...
+    @overload
+    def min_distance_internal(self, name: str | None = None, *, return_names: Literal[True],
+            return_data: Literal[False] = False) -> tuple[float, NamePair]: ...
+    @overload
+    def min_distance_internal(self, name: str | None = None, *,
+            return_names: Literal[False] = False,
+            return_data: Literal[True]) -> tuple[float, DistanceData | None]: ...
+    @overload
+    def min_distance_internal(self, name: str | None = None, *, return_names: Literal[True],
+            return_data: Literal[True]) -> tuple[float, NamePair, DistanceData | None]: ...
+    @overload
     def min_distance_internal(self, name: str | None = None, return_names: bool = False,
-                              return_data: bool = False) -> Any:
+            return_data: bool = False) -> DistanceAnswer[NamePair]: ...
+
+    @_serialised
+    def min_distance_internal(self, name: str | None = None, return_names: bool = False,
+                              return_data: bool = False) -> DistanceAnswer[NamePair]:
         """Smallest distance between two objects (from object ``name``, if given); negative when
         objects overlap. Optionally the sorted names and a :class:`DistanceData`."""
         names = list(self._objs)
@@ -261,8 +335,28 @@ class CollisionManager:
             return _answer(distance, (None, None), None, return_names, return_data)
         return _answer(distance, tuple(sorted(pair)), data, return_names, return_data)
 
+    @overload
     def min_distance_single(self, mesh: Any, transform: np.ndarray | None = None,
-                            return_name: bool = False, return_data: bool = False) -> Any:
+            return_name: Literal[False] = False, return_data: Literal[False] = False) -> float: ...
+    @overload
+    def min_distance_single(self, mesh: Any, transform: np.ndarray | None = None, *,
+            return_name: Literal[True],
+            return_data: Literal[False] = False) -> tuple[float, str | None]: ...
+    @overload
+    def min_distance_single(self, mesh: Any, transform: np.ndarray | None = None, *,
+            return_name: Literal[False] = False,
+            return_data: Literal[True]) -> tuple[float, DistanceData | None]: ...
+    @overload
+    def min_distance_single(self, mesh: Any, transform: np.ndarray | None = None, *,
+            return_name: Literal[True],
+            return_data: Literal[True]) -> tuple[float, str | None, DistanceData | None]: ...
+    @overload
+    def min_distance_single(self, mesh: Any, transform: np.ndarray | None = None,
+            return_name: bool = False, return_data: bool = False) -> DistanceAnswer[str | None]: ...
+
+    @_serialised
+    def min_distance_single(self, mesh: Any, transform: np.ndarray | None = None,
+                            return_name: bool = False, return_data: bool = False) -> DistanceAnswer[str | None]:
         """Smallest distance between ``mesh`` at ``transform`` and any object; negative when it
         overlaps one. Optionally the closest object's name and a :class:`DistanceData`."""
         names = list(self._objs)
@@ -273,8 +367,26 @@ class CollisionManager:
         closest = None if pair is None else (pair[0] if pair[1] == EXTERNAL else pair[1])
         return _answer(distance, closest, data, return_name, return_data)
 
+    @overload
+    def min_distance_other(self, other_manager: CollisionManager,
+            return_names: Literal[False] = False, return_data: Literal[False] = False) -> float: ...
+    @overload
+    def min_distance_other(self, other_manager: CollisionManager, *, return_names: Literal[True],
+            return_data: Literal[False] = False) -> tuple[float, NamePair]: ...
+    @overload
+    def min_distance_other(self, other_manager: CollisionManager, *,
+            return_names: Literal[False] = False,
+            return_data: Literal[True]) -> tuple[float, DistanceData | None]: ...
+    @overload
+    def min_distance_other(self, other_manager: CollisionManager, *, return_names: Literal[True],
+            return_data: Literal[True]) -> tuple[float, NamePair, DistanceData | None]: ...
+    @overload
     def min_distance_other(self, other_manager: CollisionManager, return_names: bool = False,
-                           return_data: bool = False) -> Any:
+            return_data: bool = False) -> DistanceAnswer[NamePair]: ...
+
+    @_serialised
+    def min_distance_other(self, other_manager: CollisionManager, return_names: bool = False,
+                           return_data: bool = False) -> DistanceAnswer[NamePair]:
         """Smallest distance between an object of this manager and one of ``other_manager``;
         optionally the (this name, other name) pair and a :class:`DistanceData`."""
         mine, theirs = list(self._objs), list(other_manager._objs)
@@ -309,11 +421,9 @@ class CollisionManager:
             names=labels, groups=groups, records="all" if contacts else "none")
 
     @staticmethod
-    def _contacts(result: CollisionResult, names: list[str]) -> list[ContactData]:
-        c = reduce_contacts(result)
-        return [ContactData((names[a], names[b]), c.point[k], c.normal[k], c.depth[k],
-                            tuple(c.face[k]))
-                for k, (a, b) in enumerate(c.pair.tolist())]
+    def _contacts(result: CollisionResult) -> list[ContactData]:
+        """The result's contacts, named by the labels the query was given."""
+        return list(result.contacts())
 
     def _min_distance(self, objs: Sequence[CollisionObject], labels: list[str],
                       groups: np.ndarray | None
@@ -355,7 +465,7 @@ class CollisionManager:
             involved = np.unique(concave)
             sub = self._query([objs[i] for i in involved], [labels[i] for i in involved],
                               None if groups is None else groups[involved], contacts=True)
-            contacts = reduce_contacts(sub)
+            contacts = sub.contacts()
             contacts.pair = involved[contacts.pair]  # back to indices into objs
         best: tuple[float, tuple[str, str], DistanceData] | None = None
         for a, b in pairs.tolist():
@@ -368,6 +478,7 @@ class CollisionManager:
                 # distance, exact for convex meshes.
                 d, data = self._fcl_signed(oa, ob, pair)
             else:
+                assert contacts is not None  # mine is not empty
                 k = mine[np.argmax(contacts.depth[mine])]
                 d = -float(contacts.depth[k])
                 points = [np.where(np.isnan(p), contacts.point[k], p) for p in contacts.deepest[k]]

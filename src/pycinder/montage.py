@@ -15,14 +15,15 @@ from typing import Any
 
 import numpy as np
 
-from .debug import BufferCapture, id_colours, png_bytes, stencil_image, three_boxes, to_image
+from .debug import (DEPTH_FAR, DEPTH_NEAR, BufferCapture, id_colours, png_bytes, stencil_image,
+                    three_boxes, to_image)
 from .detector import Detector
 from .optional import require
 from .view import View
 
 PANELS = (
     ("pass1_depth", "Figure 9b: depth after pass 1",
-     "edges drawn with depth written (brighter: farther)"),
+     "edges drawn with depth written (brighter: farther, stretched)"),
     ("pass2_stencil", "Figure 10: stencil after pass 2",
      "+1 per front face in front of an edge pixel"),
     ("pass3_stencil", "Figure 11: stencil after pass 3",
@@ -87,7 +88,8 @@ def legend_entries() -> list[tuple[str, list[tuple[tuple[int, int, int], str]]]]
     mix = (id_colours(np.array([1, 2])).astype(int).sum(axis=0) // 2,
            id_colours(np.array([2, 3])).astype(int).sum(axis=0) // 2)
     stencil = stencil_image(np.array([1, 2, 3, 255, 254, 253], np.uint32))
-    grey = [np.full(3, int(v * 255)) for v in (0.25, 0.5, 0.75, 1.0)]
+    levels = np.linspace(DEPTH_NEAR, DEPTH_FAR, 3)
+    grey = [np.full(3, int(round(v * 255))) for v in levels]
     black = np.zeros(3, int)
     return [
         ("Colour (Figures 12, 13, filtered):",
@@ -98,7 +100,7 @@ def legend_entries() -> list[tuple[str, list[tuple[tuple[int, int, int], str]]]]
          [(stencil[k], f"+{k + 1}") for k in range(3)] +
          [(stencil[3 + k], f"-{k + 1}") for k in range(3)] + [(black, "0")]),
         ("Depth (Figure 9b):",
-         [(grey[k], f"{v}") for k, v in enumerate((0.25, 0.5, 0.75, 1.0))] +
+         [(grey[0], "nearest edge"), (grey[1], "halfway"), (grey[2], "farthest edge")] +
          [(black, "no edge (cleared to 0)")]),
     ]
 

@@ -33,26 +33,49 @@ RECORD_DTYPE = np.dtype([
     ("face", np.int32),
     ("normal", np.float32, (3,)),
     ("view", np.int32),
-    ("x", np.int32),
-    ("y", np.int32),
-    ("depth", np.float32),
+    ("pixel_x", np.int32),
+    ("pixel_y", np.int32),
+    ("pixel_z", np.float32),
 ])
-"""One row per collision sample.
+"""One row per collision sample: a point of one body (on an edge, or on its surface) found
+inside another body.
 
-point : world-space point that was found inside the penetrated body (a pixel centre at the depth
-    of the penetrating edge: within half a pixel's diagonal of that edge)
-penetrating : index of the body whose edge lies inside the other
-penetrated : index of the body the edge lies in
-edge : index of that edge among the penetrating body's unique edges (``topology.edges``), or -1
-    for a surface sample
-face : focused strategy, surface samples: the penetrating body's face (index into its faces)
-    whose point lies inside the penetrated body; -1 for edge samples
-normal : with ``encode="normal"``, the world-space normal of the edge (mean of its two faces) or
-    of the face; else NaN
-view : scene strategy: index of the view; focused strategy: index of the tile
-x, y : pixel column and row in that view or tile (row 0 at the top)
-depth : scene strategy: depth of the edge's fragment, 0 at the near plane and 1 at the far plane;
-    focused strategy: depth along the tile's view direction, in pixels from the tile's box centre
+A record is a *sample*, not a contact: a pair has as many records as the pixels that found it.
+For one contact per contact region, with its normal and penetration depth, use
+:meth:`CollisionResult.contacts() <pycinder.CollisionResult.contacts>`.
+
+point : (3,) float64
+    World-space point found inside the penetrated body: a pixel centre at the depth where the
+    penetrating body's edge or face crosses it, so within half a pixel's diagonal of that edge
+    or face.
+penetrating : int32
+    Index of the body whose edge or surface lies inside the other.
+penetrated : int32
+    Index of the body it lies in.
+edge : int32
+    Index of that edge among the penetrating body's unique edges (``topology.edges``;
+    :meth:`CollisionResult.edge_vertices` gives its two vertices), or -1 for a surface sample
+    and for the scene strategy with ``encode="normal"``.
+face : int32
+    Focused strategy, surface samples: the penetrating body's face (an index into the faces it
+    was given) whose point lies inside the penetrated body; -1 for edge samples.
+normal : (3,) float32
+    Filled whenever normals are asked for (``encode="normal"``), on every record of either
+    strategy: the world-space unit outward normal of the penetrating body there (of the face for
+    a surface sample; of the edge, the mean of its two faces' normals, for an edge sample). NaN
+    when normals are not asked for. It is the penetrating surface's own normal, not a contact
+    normal between the two bodies.
+view : int32
+    Which image the sample was found in: focused strategy, the index of its tile
+    (``result.tiles``); scene strategy, the index of its view (``result.views``).
+pixel_x, pixel_y : int32
+    The pixel's column and row in that tile or view (row 0 at the top).
+pixel_z : float32
+    The sample's third screen coordinate in that tile or view. Focused strategy: its distance
+    along the tile's view direction from the tile's box centre, in pixel widths (so a few
+    hundred in a long tile; ``result.tiles.to_world(view, pixel_x + 0.5, pixel_y + 0.5,
+    pixel_z)`` gives ``point``). Scene strategy: the depth-buffer value, 0 at the near plane and
+    1 at the far plane. Neither is a penetration depth.
 """
 
 
@@ -79,9 +102,9 @@ def scene_records(pixel: np.ndarray, pen_id: np.ndarray, pend_id: np.ndarray,
     pixel, pen_id, pend_id, depth_bits, payload = (
         a[order] for a in (pixel, pen_id, pend_id, depth_bits, payload))
     rec = np.zeros(len(pixel), dtype=RECORD_DTYPE)
-    rec["x"] = pixel % width
-    rec["y"] = pixel // width
-    rec["depth"] = depth_bits.astype(np.uint32).view(np.float32)
+    rec["pixel_x"] = pixel % width
+    rec["pixel_y"] = pixel // width
+    rec["pixel_z"] = depth_bits.astype(np.uint32).view(np.float32)
     rec["penetrating"] = pen_id.astype(np.int64) - 1
     rec["penetrated"] = pend_id.astype(np.int64) - 1
     rec["view"] = view_index

@@ -1,9 +1,10 @@
-"""What a query returns: the colliding pairs, the per-sample records, and what it cost."""
+"""What a query returns: the colliding pairs, the per-sample records, their contacts, and what it
+cost."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -11,23 +12,16 @@ import numpy as np
 from .records import RECORD_DTYPE
 
 if TYPE_CHECKING:
+    from .contacts import Contacts
     from .scene import Scene
     from .tiles import TilePlan
     from .view import View
 
 
 @dataclass
-class Stats:
-    """What a query did and what it cost.
+class FocusedStats:
+    """What the focused strategy did: its tiles and passes."""
 
-    Counts are for the whole query; ``wall_ms`` has the wall time of each stage and ``gpu_ms`` the
-    GPU time of each pass when the request asked for profiling.
-    """
-
-    strategy: str = "focused"
-    adapter: str = ""
-    bodies: int = 0
-    # focused strategy
     tolerance: tuple[float, float] = (0.0, 0.0)
     """Smallest and largest tolerance over the candidate pairs (they differ when it is relative)."""
     candidates: int = 0
@@ -46,16 +40,21 @@ class Stats:
     undecided: int = 0
     """Samples whose pixel held more crossings than its list (retried with thinner boxes)."""
     retries: int = 0
-    possibly_lost: int = 0
-    """Pairs that may have been dropped (undecided after retries, or a lossy readback): 0 means
-    nothing was lost."""
+    submitted_ms: float = 0.0
+    """Host milliseconds from the query's start to its first submission (validation excluded):
+    the work the host does before the GPU can start."""
     dropped_records: int = 0
     """Records found but not kept because they outnumber what one buffer of the device holds
     (``records="all"`` at a fine tolerance); pairs are unaffected."""
     incomplete_records: int = 0
     """Reported pairs some of whose records may be missing (``records="all"``: a tile of theirs
     still undecided after retries); their contacts come from the records found."""
-    # scene strategy
+
+
+@dataclass
+class SceneStats:
+    """What the scene strategy (the paper's whole-scene image) did."""
+
     resolution: tuple[int, int] = (0, 0)
     readback: str = ""
     self_interference: str = ""
@@ -65,23 +64,150 @@ class Stats:
     unidentified_pixels: int = 0
     """Pixels with a non-zero count that no single body claimed (blanked)."""
     mip_level: int = 0
-    # both
+
+
+_DETAIL = {"focused": FocusedStats, "scene": SceneStats}
+_DETAIL_FIELDS = {name: {f.name for f in fields(cls)} for name, cls in _DETAIL.items()}
+
+
+@dataclass
+class Stats:
+    """What a query did and what it cost.
+
+    The fields below are common to both strategies; ``detail`` holds the strategy's own
+    (:class:`FocusedStats` or :class:`SceneStats`), and its fields read and write as attributes
+    of the stats themselves (``stats.tiles``, ``stats.resolution``). Reading a field of the
+    other strategy raises an AttributeError that says so. ``wall_ms`` has the wall time of each
+    stage and ``gpu_ms`` the GPU time of each pass when the request asked for profiling.
+    """
+
+    strategy: str = "focused"
+    adapter: str = ""
+    bodies: int = 0
     records: int = 0
     bytes_read: int = 0
     uploaded_vertex_bytes: int = 0
     reruns: int = 0
     """Frames run again because a buffer had to grow."""
-    submitted_ms: float = 0.0
-    """Focused strategy: host milliseconds from the query's start to its first submission
-    (validation excluded): the work the host does before the GPU can start."""
+    possibly_lost: int = 0
+    """Pairs that may have been dropped (undecided after retries, or a lossy readback): 0 means
+    nothing was lost."""
     wall_ms: dict[str, float] = field(default_factory=dict)
     gpu_ms: dict[str, float] = field(default_factory=dict)
+    detail: FocusedStats | SceneStats = field(init=False)
+
+    def __post_init__(self) -> None:
+        if self.strategy not in _DETAIL:
+            raise ValueError(f"strategy must be one of {tuple(_DETAIL)}, got {self.strategy!r}")
+        object.__setattr__(self, "detail", _DETAIL[self.strategy]())
+
+    def __getattr__(self, name: str) -> Any:
+        # Only called for names that are not fields of Stats itself.
+        detail = self.__dict__.get("detail")
+        if detail is not None and name in _DETAIL_FIELDS[self.strategy]:
+            return getattr(detail, name)
+        for other, names in _DETAIL_FIELDS.items():
+            if name in names:
+                raise AttributeError(f"Stats.{name} is a statistic of the {other} strategy; this "
+                                     f"query ran the {self.__dict__.get('strategy')} strategy")
+        raise AttributeError(f"Stats has no attribute {name!r}")
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        detail = self.__dict__.get("detail")
+        if detail is not None and name in _DETAIL_FIELDS[self.strategy]:
+            setattr(detail, name, value)
+        elif name in _OWN_FIELDS:
+            object.__setattr__(self, name, value)
+        else:
+            self.__getattr__(name)  # raises, naming the strategy the field belongs to
 
     def add_ms(self, stage: str, ms: float) -> None:
         self.wall_ms[stage] = self.wall_ms.get(stage, 0.0) + ms
 
+    def __repr__(self) -> str:
+        def items(obj: Any, names: Sequence[str]) -> list[str]:
+            out = []
+            for n in names:
+                v = getattr(obj, n)
+                if isinstance(v, tuple) and all(isinstance(x, float) for x in v):
+                    v = "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
+                elif isinstance(v, int) and not isinstance(v, bool):
+                    v = f"{v:,}"
+                out.append(f"{n}={v}")
+            return out
+
+        common = ("bodies", "records", "bytes_read", "uploaded_vertex_bytes", "reruns",
+                  "possibly_lost")
+        lines = [f"Stats({self.strategy} strategy on {self.adapter or 'no adapter'}"]
+        lines += _pack(items(self, common), "  ")
+        lines += _pack(items(self.detail, [f.name for f in fields(self.detail)]),
+                       f"  {self.strategy}: ")
+        for label, ms in (("wall ms", self.wall_ms), ("gpu ms", self.gpu_ms)):
+            if ms:
+                lines += _pack([f"{k} {v:.3g}" for k, v in ms.items()], f"  {label}: ")
+        return "\n".join(lines) + ")"
+
+
+def _pack(entries: list[str], first: str, width: int = 100) -> list[str]:
+    """``entries`` joined by commas into lines of at most ``width`` characters (an entry is never
+    split), the first line starting with ``first`` and the others indented."""
+    lines, line = [], first
+    for k, entry in enumerate(entries):
+        text = entry + ("," if k < len(entries) - 1 else "")
+        if line.strip() and len(line) + 1 + len(text) > width:
+            lines.append(line)
+            line = "    "
+        line += ("" if line.endswith((" ", ": ")) or line == first else " ") + text
+    lines.append(line)
+    return lines
+
+
+_OWN_FIELDS = {f.name for f in fields(Stats)}
+
 
 @dataclass
+class Query:
+    """What made a result, kept so that it can be run again with other records (for
+    :meth:`CollisionResult.contacts`).
+
+    Attributes
+    ----------
+    detector : Detector
+    bodies : sequence
+        The bodies as given (vertex arrays are not copied: contacts computed later see them as
+        they are then).
+    transforms : (N, 4, 4) float or None
+        A copy of the transforms as given.
+    names : sequence of str or None
+    groups : (N,) int or None
+    records : {"found", "all", "none"}
+        The records mode the query ran with.
+    """
+
+    detector: Any
+    bodies: Sequence[Any]
+    transforms: np.ndarray | None
+    names: Sequence[str | None] | None
+    groups: np.ndarray | None
+    records: str
+
+    def run(self, records: str) -> CollisionResult:
+        """The same query again with ``records``."""
+        return self.detector.find_collisions(self.bodies, self.transforms, names=self.names,
+                                             groups=self.groups, records=records)
+
+
+def remember_query(result: CollisionResult, detector: Any, bodies: Sequence[Any],
+                   transforms: Any, names: Sequence[str | None] | None, groups: Any,
+                   records: str) -> None:
+    """Attach to ``result`` what made it (see :class:`Query`)."""
+    result.query = Query(detector, bodies,
+                         None if transforms is None else np.array(transforms, dtype=np.float64),
+                         None if names is None else list(names),
+                         None if groups is None else np.array(groups), records)
+
+
+@dataclass(repr=False)
 class CollisionResult:
     """The answer to one query.
 
@@ -90,20 +216,27 @@ class CollisionResult:
     pairs : (K, 2) int64
         Unique colliding pairs ``(i, j)`` with ``i < j``, sorted.
     records : structured array of :data:`~pycinder.RECORD_DTYPE`
-        One row per edge sample found inside another body.
+        One row per sample found inside another body (see :mod:`pycinder.records`): samples,
+        not contacts; :meth:`contacts` reduces them to one contact per region.
     stats : Stats
     views : list of View
         Scene strategy: the view of each ``records["view"]`` index.
     tiles : TilePlan or None
         Focused strategy: the tile of each ``records["view"]`` index.
+    scene : Scene or None
+        The validated bodies the query ran on.
+    query : Query or None
+        What made this result (the detector and its inputs), to compute contacts later.
     """
 
     pairs: np.ndarray
     records: np.ndarray
     stats: Stats
     views: list[View] = field(default_factory=list)
-    tiles: TilePlan | None = field(default=None, repr=False)
-    scene: Scene | None = field(default=None, repr=False)
+    tiles: TilePlan | None = None
+    scene: Scene | None = None
+    query: Query | None = None
+    _contacts: Contacts | None = field(default=None, init=False)
 
     @classmethod
     def empty(cls, stats: Stats) -> CollisionResult:
@@ -118,6 +251,39 @@ class CollisionResult:
 
     def __len__(self) -> int:
         return len(self.pairs)
+
+    @property
+    def names(self) -> list[str | None] | None:
+        """The body names the query was given (None where it was given none)."""
+        if self.query is not None and self.query.names is not None:
+            return list(self.query.names)
+        if self.scene is not None and any(n is not None for n in self.scene.names):
+            return list(self.scene.names)
+        return None
+
+    def __repr__(self) -> str:
+        shown = [self._pair_label(i, j) for i, j in self.pairs[:4].tolist()]
+        if len(self.pairs) > 4:
+            shown.append(f"... {len(self.pairs) - 4} more")
+        st = self.stats
+        if st.strategy == "focused":
+            lo, hi = st.tolerance
+            setting = f"tolerance {lo:.4g}" if lo == hi else f"tolerance {lo:.4g} to {hi:.4g}"
+            if not st.candidates:
+                setting = "no candidate pairs"
+        else:
+            setting = f"resolution {st.resolution[0]}"
+        pairs = f"{len(self.pairs)} pair" + ("" if len(self.pairs) == 1 else "s")
+        return (f"CollisionResult({pairs}" + (f": {', '.join(shown)}" if shown else "") +
+                f"; {len(self.records)} records; {st.strategy} strategy, {setting}; "
+                f"{st.bodies} bodies; on {st.adapter or 'no adapter'})")
+
+    def _pair_label(self, i: int, j: int) -> str:
+        names = self.names
+        if names is None:
+            return f"({i}, {j})"
+        return f"({names[i] if names[i] is not None else i}, " \
+               f"{names[j] if names[j] is not None else j})"
 
     def points(self) -> np.ndarray:
         """World-space points of the records, (len(records), 3) float64."""
@@ -144,8 +310,65 @@ class CollisionResult:
         rec = rec[groups[rec["penetrating"]] != groups[rec["penetrated"]]]
         self.stats.records = len(rec)
         return CollisionResult(self.pairs[keep], rec, self.stats, self.views, self.tiles,
-                               self.scene)
+                               self.scene, self.query)
 
-    def pair_names(self, names: Sequence[Any]) -> set[tuple[Any, Any]]:
-        """The pairs as a set of sorted name tuples, as trimesh's ``return_names`` gives them."""
-        return {tuple(sorted((names[i], names[j]))) for i, j in self.pairs.tolist()}
+    def contacts(self) -> Contacts:
+        """One contact per contact region of every colliding pair, with its point, normal and
+        penetration depth (see :mod:`pycinder.contacts`).
+
+        Contacts are reduced from every record of a pair. When this query kept fewer
+        (``records="found"``, the default, or ``"none"``), it is run once more through the
+        detector that made it with ``records="all"``, on the bodies and transforms it was given
+        (as they are now: call this before changing vertex arrays in place). The answer is kept.
+
+        Returns
+        -------
+        Contacts
+            Arrays of C contacts (``pair``, ``point``, ``normal``, ``depth``, ...); iterating
+            gives one :class:`~pycinder.ContactData` per contact, named by the query's names
+            (body indices where it had none).
+
+        Raises
+        ------
+        ValueError
+            For a result of the scene strategy, whose image has no tiles to measure contacts in.
+        """
+        from .contacts import reduce_contacts
+
+        if self._contacts is not None:
+            return self._contacts
+        if self.stats.strategy != "focused":
+            raise ValueError("contacts are measured in the focused strategy's tiles; this result "
+                             "comes from strategy='scene'. Run the query with the default "
+                             "strategy for contacts.")
+        source = self
+        if len(self.pairs) and self.query is not None and self.query.records != "all":
+            source = self.query.run("all")
+        contacts = reduce_contacts(source).restricted_to(self.pairs)
+        contacts.names = self.names
+        self._contacts = contacts
+        return contacts
+
+    def pair_names(self, names: Sequence[Any] | None = None) -> set[tuple[Any, Any]]:
+        """The pairs as a set of sorted name tuples, as trimesh's ``return_names`` gives them.
+
+        Parameters
+        ----------
+        names : sequence, optional
+            One name per body; default: the names the query was given (``names=``). A body
+            without a name is named by its index.
+        """
+        if names is None:
+            names = self.names
+        if names is None:
+            names = range(int(self.pairs.max(initial=-1)) + 1)
+        label = [n if n is not None else i for i, n in enumerate(names)]
+        return {_sorted_pair(label[i], label[j]) for i, j in self.pairs.tolist()}
+
+
+def _sorted_pair(a: Any, b: Any) -> tuple[Any, Any]:
+    """``(a, b)`` sorted as trimesh sorts names, by their text where they do not compare."""
+    try:
+        return (a, b) if not b < a else (b, a)
+    except TypeError:
+        return (a, b) if str(a) <= str(b) else (b, a)

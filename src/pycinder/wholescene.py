@@ -95,8 +95,8 @@ class SceneStrategy:
             t2 = time.perf_counter()
             rec = self.runner.read_records(header, stats, k, self.request.encode, packed.edge_start)
             if rec is not None:
-                rec["point"] = v.unproject(rec["x"], rec["y"], rec["depth"], self.resolution,
-                                           self.resolution)
+                rec["point"] = v.unproject(rec["pixel_x"], rec["pixel_y"], rec["pixel_z"],
+                                           self.resolution, self.resolution)
                 parts.append(rec)
             stats.add_ms("gpu", (t2 - t1) * 1e3)
             stats.add_ms("readback", (time.perf_counter() - t2) * 1e3)

@@ -49,7 +49,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                    help="open, inside-out and zero-area meshes fail their scenes")
     p.add_argument("--retry-errors", action="store_true",
                    help="run again the scenes whose errors OUT already holds")
-    p.set_defaults(func=cmd_batch)
+    p.set_defaults(func=cmd_batch, strict=False, json=False)
     return p
 
 

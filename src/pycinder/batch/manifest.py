@@ -176,9 +176,7 @@ class MeshCache:
         if hit is not None:
             self._entries.move_to_end(path)
             return hit
-        from ..cli import _load_meshes
-
-        mesh = _load_meshes([path])[0][0]
+        mesh = _single_mesh(path)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             self.shapes.get(mesh.vertices, mesh.faces, path, self.strict)
@@ -190,3 +188,22 @@ class MeshCache:
             _, (old, _) = self._entries.popitem(last=False)
             self.nbytes -= old.vertices.nbytes + old.faces.nbytes
         return entry
+
+
+def _single_mesh(path: str) -> Any:
+    """The one mesh of a file, checked and loaded as ``pycinder check`` loads it (with its
+    instance transform applied); a file that holds several bodies is an error here, since a
+    manifest body names one mesh."""
+    from ..files import display_name, load_file
+
+    bodies = load_file(path, display_name(path))
+    if len(bodies) != 1:
+        raise ValueError(f"{display_name(path)} holds {len(bodies)} bodies "
+                         f"({', '.join(b.name for b in bodies[:4])}...); a manifest body is one "
+                         "mesh: list each part as a body of its own")
+    body = bodies[0]
+    if np.allclose(body.transform, np.eye(4)):
+        return body.mesh
+    mesh = body.mesh.copy()
+    mesh.apply_transform(body.transform)
+    return mesh

@@ -12,7 +12,7 @@ pair gets its scene's tolerance, so a scene's pairs are those a query of that sc
 
 from __future__ import annotations
 
-import dataclasses
+import copy
 import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
@@ -160,7 +160,8 @@ def split(result: CollisionResult, joined: Scene, counts: np.ndarray,
         part["penetrated"] -= a
         n = names[s] if names[s] is not None else [None] * int(counts[s])
         scene = Scene(joined.shapes, joined.body_shape[a:b], joined.transforms[a:b], list(n))
-        stats = dataclasses.replace(result.stats, bodies=int(counts[s]), records=len(part))
+        stats = copy.deepcopy(result.stats)  # with its strategy's part (replace() drops it)
+        stats.bodies, stats.records = int(counts[s]), len(part)
         out.append(CollisionResult(result.pairs[pair_cut[s]:pair_cut[s + 1]] - a, part, stats,
                                    tiles=result.tiles, scene=scene))
     return out

@@ -67,6 +67,32 @@ def targets(results: dict[str, Any]) -> list[tuple[str, str, bool]]:
     return out
 
 
+def floor_table(rows: list[dict[str, Any]]) -> list[str]:
+    """The cost floor (:mod:`.floor`) as Markdown lines."""
+    out = ["## Cost floor", "",
+           "A fresh process per backend: importing pycinder, making a Detector (device and "
+           "pipelines), its first query; then the median query of a box and a 320-triangle "
+           "sphere, apart and touching, default options; python-fcl on the same two pairs "
+           "(building both BVHs and the first `collide`, then one `collide`).", "",
+           "| backend | import ms | Detector() ms | first query ms | query ms, apart | "
+           "query ms, touching | python-fcl first ms | python-fcl ms, apart | "
+           "python-fcl ms, touching |", "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if "error" in r:
+            out.append(f"| {r['backend']} | not available: {r['error'].splitlines()[-1]} |"
+                       + " |" * 7)
+            continue
+        fcl = r.get("python-fcl") or {"first_call_ms": float("nan"),
+                                      "ms": {"apart": float("nan"), "touching": float("nan")}}
+        imported = r.get("import_ms")
+        out.append(f"| {r['adapter']} | {_fmt(imported) if imported is not None else '-'} | "
+                   f"{_fmt(r['detector_ms'])} | {_fmt(r['first_call_ms'])} | "
+                   f"{_fmt(r['pycinder_ms']['apart'])} | {_fmt(r['pycinder_ms']['touching'])} | "
+                   f"{_fmt(fcl['first_call_ms'])} | {fcl['ms']['apart']:.4f} | "
+                   f"{fcl['ms']['touching']:.4f} |")
+    return out + [""]
+
+
 def markdown(results: dict[str, Any]) -> str:
     m = results["machine"]
     lines = [
@@ -84,6 +110,8 @@ def markdown(results: dict[str, Any]) -> str:
         "least one tolerance apart, with pycinder's default tolerance (1% of the smaller body) "
         "for every system.", "",
     ]
+    if results.get("floor"):
+        lines += floor_table(results["floor"])
     met = targets(results)
     if met:
         lines += ["## Targets", "", "| target | measured | met |", "|---|---|---|"]

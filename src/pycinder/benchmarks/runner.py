@@ -24,7 +24,7 @@ from ..testing import ground_truth
 from .peers import PEERS, Pycinder, System
 from .scenes import SCENES, Scene, SphereField, Stairs
 
-DEFAULT_SCENES = ["stairs", "many", "deforming", "narrow", "sweep-extent", "sweep-bodies",
+DEFAULT_SCENES = ["floor", "stairs", "many", "deforming", "narrow", "sweep-extent", "sweep-bodies",
                   "sweep-triangles", "sweep-tolerance", "manager", "contacts", "modes", "batch",
                   "soak"]
 DEFAULT_PEERS = ["python-fcl", "coal", "trimesh", "warp"]
@@ -208,6 +208,40 @@ def run_soak(frames: int = 100_000, every: int = 1000, progress: Progress | None
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+FLOOR_BACKENDS: tuple[str | None, ...] = (None, "OpenGL")
+"""The backends of the cost floor: wgpu's own choice, then OpenGL (skipped where it is the same
+backend, and named where it is missing)."""
+
+
+def run_floor(calls: int = 100, backends: Sequence[str | None] = FLOOR_BACKENDS,
+              progress: Progress | None = None) -> list[dict[str, Any]]:
+    """The cost floor (:mod:`.floor`), one fresh process per backend."""
+    import json
+    import subprocess
+
+    from .floor import COMMAND
+
+    rows: list[dict[str, Any]] = []
+    for backend in backends:
+        env = dict(os.environ)
+        env.pop("WGPU_BACKEND_TYPE", None)
+        if backend:
+            env["WGPU_BACKEND_TYPE"] = backend
+        if progress:
+            progress(f"floor: {backend or 'default backend'}")
+        out = subprocess.run([sys.executable, "-c", COMMAND, "--calls", str(calls)],
+                             capture_output=True, text=True, env=env)
+        if out.returncode != 0:
+            rows.append({"backend": backend, "error": out.stderr.strip()[-500:]})
+            continue
+        row = json.loads(out.stdout.strip().splitlines()[-1])
+        row["backend"] = backend or "default"
+        if any(r.get("adapter") == row["adapter"] for r in rows):
+            continue  # the default backend was this one
+        rows.append(row)
+    return rows
+
+
 def run_manager(repeat: int) -> list[dict[str, Any]]:
     """CollisionManager calls against trimesh's (python-fcl) on the same objects, interleaved:
     200 random primitives, a probe, a second manager of 50 objects, and a batch of 700 small
@@ -332,7 +366,7 @@ def run_contact_accuracy() -> list[dict[str, Any]]:
 def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAULT_PEERS,
         soak_frames: int = 100_000, progress: Progress | None = None) -> dict[str, Any]:
     """Run the named scenes, ``repeat`` frames each."""
-    extra = ("modes", "soak", "manager", "contacts", "batch")
+    extra = ("floor", "modes", "soak", "manager", "contacts", "batch")
     unknown = [n for n in scenes if n not in SCENES and n not in extra]
     if unknown:
         raise ValueError(f"unknown scene {unknown[0]!r}; choose from "
@@ -344,6 +378,9 @@ def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAUL
     results["peers"] = [p.name for p in peer_systems]
     for name in scenes:
         say(name)
+        if name == "floor":
+            results["floor"] = run_floor(max(20 * repeat, 50), progress=say)
+            continue
         if name == "modes":
             results["modes"] = run_modes(repeat)
             continue

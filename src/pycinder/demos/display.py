@@ -304,6 +304,26 @@ class Display:
 
     # -- drawing ----------------------------------------------------------------------------
 
+    def follow(self, box: np.ndarray, direction: tuple[float, float, float],
+               smoothing: float = 0.25) -> None:
+        """Move the camera so that ``box`` ((2, 3) world min and max corners) is in the frame,
+        looking along ``-direction``. The framed box grows at once to hold ``box`` and shrinks
+        towards it by ``smoothing`` of the way per call, so the camera glides in and never
+        loses what ``box`` holds."""
+        box = np.asarray(box, float)
+        if getattr(self, "_followed", None) is None:
+            self._followed = box
+        else:
+            glide = self._followed + smoothing * (box - self._followed)
+            self._followed = np.stack([np.minimum(glide[0], box[0]),
+                                       np.maximum(glide[1], box[1])])
+        look = fit_look(self._followed, direction, fov=self.look.fov,
+                        aspect=self.size[0] / self.size[1], margin=0.04)
+        self.camera.local.position = look.eye
+        self.camera.show_pos(look.target)
+        distance = float(np.linalg.norm(np.subtract(look.eye, look.target)))
+        self.camera.depth_range = (distance / 50, distance * 10)
+
     def render(self) -> np.ndarray:
         """Render headless: (H, W, 3) uint8."""
         self.canvas.request_draw(lambda: self.renderer.render(self.scene, self.camera))

@@ -6,7 +6,8 @@ With ``encode="normal"`` the detector carries, for every edge of a body, the nor
 (the mean of the edge's two face normals) into the records of that edge. The display shows
 exactly those normals: each edge of the bunny is drawn in the colour 0.5 + 0.5 n of its encoded
 normal n (x red, y green, z blue), over a dark surface. A sphere takes the colour of the last
-normal it bounced off; it gets no response when it already moves away from the plane.
+normal it bounced off (white while it touches the bunny); it gets no response when it already
+moves away from the plane. Contacts (points and counts) come from ``result.contacts()``.
 """
 
 from __future__ import annotations
@@ -19,7 +20,6 @@ import trimesh
 from ..detector import Detector
 from ..scene import prepare_scene
 from .display import Layer, Lines, fit_look
-from .marks import pair_points
 from .snow import load_bunny
 
 RADIUS = 0.04
@@ -32,6 +32,11 @@ LOOK = fit_look(np.array([[-0.3, -0.22, -0.24], [0.3, 0.6, 0.24]]), (0.2, 0.4, 1
                 shadow_extent=2.5)
 """The bunny, with room below it for the legend."""
 SURFACE_COLOUR = (0.16, 0.17, 0.2)
+UNTOUCHED_COLOUR = (0.5, 0.5, 0.5)
+"""A sphere before its first bounce."""
+TOUCH_COLOUR = (1.0, 1.0, 1.0)
+"""A sphere while it touches the bunny; afterwards it keeps the colour of the normal it bounced
+off."""
 EDGE_INSET = 0.0015
 """The surface is drawn this far (world units) inside the bunny, so its edges lie on top."""
 
@@ -48,7 +53,7 @@ class NormalsSim:
     ----------
     position, velocity : (spheres, 3) float
     colour : (spheres, 3) float
-        Each sphere's colour: the last normal it bounced off (grey before its first bounce).
+        Each sphere's colour: the last normal it bounced off (grey before its first bounce, white while it touches).
     bounces : int
         Reflections so far.
     contacts : list of ((m, 3), (m, 3)) float
@@ -64,19 +69,31 @@ class NormalsSim:
         self.position = np.zeros((spheres, 3))
         self.velocity = np.zeros((spheres, 3))
         for i in range(spheres):
-            self._shoot(i)
-        self.colour = np.tile([0.8, 0.8, 0.8], (spheres, 1))
+            self._shoot(i, first=True)
+        self.colour = np.tile(UNTOUCHED_COLOUR, (spheres, 1))
+        self.touching = np.zeros(spheres, bool)
         self.detector = Detector(tolerance=tolerance, encode="normal", records="all")
         self.bounces = 0
         self.contacts: list[tuple[np.ndarray, np.ndarray]] = []  # (points, normals) per frame
         self.surface = self._inset_surface()
         self.edges = self.edge_lines()
 
-    def _shoot(self, i: int) -> None:
-        d = self.rng.normal(size=3)
-        d[1] = abs(d[1]) * 0.5
-        d /= np.linalg.norm(d)
-        self.position[i] = self.centre + d * 0.75
+    def _shoot(self, i: int, first: bool = False) -> None:
+        """Shoot sphere ``i`` at the bunny from 0.75 away, across the camera's view (a sphere
+        between the camera and the bunny would seem to touch it, one behind would be hidden);
+        the first spheres start anywhere along their way in, clear of the bunny, so that
+        contacts begin within the first frames."""
+        towards_camera = np.subtract(LOOK.eye, LOOK.target)
+        towards_camera /= np.linalg.norm(towards_camera)
+        while True:  # from the sides and above: contacts on the bunny's outline, in view
+            d = self.rng.normal(size=3)
+            d[1] = abs(d[1]) * 0.5
+            d /= np.linalg.norm(d)
+            start = self.centre + d * (self.rng.uniform(0.4, 0.75) if first else 0.75)
+            if abs(d @ towards_camera) < 0.3 and (not first or trimesh.proximity.signed_distance(
+                    self.bunny, start[None])[0] < -2 * RADIUS):  # not in or on the bunny
+                break
+        self.position[i] = start
         aim = self.centre + self.rng.normal(scale=0.08, size=3)
         v = aim - self.position[i]
         self.velocity[i] = v / np.linalg.norm(v) * self.rng.uniform(0.6, 1.0)
@@ -87,9 +104,11 @@ class NormalsSim:
         Returns
         -------
         dict
-            ``result``, ``ms`` (detection time), ``pairs`` (spheres touching the bunny with a
-            normal from its edges), ``marks`` ((pairs, 3) one contact point per such sphere) and
-            ``normals`` ((pairs, 3) the normal each bounced off).
+            ``result``, ``ms`` (detection time), ``pairs`` (spheres touching the bunny),
+            ``marks`` ((C, 3) the contact points of those pairs, from ``result.contacts()``) and
+            ``normals`` ((C, 3) at each contact, the normal its sphere bounced off: the mean of
+            the bunny's record normals in that sphere, or the contact's normal where the bunny
+            has no record in it).
         """
         self.position += self.velocity * DT
         far = np.linalg.norm(self.position - self.centre, axis=1) > 1.0
@@ -97,32 +116,37 @@ class NormalsSim:
             self._shoot(i)
         balls = np.tile(np.eye(4), (self.n, 1, 1))
         balls[:, :3, 3] = self.position
-        # Only spheres near the bunny go to the detector.
+        # Only spheres near the bunny go to the detector, and only against the bunny.
         near = np.flatnonzero((np.abs(self.position - self.centre) < 0.5 - RADIUS).all(axis=1))
         bodies = [self.bunny] + [self.ball] * len(near)
         transforms = np.concatenate([np.eye(4)[None], balls[near]])
+        groups = np.r_[0, np.ones(len(near), np.int64)]
         t0 = time.perf_counter()
-        result = self.detector.find_collisions(bodies, transforms)
+        result = self.detector.find_collisions(bodies, transforms, groups=groups)
+        contacts = result.contacts()
         ms = (time.perf_counter() - t0) * 1e3
         rec = result.records
-        # The bunny's edges carry its normals; spheres are only ever the penetrated body (5.3.1).
+        # The bunny's edges and faces inside a sphere carry the bunny's normals (5.3.1).
         mine = rec[(rec["penetrating"] == 0) & (rec["penetrated"] > 0)]
         self.contacts.append((np.asarray(mine["point"], float), mine["normal"]))
-        touched = np.unique(mine["penetrated"]).astype(np.int64)
-        normals = np.zeros((len(touched), 3))
-        for k, j in enumerate(touched):
-            n = mine["normal"][mine["penetrated"] == j].mean(axis=0)
-            n /= np.linalg.norm(n)
-            normals[k] = n
+        touched = result.pairs[:, 1]
+        self.touching[:] = False
+        self.touching[near[touched - 1]] = True
+        bounce = {}
+        for j in touched.tolist():
+            n = mine["normal"][mine["penetrated"] == j].astype(float).sum(axis=0)
+            if np.linalg.norm(n) < 1e-9:  # no record of the bunny inside this sphere
+                n = contacts.normal[contacts.pair[:, 1] == j].sum(axis=0)
+            n /= max(np.linalg.norm(n), 1e-12)
+            bounce[j] = n
             i = near[j - 1]
             vn = float(self.velocity[i] @ n)
             self.colour[i] = normal_colours(n)
             if vn < 0:  # moving into the plane: reflect
                 self.velocity[i] -= (1 + RESTITUTION) * vn * n
                 self.bounces += 1
-        pairs = np.c_[np.zeros(len(touched), np.int64), touched]
-        marks = pair_points(mine, pairs, transforms[touched, :3, 3])
-        return {"result": result, "ms": ms, "pairs": len(touched), "marks": marks,
+        normals = np.array([bounce[b] for b in contacts.pair[:, 1].tolist()]).reshape(-1, 3)
+        return {"result": result, "ms": ms, "pairs": len(touched), "marks": contacts.point,
                 "normals": normals}
 
     def _inset_surface(self) -> trimesh.Trimesh:
@@ -144,4 +168,5 @@ class NormalsSim:
         return {"surface": Layer(self.surface, np.eye(4)[None], np.array(SURFACE_COLOUR),
                                  shadows=False),
                 "edges": self.edges,
-                "spheres": Layer(self.ball, balls, self.colour.copy())}
+                "spheres": Layer(self.ball, balls,
+                                 np.where(self.touching[:, None], TOUCH_COLOUR, self.colour))}

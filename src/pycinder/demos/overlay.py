@@ -1,13 +1,14 @@
-"""What the demos draw over the 3-D view: the paper's purple contact marks, a text panel and a
-legend (Pillow).
+"""What the demos draw over the 3-D view: the paper's purple contact marks with normal arrows, a
+text panel and a legend (Pillow).
 
 Everything is drawn on one transparent RGBA layer of the frame's size. Headless, the layer is
 composited onto the rendered frame on the CPU (:func:`composite`), so the marks keep their exact
 colours; in a window the same layer is shown over the view as a screen-space image.
 
-A mark is a 9 x 9 pixel square, :data:`MARK_EDGE` with a :data:`MARK_FILL` centre, centred on the
-pixel of a world point. The demos draw one mark per colliding pair, and the count in the text
-panel is the number of marks drawn.
+A mark is a 7 x 7 pixel square, :data:`MARK_EDGE` with a :data:`MARK_FILL` centre, centred on the
+pixel of a contact point, small enough to leave the bodies it marks in view; a short arrow from it
+shows the contact's normal. The demos draw one mark per contact, and the count in the text panel
+is the number of marks drawn.
 """
 
 from __future__ import annotations
@@ -22,12 +23,14 @@ MARK_EDGE = (150, 40, 200)
 """The paper's purple: the border of a mark."""
 MARK_FILL = (245, 232, 255)
 """The inside of a mark."""
-MARK_HALF = 4
-"""A mark covers the pixels within this many pixels of its centre (a 9 x 9 square)."""
+MARK_HALF = 3
+"""A mark covers the pixels within this many pixels of its centre (a 7 x 7 square)."""
 NORMAL_LINE = (255, 255, 255)
 NORMAL_OUTLINE = (40, 10, 70)
-"""A contact normal is a white line with a dark outline, from the mark outwards: it shows on
+"""A contact normal is a white arrow with a dark outline, from the mark outwards: it shows on
 light and dark backgrounds alike."""
+ARROW_HEAD = 6.0
+"""Length in pixels of the two strokes of an arrow's head."""
 TEXT = (25, 28, 36)
 PANEL = (255, 255, 255, 215)
 PAD = 6
@@ -66,8 +69,20 @@ def draw_mark(draw, x: float, y: float) -> None:
 
 
 def _normal_line(draw, xy: tuple[float, float, float, float]) -> None:
-    draw.line(xy, fill=NORMAL_OUTLINE + (255,), width=4)
-    draw.line(xy, fill=NORMAL_LINE + (255,), width=2)
+    """An arrow from (x0, y0) to (x1, y1): a shaft and a two-stroke head, outlined."""
+    x0, y0, x1, y1 = xy
+    d = np.array([x1 - x0, y1 - y0], float)
+    length = float(np.hypot(*d))
+    strokes = [(x0, y0, x1, y1)]
+    if length > 1.0:
+        d /= length
+        for angle in (0.45, -0.45):
+            c, s = np.cos(angle), np.sin(angle)
+            back = -np.array([c * d[0] - s * d[1], s * d[0] + c * d[1]]) * min(ARROW_HEAD, length)
+            strokes.append((x1, y1, x1 + back[0], y1 + back[1]))
+    for width, colour in ((4, NORMAL_OUTLINE), (2, NORMAL_LINE)):
+        for stroke in strokes:
+            draw.line(stroke, fill=colour + (255,), width=width)
 
 
 def _text_size(draw, text: str, size: int) -> tuple[int, int]:
@@ -91,7 +106,7 @@ def overlay_layer(size: tuple[int, int], *, lines: list[str], legend: list[Legen
     marks : (M, 2) float
         Pixel centres (x right, y down) of the marks to draw, all inside the frame.
     normal_ends : (M, 2) float, optional
-        Where each mark's normal line ends, in pixels.
+        Where each mark's normal arrow ends, in pixels.
     legend_right : bool
         Put the legend in the bottom-right corner.
 
@@ -151,7 +166,7 @@ def _legend(img, draw, legend: list[LegendEntry], size: tuple[int, int], right: 
         cx, cy = x0 + PAD + glyph_w // 2, y + row // 2
         if entry.glyph in ("mark", "normal"):
             if entry.glyph == "normal":
-                _normal_line(draw, (cx, cy, cx + 11, cy - 9))
+                _normal_line(draw, (cx, cy, cx + 10, cy - 9))
             draw_mark(draw, cx, cy)
         elif entry.glyph == "swatch":
             draw.rectangle((cx - 6, cy - 6, cx + 6, cy + 6), fill=tuple(entry.colour) + (255,),

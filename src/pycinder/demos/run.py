@@ -1,8 +1,9 @@
 """``pycinder demo {stairs,snow-bunny,normals}``: run a demo headless or in a window.
 
-Each frame the simulation steps (detection and response), the display shows its layers, and an
-overlay marks one contact per colliding pair (the paper's purple squares), says how many it drew
-and explains the marks in a legend.
+Each frame the simulation steps (detection and response), the display shows its layers (bodies
+recoloured while they touch), and an overlay marks every contact (one per contact region of each
+colliding pair, from :meth:`~pycinder.CollisionResult.contacts`) with a purple square and a short
+arrow along its normal, says how many it drew and explains the marks in a legend.
 """
 
 from __future__ import annotations
@@ -19,8 +20,6 @@ from .output import FrameWriter, display_available, summary
 from .overlay import LegendEntry, composite, overlay_layer
 
 DEMOS = ("stairs", "snow-bunny", "normals")
-NORMAL_LENGTH = 0.06
-"""World length of the normal line drawn from a mark in the normals demo."""
 
 
 @dataclass
@@ -36,8 +35,10 @@ class Demo:
     title : str
     fps : int
         Playback rate of written videos.
+    arrow : float
+        World length of the normal arrow drawn from each contact mark.
     counted : str
-        What one mark stands for, in the text panel: "<counted> N".
+        What one mark stands for, in the text panel: "<counted>: N".
     legend : list of LegendEntry
     """
 
@@ -46,7 +47,8 @@ class Demo:
     look: Look
     title: str
     fps: int
-    counted: str
+    arrow: float
+    counted: str = "contacts"
     legend: list[LegendEntry] = field(default_factory=list)
 
 
@@ -58,27 +60,37 @@ def make_demo(name: str, *, seed: int = 0, tolerance: float | None = None,
 
         sim = stairs.StairsSim(spheres or 50, seed, tolerance)
         return Demo(name, sim, stairs.LOOK, f"Stairs: {sim.spheres} spheres, {stairs.STEPS} steps",
-                    stairs.FPS, "sphere-step contacts",
-                    [LegendEntry("a sphere touching a step: one mark per colliding pair")])
+                    stairs.FPS, 1.6 * stairs.RADIUS, legend=[
+                        LegendEntry("contact, with its normal (from the first body into the "
+                                    "second)", "normal"),
+                        _swatch("sphere touching a step, the floor or a sphere",
+                                stairs.TOUCH_COLOUR),
+                        _swatch("step touched by a sphere", stairs.STEP_TOUCH_COLOUR)])
     if name == "snow-bunny":
         from . import snow
 
         sim = snow.SnowSim(spheres or 150, seed, tolerance, scan=scan, close_holes=close_holes)
-        return Demo(name, sim, snow.LOOK, f"Snow Bunny: {sim.note}", snow.FPS, "flakes landing",
-                    [LegendEntry("a flake landing on the bunny or the floor: one mark per "
-                                 "colliding pair"),
-                     LegendEntry("frozen flake (no longer checked)", "swatch",
-                                 tuple(int(round(255 * c)) for c in snow.FROZEN_COLOUR))])
+        return Demo(name, sim, snow.LOOK, f"Snow Bunny: {sim.note}", snow.FPS,
+                    4 * snow.FLAKE_SIZE, legend=[
+                        LegendEntry("a flake landing on the bunny or the floor: its contact "
+                                    "and normal", "normal"),
+                        _swatch("frozen flake (no longer checked)", snow.FROZEN_COLOUR)])
     if name == "normals":
         from . import normals
 
         sim = normals.NormalsSim(spheres or 24, seed, tolerance)
         return Demo(name, sim, normals.LOOK, "Edges coloured by normals", normals.FPS,
-                    "spheres touching the bunny",
-                    [LegendEntry("a sphere touching the bunny: one mark per colliding pair,",
-                                 "normal"),
-                     LegendEntry("  with the normal read from its records (the bounce)", "none")])
+                    1.5 * normals.RADIUS, legend=[
+                        LegendEntry("contact of a sphere with the bunny, with the normal read "
+                                    "from", "normal"),
+                        LegendEntry("  the bunny's records (encode='normal'): the bounce",
+                                    "none"),
+                        _swatch("sphere touching the bunny", normals.TOUCH_COLOUR)])
     raise ValueError(f"unknown demo {name!r}; choose from {DEMOS}")
+
+
+def _swatch(text: str, colour: tuple[float, float, float]) -> LegendEntry:
+    return LegendEntry(text, "swatch", tuple(int(round(255 * c)) for c in colour))
 
 
 def draw_overlay(demo: Demo, display: Display, info: dict, lines: list[str]
@@ -91,7 +103,8 @@ def draw_overlay(demo: Demo, display: Display, info: dict, lines: list[str]
     display : Display
         Its camera places the marks.
     info : dict
-        What ``sim.step()`` returned: ``marks`` (M, 3), optionally ``normals`` (M, 3).
+        What ``sim.step()`` returned: ``marks`` (M, 3) contact points and ``normals`` (M, 3)
+        their normals.
     lines : list of str
         The text panel's first lines; the count of marks drawn is added.
 
@@ -111,9 +124,8 @@ def draw_overlay(demo: Demo, display: Display, info: dict, lines: list[str]
     if not inside.all():
         count += f" (+{int((~inside).sum())} outside the frame)"
     lines = lines + [count]
-    ends = None
-    if "normals" in info:
-        ends = display.project(marks + NORMAL_LENGTH * np.asarray(info["normals"]))[0][inside]
+    normals = np.asarray(info["normals"], float).reshape(-1, 3)
+    ends = display.project(marks + demo.arrow * normals)[0][inside]
     legend = list(demo.legend)
     if demo.name == "normals":
         legend.append(LegendEntry("edge colour: its encoded normal n as 0.5 + 0.5 n",
@@ -157,9 +169,11 @@ def run(name: str, *, frames: int = 120, out: str | None = None, window: bool = 
     t_start = time.perf_counter()
     for k in range(frames):
         info = demo.sim.step()
-        counts.append(info["pairs"])
+        counts.append(len(info["marks"]))
         times.append(info["ms"])
         if display is not None:
+            if hasattr(demo.sim, "view_box"):  # a camera that keeps the moving bodies in view
+                display.follow(demo.sim.view_box(), demo.sim.view_direction)
             display.update(demo.sim.layers())
             image = display.render()
             layer, drawn, lines = draw_overlay(
@@ -187,9 +201,10 @@ def run(name: str, *, frames: int = 120, out: str | None = None, window: bool = 
 def _extra(demo: Demo) -> dict[str, Any]:
     sim = demo.sim
     if demo.name == "stairs":
-        return {"descents (a sphere on all 11 steps)": sim.descents}
+        return {"descents (a sphere on all 11 steps)": sim.descents,
+                "sphere-sphere contacts resolved": sim.sphere_contacts}
     if demo.name == "snow-bunny":
-        extra = {"frozen flakes": len(sim.frozen)}
+        extra = {"flakes landed": sim.landed}
         if sim.warnings:
             extra["warning"] = sim.warnings[0]
         return extra
@@ -221,7 +236,7 @@ def run_window(name: str, frames: int | None = None, size: tuple[int, int] = (64
             display.canvas.close()
             return
         info = demo.sim.step()
-        state["counts"].append(info["pairs"])
+        state["counts"].append(len(info["marks"]))
         state["ms"].append(info["ms"])
         display.update(demo.sim.layers())
         layer, _, _ = draw_overlay(demo, display, info, [

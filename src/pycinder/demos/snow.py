@@ -1,7 +1,8 @@
 """Snow Bunny (paper 5.2): snowflakes of 6 triangles fall on the Stanford bunny and a floor.
 
 A flake that hits freezes, is enlarged, and moves to a list that detection no longer checks; flakes
-frozen on the bunny turn with it. ``scan=True`` uses pymeshlab's scanned 10k bunny, which is open at
+frozen on the bunny turn with it. The scene holds at most ``flakes`` flakes: once it is full, the
+oldest frozen flakes melt as new ones fall, so that it snows for as long as the demo runs. ``scan=True`` uses pymeshlab's scanned 10k bunny, which is open at
 the bottom (the paper's hole problem): pycinder warns, and ``close_holes=True`` repairs it first.
 """
 
@@ -18,9 +19,10 @@ from ..detector import Detector
 from ..scene import OpenMeshWarning
 from ..testing import bunny, sample_mesh_path
 from .display import Layer, Look
-from .marks import pair_points
 
 FLAKE_SIZE = 0.025
+BUNNY_REACH, BUNNY_TOP = 0.4, 0.65
+"""The turning bunny stays within this distance of the y axis and below this height."""
 FLOOR = (2.4, 0.1, 2.4)
 DT = 1.0 / 30.0
 FPS = 30
@@ -45,7 +47,7 @@ def flake_mesh(size: float = FLAKE_SIZE) -> trimesh.Trimesh:
     return mesh
 
 
-def load_bunny(scan: bool = False, close_holes: bool = False, target_vertices: int = 8000
+def load_bunny(scan: bool = False, close_holes: bool = False, subdivisions: int = 1
                ) -> tuple[trimesh.Trimesh, str]:
     """The demo's bunny, scaled to about 0.6 across with its feet at y = 0, and a note on it."""
     if close_holes and not scan:
@@ -67,8 +69,8 @@ def load_bunny(scan: bool = False, close_holes: bool = False, target_vertices: i
             trimesh.repair.fix_normals(mesh)
             note = f"scanned bunny, holes closed (watertight: {mesh.is_watertight})"
     else:
-        mesh = bunny(decimate_to=target_vertices)
-        note = f"Stanford bunny decimated to {len(mesh.vertices)} vertices"
+        mesh = bunny(subdivisions)
+        note = f"Stanford bunny, {len(mesh.faces)} triangles"
     mesh = mesh.copy()
     mesh.apply_translation(-mesh.bounds.mean(axis=0))
     mesh.apply_scale(0.6 / mesh.extents.max())
@@ -96,20 +98,35 @@ class SnowSim:
         self.position = np.zeros((0, 3))
         self.velocity = np.zeros((0, 3))
         self.frozen: list[Frozen] = []
+        self.landed = 0
+        """Flakes that have landed so far (the oldest frozen ones melt away)."""
         self.spin = spin
         self.angle = 0.0
-        self.detector = Detector(tolerance=tolerance)
+        self.detector = Detector(tolerance=tolerance, records="all")  # for contacts()
         self.warnings: list[str] = []
 
     def bunny_transform(self) -> np.ndarray:
         return trimesh.transformations.rotation_matrix(self.angle, (0, 1, 0))
 
     def _spawn(self) -> None:
-        n = min(4, self.capacity - len(self.position) - len(self.frozen))
+        """Four new flakes a frame above the scene, up to a third of ``flakes`` in the air; on
+        the first frame that third at every height, so that flakes land from the first frames
+        on."""
+        first = not len(self.position) and not self.landed
+        falling = max(self.capacity // 3, 4)  # at most this many in the air at once
+        n = min(falling if first else 4, falling - len(self.position))
         if n <= 0:
             return
-        p = np.c_[self.rng.uniform(-0.45, 0.45, n), self.rng.uniform(1.0, 1.2, n),
+        # The scene holds at most `capacity` flakes: the oldest frozen ones melt to make room.
+        melt = len(self.position) + len(self.frozen) + n - self.capacity
+        if melt > 0:
+            del self.frozen[:melt]
+        p = np.c_[self.rng.uniform(-0.45, 0.45, n),
+                  self.rng.uniform(0.15 if first else 1.0, 1.2, n),
                   self.rng.uniform(-0.45, 0.45, n)]
+        # None starts inside the (turning) bunny: those over its footprint start above it.
+        over = (np.hypot(p[:, 0], p[:, 2]) < BUNNY_REACH) & (p[:, 1] < BUNNY_TOP)
+        p[over, 1] += BUNNY_TOP
         v = np.c_[self.rng.normal(0, 0.05, n), self.rng.uniform(-0.7, -0.5, n),
                   self.rng.normal(0, 0.05, n)]
         self.position = np.vstack([self.position, p])
@@ -121,9 +138,10 @@ class SnowSim:
         Returns
         -------
         dict
-            ``result``, ``ms`` (detection time), ``pairs`` (colliding flake-bunny and
-            flake-floor pairs), ``frozen_now``, ``marks`` ((pairs, 3) one contact point per
-            such pair), ``frozen_at``.
+            ``result``, ``ms`` (detection and contact time), ``pairs`` (colliding flake-bunny
+            and flake-floor pairs), ``frozen_now``, ``marks`` and ``normals`` ((C, 3) the
+            contacts of those pairs and their normals, from the bunny or floor into the flake),
+            ``frozen_at``.
         """
         self._spawn()
         self.angle += self.spin * DT
@@ -133,10 +151,14 @@ class SnowSim:
         flakes[:, :3, 3] = self.position
         bodies = [self.bunny, self.floor] + [self.flake] * len(self.position)
         transforms = np.concatenate([bt[None], self.floor_t[None], flakes])
+        # Flakes fall through each other, and the bunny stands in the floor: only flakes
+        # against the bunny and the floor are tested.
+        groups = np.r_[0, 0, np.ones(len(self.position), np.int64)]
         t0 = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", OpenMeshWarning)
-            result = self.detector.find_collisions(bodies, transforms)
+            result = self.detector.find_collisions(bodies, transforms, groups=groups)
+            contacts = result.contacts()
         self.warnings += [str(w.message) for w in caught if issubclass(w.category, OpenMeshWarning)]
         ms = (time.perf_counter() - t0) * 1e3
         pairs = result.pairs
@@ -144,6 +166,7 @@ class SnowSim:
         stuck = {}
         for target, flake in hits.tolist():
             stuck.setdefault(flake - 2, target)
+        self.landed += len(stuck)
         for k, target in stuck.items():
             t = flakes[k].copy()
             if target == 0:
@@ -154,9 +177,9 @@ class SnowSim:
         keep[list(stuck)] = False
         keep &= self.position[:, 1] > -0.5
         self.position, self.velocity = self.position[keep], self.velocity[keep]
-        marks = pair_points(result.records, hits, transforms[hits[:, 1], :3, 3])
         return {"result": result, "ms": ms, "pairs": len(hits), "frozen_now": len(stuck),
-                "marks": marks, "frozen_at": [flakes[k] for k in stuck]}
+                "marks": contacts.point, "normals": contacts.normal,
+                "frozen_at": [flakes[k] for k in stuck]}
 
     def frozen_world(self) -> np.ndarray:
         bt = self.bunny_transform()

@@ -1,12 +1,21 @@
-"""Stairs (paper 5.1): spheres shot out at the top bounce down 11 box steps.
+"""Stairs (paper 5.1): spheres shot out at the top bounce down 11 steps onto a floor.
 
-Spheres are shot in volleys from behind the top step. When the detector reports a sphere
-against a step, the sphere's y velocity is reflected and damped if it was falling, and it is
-lifted back onto the step's top (undoing the frame's penetration); its x and z velocity are
-kept. Sphere-sphere contacts get no response. The throw and the bounce are tuned so that a
-sphere lands on every step in turn: the first volley reaches the bottom in about 100 frames.
+The steps are solid blocks standing on the floor (so each has a riser), and spheres are shot in
+volleys from behind the top step. Every frame one query finds all colliding pairs, spheres
+against steps, the floor and each other, and :meth:`~pycinder.CollisionResult.contacts` gives
+one contact per contact region with its normal and depth. The response is a simple impulse
+model on those contacts:
 
-A frame is :data:`DT` (1/20 s) of simulated time; videos play at :data:`FPS`, in real time.
+* **sphere against a step or the floor** (static): the sphere is pushed out along the normal by
+  the depth, and its velocity along the normal is reflected and damped if it moved into the
+  surface (:data:`RESTITUTION`); the velocity along the surface is kept;
+* **sphere against sphere** (equal masses): both are pushed apart by half the depth each, and
+  the equal and opposite impulse that reflects their approach speed (:data:`SPHERE_RESTITUTION`)
+  is applied to both.
+
+The throw and the bounce are tuned so that a sphere lands on every step in turn; spheres that
+roll off the far end of the floor, or leave the region the camera shows, are shot again. A frame
+is :data:`DT` (1/20 s) of simulated time; videos play at :data:`FPS`, in real time.
 """
 
 from __future__ import annotations
@@ -17,64 +26,93 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
+from ..contacts import Contacts
 from ..detector import Detector
 from .display import Layer, fit_look
-from .marks import pair_points
 
 STEPS = 11
-STEP_SIZE = (0.78, 0.28, 3.0)  # a small gap between steps: they never touch
+STEP_DEPTH, STEP_WIDTH = 0.78, 3.0  # along x (a small gap between steps: they never touch), z
 STEP_DX, STEP_DY = 0.8, -0.3
+STEP_TOP = 0.14
+"""The top of the highest step; step k's top is ``STEP_TOP + k * STEP_DY``."""
+FLOOR_TOP = STEP_TOP + STEPS * STEP_DY
+"""The floor lies one step below the lowest step."""
+FLOOR_RUN = 2.4
+"""How far the floor reaches past the lowest step."""
+FLOOR_THICKNESS = 0.4
 RADIUS = 0.1
 GRAVITY = -9.81
 RESTITUTION = 0.55
-"""Rebound speed over impact speed: a sphere hops once per step at this and :data:`SPEED`."""
+"""Rebound speed over impact speed off a step or the floor: a sphere hops once per step at this
+and :data:`SPEED`."""
+SPHERE_RESTITUTION = 0.8
+"""Rebound speed over approach speed between two spheres."""
 DT = 1.0 / 20.0
+SUBSTEPS = 2
+"""Detections per frame: a sphere falling off a step moves about its radius in half a frame, so
+its centre seldom passes into a step, where the overlap no longer says which way is out."""
 FPS = 20
 SPEED = 1.75
 """Horizontal speed (x) of a shot: one step per hop."""
-LAUNCH = np.array([-0.6, STEP_SIZE[1] / 2 + 0.45, 0.0])
+LAUNCH = np.array([-0.6, STEP_TOP + 0.45, 0.0])
 """Where spheres are shot from: behind and just above the top step."""
 LAUNCH_VELOCITY = np.array([SPEED, 1.5, 0.0])
 
 
-def step_transforms() -> np.ndarray:
-    """(11, 4, 4) world from body of the steps, descending along +x."""
-    t = np.tile(np.eye(4), (STEPS, 1, 1))
-    t[:, 0, 3] = STEP_DX * np.arange(STEPS)
-    t[:, 1, 3] = STEP_DY * np.arange(STEPS)
+def step_boxes() -> np.ndarray:
+    """(11, 2, 3) world min and max corners of the steps: blocks from the floor to each top."""
+    x = STEP_DX * np.arange(STEPS)
+    top = STEP_TOP + STEP_DY * np.arange(STEPS)
+    lo = np.c_[x - STEP_DEPTH / 2, np.full(STEPS, FLOOR_TOP), np.full(STEPS, -STEP_WIDTH / 2)]
+    hi = np.c_[x + STEP_DEPTH / 2, top, np.full(STEPS, STEP_WIDTH / 2)]
+    return np.stack([lo, hi], axis=1)
+
+
+FLOOR_BOX = np.array([[-STEP_DEPTH / 2 - 0.4, FLOOR_TOP - FLOOR_THICKNESS, -STEP_WIDTH / 2 - 0.6],
+                      [STEP_DX * (STEPS - 1) + STEP_DEPTH / 2 + FLOOR_RUN, FLOOR_TOP,
+                       STEP_WIDTH / 2 + 0.6]])
+"""World min and max corners of the floor."""
+
+
+def box_transforms(boxes: np.ndarray) -> np.ndarray:
+    """(n, 4, 4) transforms that carry the unit cube centred at the origin onto ``boxes``
+    ((n, 2, 3) min and max corners)."""
+    t = np.tile(np.eye(4), (len(boxes), 1, 1))
+    t[:, [0, 1, 2], [0, 1, 2]] = boxes[:, 1] - boxes[:, 0]
+    t[:, :3, 3] = boxes.mean(axis=1)
     return t
 
 
-def step_boxes() -> np.ndarray:
-    """(11, 2, 3) world min and max corners of the steps."""
-    centres = step_transforms()[:, :3, 3]
-    half = np.array(STEP_SIZE) / 2
-    return np.stack([centres - half, centres + half], axis=1)
+def step_transforms() -> np.ndarray:
+    """(11, 4, 4) world from body of the steps (a unit cube scaled into each block)."""
+    return box_transforms(step_boxes())
 
+
+VIEW_BOX = np.array([[LAUNCH[0] - 0.3, FLOOR_BOX[0, 1], FLOOR_BOX[0, 2]],
+                     [FLOOR_BOX[1, 0], LAUNCH[1] + 0.45, FLOOR_BOX[1, 2]]])
+"""What the camera keeps in view: the staircase, the floor and the spheres' flight above the top
+step. Spheres whose centre leaves it are shot again, so every sphere in play is in view."""
+
+VIEW_DIRECTION = (0.45, 0.55, -1.0)
+"""From behind the steps and above, so the stairs run from the top right to the bottom left and
+leave the corners for the text (top left) and the legend (bottom right)."""
+LOOK = fit_look(VIEW_BOX, VIEW_DIRECTION, fov=40.0, margin=0.03, sun=(0.2, 1.0, -0.45),
+                shadow_extent=16.0, legend_right=True)
+"""The whole scene in view (a window starts here); headless videos follow the spheres."""
+FOLLOW_SIZE = np.array([4.0, 2.0, STEP_WIDTH + 0.6])
+"""The smallest box the camera frames around the spheres in play."""
+STEP_COLOUR = (0.56, 0.61, 0.70)
+FLOOR_COLOUR = (0.47, 0.50, 0.46)
+SPHERE_COLOUR = (0.95, 0.52, 0.18)
+TOUCH_COLOUR = (0.55, 0.12, 0.72)
+"""A sphere while it touches anything: the purple of the contact marks."""
+STEP_TOUCH_COLOUR = (0.74, 0.64, 0.88)
+"""A step while a sphere touches it."""
 
 LANES = 12
 LANE_WIDTH = 0.23
 """Spheres are shot in lanes this far apart in z, one lane after another: with 4 shots a frame a
 lane is used again 3 frames (over a sphere's diameter along its path) later."""
-
-DOMAIN = np.array([[-2.0, -5.0, -2.5], [STEP_DX * STEPS + 1.5, 3.0, 2.5]])
-"""The world box the simulation lives in; spheres leaving it are shot again from the top."""
-
-_boxes = step_boxes()
-REGION = np.array([_boxes[:, 0].min(axis=0) - 0.25, _boxes[:, 1].max(axis=0) + 0.25])
-"""Where a sphere can touch a step: the steps' box grown by more than a sphere's diameter.
-Only spheres inside it go to the detector."""
-
-SCENE_BOX = np.array([[LAUNCH[0] - RADIUS, _boxes[:, 0, 1].min(), _boxes[:, 0, 2].min()],
-                      [_boxes[:, 1, 0].max(), 0.85, _boxes[:, 1, 2].max()]])
-"""The staircase and the spheres' flight above its top: what the camera keeps in view."""
-
-LOOK = fit_look(SCENE_BOX, (0.45, 0.55, -1.0), fov=40.0, sun=(0.2, 1.0, -0.45),
-                shadow_extent=13.0, legend_right=True)
-"""From behind the steps and above, so the stairs run from the top right to the bottom left and
-leave the corners for the text (top left) and the legend (bottom right)."""
-STEP_COLOUR = (0.56, 0.61, 0.70)
-SPHERE_COLOUR = (0.95, 0.52, 0.18)
 
 
 @dataclass
@@ -86,11 +124,15 @@ class StairsSim:
     position, velocity : (spheres, 3) float
         Sphere centres and velocities.
     active : (spheres,) bool
-        Shot and in flight.
+        Shot and in play.
     steps_hit : (spheres, 11) bool
         The steps each sphere has bounced on since it was last shot.
     descents : int
         How many times a sphere has bounced on all 11 steps.
+    touching : (spheres,) bool
+        Spheres in a colliding pair this frame.
+    static_touched : (12,) bool
+        Steps (and, last, the floor) in a colliding pair this frame.
     """
 
     spheres: int = 50
@@ -104,17 +146,20 @@ class StairsSim:
 
     def __post_init__(self) -> None:
         self.rng = np.random.default_rng(self.seed)
-        self.step_mesh = trimesh.creation.box(STEP_SIZE)
+        self.cube = trimesh.creation.box((1.0, 1.0, 1.0))
         self.ball = trimesh.creation.icosphere(subdivisions=2, radius=RADIUS)
         self.position = np.zeros((self.spheres, 3))
         self.velocity = np.zeros((self.spheres, 3))
         self.active = np.zeros(self.spheres, bool)
         self.steps_hit = np.zeros((self.spheres, STEPS), bool)
+        self.touching = np.zeros(self.spheres, bool)
+        self.static_touched = np.zeros(STEPS + 1, bool)
         self.descents = 0
         self.shots = 0
-        # Each candidate pair gets its own tile: no views to fit, no contact hidden behind others.
-        self.detector = Detector(tolerance=self.tolerance)
-        self.steps = step_transforms()
+        self.sphere_contacts = 0
+        # Every record of every pair: contacts() reduces them without running the query again.
+        self.detector = Detector(tolerance=self.tolerance, records="all")
+        self.statics = np.concatenate([step_transforms(), box_transforms(FLOOR_BOX[None])])
         self.frame_index = 0
 
     def _shoot(self, idx: np.ndarray) -> None:
@@ -132,19 +177,14 @@ class StairsSim:
         self.steps_hit[idx] = False
         self.active[idx] = True
 
-    def near_steps(self) -> np.ndarray:
-        """Indices of active spheres that lie wholly inside :data:`REGION`."""
-        inside = ((self.position - RADIUS > REGION[0]) &
-                  (self.position + RADIUS < REGION[1])).all(axis=1)
-        return np.flatnonzero(self.active & inside)
-
     def bodies(self, idx: np.ndarray | None = None) -> tuple[list, np.ndarray]:
-        """Steps first, then the spheres ``idx`` (default: all active), and their transforms."""
+        """The steps, the floor, then the spheres ``idx`` (default: all in play), and their
+        transforms."""
         idx = np.flatnonzero(self.active) if idx is None else idx
         balls = np.tile(np.eye(4), (len(idx), 1, 1))
         balls[:, :3, 3] = self.position[idx]
-        bodies = [self.step_mesh] * STEPS + [self.ball] * len(idx)
-        return bodies, np.concatenate([self.steps, balls])
+        bodies = [self.cube] * (STEPS + 1) + [self.ball] * len(idx)
+        return bodies, np.concatenate([self.statics, balls])
 
     def step(self) -> dict:
         """Advance one frame: emit, integrate, detect, respond.
@@ -152,48 +192,91 @@ class StairsSim:
         Returns
         -------
         dict
-            ``result`` (the CollisionResult), ``ms`` (detection time), ``pairs`` (colliding
-            sphere-step pairs), ``all_pairs`` (with sphere-sphere pairs), ``marks`` ((pairs, 3)
-            one contact point per sphere-step pair).
+            ``result`` (the CollisionResult), ``contacts`` (its Contacts), ``ms`` (detection
+            and contact time), ``pairs`` (colliding pairs), ``contacts_count``, ``marks``
+            ((C, 3) the contact points) and ``normals`` ((C, 3) their normals, from the first
+            body of the pair into the second).
         """
         waiting = np.flatnonzero(~self.active)[: self.emit_per_frame]
         self._shoot(waiting)
-        idx = np.flatnonzero(self.active)
-        self.velocity[idx, 1] += GRAVITY * DT
-        self.position[idx] += self.velocity[idx] * DT
-        out = (self.position < DOMAIN[0] + RADIUS) | (self.position > DOMAIN[1] - RADIUS)
-        self._shoot(np.flatnonzero(out.any(axis=1) & self.active))
-        idx = self.near_steps()
-        bodies, transforms = self.bodies(idx)
-        t0 = time.perf_counter()
-        result = self.detector.find_collisions(bodies, transforms)
-        ms = (time.perf_counter() - t0) * 1e3
-        pairs = result.pairs
-        step_hits = pairs[(pairs[:, 0] < STEPS) & (pairs[:, 1] >= STEPS)]
-        fallback = transforms[step_hits[:, 1], :3, 3] - [0, RADIUS, 0]
-        marks = pair_points(result.records, step_hits, fallback)
-        self._respond(idx[step_hits[:, 1] - STEPS], step_hits[:, 0])
+        ms = 0.0
+        for _ in range(SUBSTEPS):
+            idx = np.flatnonzero(self.active)
+            self.velocity[idx, 1] += GRAVITY * DT / SUBSTEPS
+            self.position[idx] += self.velocity[idx] * DT / SUBSTEPS
+            gone = ((self.position < VIEW_BOX[0]) | (self.position > VIEW_BOX[1])).any(axis=1)
+            self._shoot(np.flatnonzero(gone & self.active))
+            idx = np.flatnonzero(self.active)
+            bodies, transforms = self.bodies(idx)
+            t0 = time.perf_counter()
+            # The steps and the floor stand still together: one group, never tested against
+            # each other; every sphere in a group of its own.
+            groups = np.r_[np.zeros(STEPS + 1, np.int64), 1 + np.arange(len(idx))]
+            result = self.detector.find_collisions(bodies, transforms, groups=groups)
+            contacts = result.contacts()
+            ms += (time.perf_counter() - t0) * 1e3
+            self._respond(idx, result.pairs, contacts)
         self.frame_index += 1
-        return {"result": result, "ms": ms, "pairs": len(step_hits), "all_pairs": len(pairs),
-                "marks": marks}
+        return {"result": result, "contacts": contacts, "ms": ms, "pairs": len(result.pairs),
+                "contacts_count": len(contacts), "marks": contacts.point,
+                "normals": contacts.normal}
 
-    def _respond(self, sphere: np.ndarray, step: np.ndarray) -> None:
-        """Bounce each sphere off the highest step it touches; count the steps it has hit."""
-        if len(sphere) == 0:
-            return
+    def _respond(self, idx: np.ndarray, pairs: np.ndarray, contacts: Contacts) -> None:
+        """The impulse response of the module's doc, contact by contact; which bodies touch."""
+        first = STEPS + 1  # body index of the first sphere
+        self.touching[:] = False
+        self.static_touched[:] = False
+        sphere_of = lambda body: idx[body - first]  # noqa: E731
+        for a, b in pairs.tolist():
+            for body in (a, b):
+                if body < first:
+                    self.static_touched[body] = True
+                else:
+                    self.touching[sphere_of(body)] = True
         before = self.steps_hit.all(axis=1)
-        self.steps_hit[sphere, step] = True
+        for (a, b), n, depth in zip(contacts.pair.tolist(), contacts.normal, contacts.depth):
+            if a < first:  # a step or the floor (a) and a sphere (b): n points into the sphere
+                s = sphere_of(b)
+                self.position[s] += n * depth
+                vn = self.velocity[s] @ n
+                if vn < 0:
+                    self.velocity[s] -= (1 + RESTITUTION) * vn * n
+                if a < STEPS and n[1] > 0.5:  # landed on the step's top
+                    self.steps_hit[s, a] = True
+            else:  # two spheres: n points from a into b
+                sa, sb = sphere_of(a), sphere_of(b)
+                self.position[sa] -= 0.5 * depth * n
+                self.position[sb] += 0.5 * depth * n
+                vn = (self.velocity[sb] - self.velocity[sa]) @ n
+                if vn < 0:
+                    j = 0.5 * (1 + SPHERE_RESTITUTION) * vn
+                    self.velocity[sa] += j * n
+                    self.velocity[sb] -= j * n
+                self.sphere_contacts += 1
         self.descents += int((self.steps_hit.all(axis=1) & ~before).sum())
-        top = np.full(self.spheres, -np.inf)
-        np.maximum.at(top, sphere, STEP_DY * step + STEP_SIZE[1] / 2)
-        hit = np.unique(sphere)
-        falling = hit[self.velocity[hit, 1] < 0]
-        self.velocity[falling, 1] *= -RESTITUTION
-        self.position[hit, 1] = np.maximum(self.position[hit, 1], top[hit] + RADIUS)
+
+    view_direction = VIEW_DIRECTION
+
+    def view_box(self) -> np.ndarray:
+        """(2, 3) the world box the camera should show: every sphere in play, with room around
+        it (at least :data:`FOLLOW_SIZE`), within :data:`VIEW_BOX`."""
+        centres = self.position[self.active]
+        if not len(centres):
+            return VIEW_BOX.copy()
+        lo, hi = centres.min(axis=0) - 2 * RADIUS, centres.max(axis=0) + 2 * RADIUS
+        grow = np.maximum(FOLLOW_SIZE - (hi - lo), 0) / 2
+        lo, hi = lo - grow, hi + grow
+        return np.stack([np.maximum(lo, VIEW_BOX[0]), np.minimum(hi, VIEW_BOX[1])])
 
     def layers(self) -> dict[str, Layer]:
-        """What the display shows: the steps and the spheres in flight."""
+        """What the display shows: the steps and the floor, the spheres in play; spheres and
+        steps in their touching colours while they are in a colliding pair (the floor, which
+        spheres roll on, keeps its own)."""
         balls = np.tile(np.eye(4), (int(self.active.sum()), 1, 1))
         balls[:, :3, 3] = self.position[self.active]
-        return {"steps": Layer(self.step_mesh, self.steps, np.array(STEP_COLOUR), flat=True),
-                "spheres": Layer(self.ball, balls, np.array(SPHERE_COLOUR))}
+        touching = self.touching[self.active]
+        sphere_colours = np.where(touching[:, None], TOUCH_COLOUR, SPHERE_COLOUR)
+        steps = np.where(self.static_touched[:STEPS, None], STEP_TOUCH_COLOUR, STEP_COLOUR)
+        return {"steps": Layer(self.cube, self.statics[:STEPS], steps, flat=True),
+                "floor": Layer(self.cube, self.statics[STEPS:], np.array(FLOOR_COLOUR), flat=True),
+                "spheres": Layer(self.ball, balls, sphere_colours)}

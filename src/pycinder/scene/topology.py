@@ -171,43 +171,40 @@ def build_topology(faces: np.ndarray, n_vertices: int, label: str) -> Topology:
 
 def report_problems(topo: Topology, zero_area: int, label: str, strict: bool,
                     inverted: bool = False) -> None:
-    """Warn (or raise when ``strict``) about open, inside-out and degenerate meshes, saying what
-    rule is applied to each."""
+    """Warn about open, inside-out and degenerate meshes, saying what rule is applied to each;
+    with ``strict``, raise instead (and the message says only what is wrong)."""
+
+    def complain(problem: str, rule: str, repair: str, category: type[Warning]) -> None:
+        if strict:
+            raise ValueError(f"{problem}. {repair}.")
+        warn_at_caller(f"{problem}; {rule}. {repair}, or ask for strict checking to make this an "
+                       "error.", category)
+
     if not topo.closed:
-        rule = ("it is tested as a solid all the same: every edge is walked equally often both "
-                "ways, so its inside is well defined" if topo.solid else
-                "it is tested as a surface: a pair is reported where its surface crosses the "
-                "other body's surface, or lies inside another body that is a closed solid; "
-                "nothing is ever found inside it")
-        message = (
-            f"{label} is not a closed, consistently oriented surface: {topo.problem()}; {rule}. "
-            "Repair it (trimesh.repair.fill_holes, pymeshlab's close holes) to test it as a "
-            "solid, or ask for strict checking to make this an error."
-        )
-        if strict:
-            raise ValueError(message)
-        warn_at_caller(message, OpenMeshWarning)
+        complain(f"{label} is not a closed, consistently oriented surface: {topo.problem()}",
+                 "it is tested as a solid all the same: every edge is walked equally often both "
+                 "ways, so its inside is well defined" if topo.solid else
+                 "it is tested as a surface: a pair is reported where its surface crosses the "
+                 "other body's surface, or lies inside another body that is a closed solid; "
+                 "nothing is ever found inside it",
+                 "Repair it (trimesh.repair.fill_holes, pymeshlab's close holes) to test it as a "
+                 "solid", OpenMeshWarning)
     elif inverted:
-        message = (
-            f"{label} is closed but wound inside out (its volume is negative): collisions are "
-            "still found (the ray count of its inside is -1, not 0), but its normals, and so "
-            "contact normals, point inwards. Flip it (trimesh's mesh.invert()) or ask for strict "
-            "checking to make this an error."
-        )
-        if strict:
-            raise ValueError(message)
-        warn_at_caller(message, OpenMeshWarning)
+        complain(f"{label} is closed but wound inside out (its volume is negative)",
+                 "collisions are still found (the ray count of its inside is -1, not 0), but its "
+                 "normals, and so contact normals, point inwards",
+                 "Flip it (trimesh's mesh.invert())", OpenMeshWarning)
     degenerate = []
     if topo.dropped_faces:
-        degenerate.append(f"{topo.dropped_faces} faces that repeat a vertex index were dropped")
+        degenerate.append(f"{topo.dropped_faces} faces repeat a vertex index")
     if zero_area:
-        degenerate.append(f"{zero_area} faces of zero area are ignored (they cross no ray)")
+        degenerate.append(f"{zero_area} faces have zero area")
     if degenerate:
-        message = (f"{label} has degenerate faces: {'; '.join(degenerate)}. Remove them with "
-                   "trimesh's mesh.update_faces(mesh.nondegenerate_faces()).")
-        if strict:
-            raise ValueError(message)
-        warn_at_caller(message, DegenerateFaceWarning)
+        complain(f"{label} has degenerate faces: {' and '.join(degenerate)}",
+                 "faces that repeat a vertex index are dropped and faces of zero area ignored "
+                 "(they bound nothing and cross no ray)",
+                 "Remove them with trimesh's mesh.update_faces(mesh.nondegenerate_faces())",
+                 DegenerateFaceWarning)
 
 
 def _fingerprint(faces: np.ndarray) -> int:

@@ -1,0 +1,141 @@
+"""What a result tells a user: a short repr, contacts from any query, the names it was given,
+records named for what they hold, normals filled when asked for, stats per strategy."""
+
+import numpy as np
+import pytest
+import trimesh
+
+import pycinder
+from pycinder.contacts import reduce_contacts
+
+
+def box_and_ball():
+    """A unit box at the origin and a ball of radius 0.4 centred at x = 0.6: they overlap in
+    x from 0.2 to 0.5, so the exact penetration is 0.3 along +x (from box into ball)."""
+    box = trimesh.creation.box((1, 1, 1))
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.4)
+    ball.apply_translation((0.6, 0, 0))
+    return box, ball
+
+
+def test_repr_is_short_and_names_the_pairs(detector):
+    box, ball = box_and_ball()
+    far = trimesh.creation.icosphere(radius=0.2)
+    far.apply_translation((5, 0, 0))
+    result = detector.find_collisions([box, ball, far], names=["box", "ball", "far"],
+                                      records="all")
+    assert len(result.records) > 100
+    text = repr(result)
+    assert len(text) < 300 and "\n" not in text, text
+    assert "1 pair: (box, ball)" in text and f"{len(result.records)} records" in text
+    assert "tolerance" in text and result.stats.adapter in text
+    assert "point" not in text  # no record array
+    stats = repr(result.stats)
+    assert stats.count("\n") < 8 and "tiles=" in stats and "resolution" not in stats
+
+
+@pytest.mark.parametrize("tol", [0.005, 0.001])
+def test_contacts_from_a_default_query_measure_the_exact_overlap(tol):
+    """One contact region, whatever the tolerance (at 0.001 the ball's cap is sampled at a
+    grazing angle near its pole, and those thin samples stay in the one region)."""
+    box, ball = box_and_ball()
+    det = pycinder.Detector(tolerance=tol)
+    result = det.find_collisions([box, ball], names=["box", "ball"])  # records="found"
+    contacts = result.contacts()
+    assert len(contacts) == 1
+    (c,) = list(contacts)
+    assert c.pair == ("box", "ball") and c.names == {"box", "ball"}
+    # normal from the box into the ball: +x; depth: 0.3 (exact, from the geometry above)
+    assert np.degrees(np.arccos(np.clip(c.normal @ [1, 0, 0], -1, 1))) < 10
+    assert abs(c.depth - 0.3) < 0.03 + tol
+    # the point lies in both bodies (within a tolerance)
+    for mesh in (box, ball):
+        assert trimesh.proximity.signed_distance(mesh, [c.point])[0] > -tol
+    # the same contacts as reducing a records="all" query directly; computed once
+    direct = reduce_contacts(det.find_collisions([box, ball], records="all"))
+    assert np.allclose(direct.normal, contacts.normal) and np.allclose(direct.depth, contacts.depth)
+    assert result.contacts() is contacts
+
+
+def test_contacts_of_a_pairs_only_query_and_of_a_probe(detector):
+    box, ball = box_and_ball()
+    far = trimesh.creation.icosphere(radius=0.2)
+    far.apply_translation((0.6, 0.0, 0.0))  # inside the ball, touching nothing else
+    result = detector.find_collisions([box, ball, far], records="none", groups=[0, 1, 0])
+    assert result.pairs.tolist() == [[0, 1], [1, 2]] and len(result.records) == 0
+    contacts = result.contacts()
+    assert sorted({tuple(p) for p in contacts.pair.tolist()}) == [(0, 1), (1, 2)]
+    # unnamed bodies are named by their indices
+    assert {c.pair for c in contacts} == {(0, 1), (1, 2)}
+
+
+def test_no_contacts_without_pairs_and_none_from_the_scene_strategy():
+    box, ball = box_and_ball()
+    ball.apply_translation((2, 0, 0))
+    assert len(pycinder.find_collisions([box, ball]).contacts()) == 0
+    ball.apply_translation((-2, 0, 0))
+    scene = pycinder.find_collisions([box, ball], strategy="scene", resolution=256)
+    with pytest.raises(ValueError, match="focused strategy"):
+        scene.contacts()
+
+
+def test_pair_names_remember_the_names(detector):
+    box, ball = box_and_ball()
+    result = detector.find_collisions([box, ball], names=["zeta", "alpha"])
+    assert result.pair_names() == {("alpha", "zeta")}
+    assert result.pair_names(["b", "a"]) == {("a", "b")}  # still accepted
+    assert detector.find_collisions([box, ball]).pair_names() == {(0, 1)}
+
+
+def test_stats_are_split_by_strategy(detector):
+    box, ball = box_and_ball()
+    focused = detector.find_collisions([box, ball]).stats
+    assert isinstance(focused.detail, pycinder.FocusedStats)
+    assert focused.tiles > 0 and focused.candidates == 1 and focused.records > 0
+    with pytest.raises(AttributeError, match="scene strategy"):
+        focused.resolution
+    scene = pycinder.find_collisions([box, ball], strategy="scene", resolution=128).stats
+    assert isinstance(scene.detail, pycinder.SceneStats) and scene.resolution == (128, 128)
+    with pytest.raises(AttributeError, match="focused strategy"):
+        scene.tiles
+    assert "tiles" not in repr(scene) and "resolution=(128, 128)" in repr(scene)
+
+
+@pytest.mark.parametrize("options", [{"tolerance": 0.01}, {"strategy": "scene",
+                                                            "resolution": 256}])
+def test_records_carry_pixels_and_normals_when_asked(options):
+    box, ball = box_and_ball()
+    centres = np.array([[0, 0, 0], [0.6, 0, 0]])
+    plain = pycinder.Detector(**options).find_collisions([box, ball])
+    assert {"pixel_x", "pixel_y", "pixel_z"} <= set(plain.records.dtype.names)
+    assert "depth" not in plain.records.dtype.names and "x" not in plain.records.dtype.names
+    assert np.isnan(plain.records["normal"]).all()
+    result = pycinder.Detector(encode="normal", **options).find_collisions([box, ball])
+    rec = result.records
+    assert len(rec) >= 16  # records="found" keeps 16 per pair
+    normal = rec["normal"].astype(float)
+    # Filled on every record, unit length, pointing out of the (convex) penetrating body.
+    assert np.isfinite(normal).all()
+    assert np.allclose(np.linalg.norm(normal, axis=1), 1, atol=2e-3)
+    outward = rec["point"] - centres[rec["penetrating"]]
+    assert (np.einsum("ij,ij->i", normal, outward) > 0).all()
+
+
+@pytest.mark.parametrize("fresh_arrays", [False, True])
+def test_a_warning_comes_once_per_cause_not_per_frame(fresh_arrays):
+    """An open body in a loop of 5 frames, passed as the same mesh or as fresh arrays every
+    frame: one warning for it, not one per frame."""
+    import warnings
+
+    box = trimesh.creation.box((1, 1, 1))
+    open_box = trimesh.Trimesh(box.vertices, box.faces[:-2], process=False)
+    ball = trimesh.creation.icosphere(radius=0.3)
+    det = pycinder.Detector()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for _ in range(5):
+            body = (np.array(open_box.vertices), np.array(open_box.faces)) if fresh_arrays \
+                else open_box
+            det.find_collisions([body, ball])
+    about = [w for w in caught if issubclass(w.category, pycinder.OpenMeshWarning)]
+    assert len(about) == 1, [str(w.message) for w in about]
