@@ -9,8 +9,9 @@
   world AABBs and each candidate goes through ``coal.collide``.
 * trimesh: ``trimesh.collision.CollisionManager`` (FCL underneath, with trimesh's own overhead);
   deforming meshes are re-added every frame.
-* warp: NVIDIA Warp's ``wp.Mesh`` BVHs, refitted every frame when bodies deform, with a
-  triangle-versus-BVH kernel (:mod:`.warp_peer`); its CPU device here, CUDA on a GPU.
+* warp: everything on the Warp device (:mod:`.warp_peer`): world boxes, a sort-and-sweep broad
+  phase and a triangle-versus-BVH narrow phase in kernels replayed as one graph per frame, with
+  ``wp.Mesh`` BVHs refitted only when bodies deform; its CPU device here, CUDA on a GPU.
 
 Every peer reports all colliding pairs, not just the first.
 """
