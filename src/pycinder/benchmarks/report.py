@@ -152,6 +152,20 @@ def markdown(results: dict[str, Any]) -> str:
                 + f" | {st['candidates']} | {st['tiles']} | {st['pixels']} | {st['triangles']} "
                   f"| {st['samples']} |")
         lines.append("")
+    trips = [(name, st) for name, st in stages if "submissions" in st]
+    if trips:
+        lines += ["## GPU round trips", "",
+                  "Per frame of each scene (an unprofiled frame): submissions and buffer maps "
+                  "pycinder made, host milliseconds before its first submission (the work "
+                  "before the GPU can start), and the GPU busy fraction of a profiled frame (its "
+                  "passes' timestamps over its wall time).", "",
+                  "| scene | submissions | maps | host ms before submit | GPU busy |",
+                  "|---|---|---|---|---|"]
+        for name, st in trips:
+            busy = "-" if st["gpu_busy"] is None else f"{100 * st['gpu_busy']:.0f}%"
+            lines.append(f"| {name} | {st['submissions']} | {st['maps']} | "
+                         f"{_fmt(st['host_ms_before_submit'])} | {busy} |")
+        lines.append("")
     if results.get("modes"):
         lines += ["## The scene strategy's readback and self-interference modes", "",
                   "| scene | options | ms / frame | bytes read | pairs missed | false pairs | "

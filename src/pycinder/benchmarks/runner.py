@@ -8,6 +8,8 @@ tolerances, and the pairs reported though at least one tolerance apart.
 
 from __future__ import annotations
 
+import contextlib
+
 import datetime as _dt
 import importlib.metadata as md
 import os
@@ -15,7 +17,7 @@ import platform
 import statistics
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -140,8 +142,39 @@ def _stats_of(py: Pycinder, scene: Scene) -> dict[str, Any]:
     profiled.find_collisions(bodies, transforms)
     st = profiled.find_collisions(bodies, transforms).stats
     keys = ("candidates", "separated", "tiles", "pixels", "triangles", "samples", "rounds",
-            "retries", "bytes_read", "tolerance")
-    return {"wall_ms": st.wall_ms, "gpu_ms": st.gpu_ms, **{k: getattr(st, k) for k in keys}}
+            "retries", "bytes_read", "tolerance", "submitted_ms")
+    with _round_trips(py.detector) as trips:  # an unprofiled frame, as timed above
+        plain = py.detector.find_collisions(bodies, transforms).stats
+    gpu = sum(st.gpu_ms.values())
+    return {"wall_ms": st.wall_ms, "gpu_ms": st.gpu_ms, **{k: getattr(st, k) for k in keys},
+            "submissions": trips["submissions"], "maps": trips["maps"],
+            "host_ms_before_submit": plain.submitted_ms,
+            "gpu_busy": gpu / st.wall_ms["total"] if gpu else None}
+
+
+@contextlib.contextmanager
+def _round_trips(detector: Any) -> Iterator[dict[str, int]]:
+    """Count the queue submissions and buffer maps pycinder makes while the block runs (not the
+    empty submission wgpu-py makes before some maps)."""
+    queue_type = type(detector.gpu.device.queue)
+    buffer_type = type(detector.strategy.passes.counters)
+    submit, map_async = queue_type.submit, buffer_type.map_async
+    trips = {"submissions": 0, "maps": 0}
+
+    def counted_submit(queue: Any, *args: Any, **kwargs: Any) -> Any:
+        if "pycinder" in sys._getframe(1).f_code.co_filename:
+            trips["submissions"] += 1
+        return submit(queue, *args, **kwargs)
+
+    def counted_map(buffer: Any, *args: Any, **kwargs: Any) -> Any:
+        trips["maps"] += 1
+        return map_async(buffer, *args, **kwargs)
+
+    queue_type.submit, buffer_type.map_async = counted_submit, counted_map
+    try:
+        yield trips
+    finally:
+        queue_type.submit, buffer_type.map_async = submit, map_async
 
 
 def run_tolerance_sweep(frames: int, peers: Sequence[System]) -> list[dict[str, Any]]:
