@@ -16,7 +16,8 @@ import pytest
 import trimesh
 
 import pycinder
-from pycinder.testing import bunny, first_contact, ground_truth, l_shape, random_rotation
+from pycinder.testing import (bunny, first_contact, ground_truth, l_shape, random_rotation,
+                              surface_distance)
 
 TOL = 0.005
 """At scale 1; bodies are about 1 across."""
@@ -131,21 +132,6 @@ def test_each_pair_alone(detector, scale, i):
         f"{case['name']}: missed 4 tolerances deep"
 
 
-def _fcl_distance(meshes, transforms) -> float:
-    import fcl
-
-    objs = []
-    for m, t in zip(meshes, transforms):
-        w = m.copy()
-        w.apply_transform(t)
-        model = fcl.BVHModel()
-        model.beginModel(len(w.vertices), len(w.faces))
-        model.addSubModel(np.asarray(w.vertices, np.float64), np.asarray(w.faces, np.int32))
-        model.endModel()
-        objs.append(fcl.CollisionObject(model, fcl.Transform()))
-    return float(fcl.distance(objs[0], objs[1], fcl.DistanceRequest(), fcl.DistanceResult()))
-
-
 @pytest.mark.parametrize("i", range(len(CASES)), ids=[f"{a}-{b}" for a, b, _, _ in CASES])
 def test_each_pair_at_the_contracts_margins(detector, scale, i):
     """One tolerance apart by python-fcl's exact distance: never reported. Two tolerances deep
@@ -153,8 +139,10 @@ def test_each_pair_at_the_contracts_margins(detector, scale, i):
     case = placed()[i]
     # The truth at scale 1 (distances scale with the scene; python-fcl's own tolerance is too
     # coarse to measure a thousandth of these distances at scale 1e-3).
-    assert _fcl_distance(*_scaled(case, "t apart", 1.0)) >= TOL * (1 - 1e-9)
-    assert _fcl_distance(*_scaled(case, "2t deep", 1.0)) <= 0.0  # they meet (fcl: 0 or -1)
+    (a, b), poses = _scaled(case, "t apart", 1.0)
+    assert surface_distance(a, b, poses) >= TOL * (1 - 1e-9)
+    (a, b), poses = _scaled(case, "2t deep", 1.0)
+    assert surface_distance(a, b, poses) <= 0.0  # they meet (fcl: 0 or -1)
     meshes, transforms = _scaled(case, "t apart", scale)
     assert detector.find_collisions(meshes, transforms).pairs.tolist() == [], \
         f"{case['name']}: reported one tolerance apart"

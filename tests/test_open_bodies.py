@@ -12,72 +12,18 @@ import pytest
 import trimesh
 
 import pycinder
-from pycinder.testing import random_rotation
+from pycinder.testing import (disc, grid_plate, open_body_cases, open_cup, open_tube,
+                              random_rotation, surface_distance)
 
-from test_regressions import fcl_distance
 
 T = 0.01
 
 
-def move(x=0.0, y=0.0, z=0.0, rotation=None) -> np.ndarray:
-    m = np.eye(4) if rotation is None else rotation.copy()
-    m[:3, 3] = (x, y, z)
-    return m
+def move(x=0.0, y=0.0, z=0.0) -> np.ndarray:
+    return trimesh.transformations.translation_matrix((x, y, z))
 
 
-def cup(size: float = 1.0) -> trimesh.Trimesh:
-    """A box without its top: an open surface."""
-    box = trimesh.creation.box((size, size, size))
-    keep = box.face_normals[:, 2] < 0.9
-    return trimesh.Trimesh(box.vertices, box.faces[keep], process=False)
-
-
-def tube(radius: float, height: float, sections: int = 32) -> trimesh.Trimesh:
-    """A cylinder without its caps."""
-    c = trimesh.creation.cylinder(radius=radius, height=height, sections=sections)
-    keep = np.abs(c.face_normals[:, 2]) < 0.5
-    return trimesh.Trimesh(c.vertices, c.faces[keep], process=False)
-
-
-def plate(size: float = 1.0, n: int = 8) -> trimesh.Trimesh:
-    """A flat square grid of triangles in the plane z = 0."""
-    xs = np.linspace(-size / 2, size / 2, n + 1)
-    x, y = np.meshgrid(xs, xs)
-    v = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
-    a = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
-    f = np.concatenate([np.stack([a, a + 1, a + n + 2], 1), np.stack([a, a + n + 2, a + n + 1], 1)])
-    return trimesh.Trimesh(v, f, process=False)
-
-
-def disc(radius: float, sections: int = 32) -> trimesh.Trimesh:
-    angle = np.linspace(0, 2 * np.pi, sections, endpoint=False)
-    v = np.concatenate([[[0, 0, 0]], np.stack([radius * np.cos(angle), radius * np.sin(angle),
-                                               np.zeros(sections)], 1)])
-    k = np.arange(sections)
-    f = np.stack([np.zeros(sections, int), 1 + k, 1 + (k + 1) % sections], 1)
-    return trimesh.Trimesh(v, f, process=False)
-
-
-BALL = trimesh.creation.icosphere(subdivisions=3, radius=0.2)
-TURN_Y = trimesh.transformations.rotation_matrix(np.pi / 2, (0, 1, 0))
-
-CASES = [
-    # name, meshes, transforms, reported?
-    ("ball in a cup, 20 t from every wall", [cup(), BALL], [move(), move(0, 0, 0.05)], False),
-    ("ball through a cup's wall", [cup(), BALL], [move(), move(0.45, 0, 0)], True),
-    ("ball 2 t inside a cup's wall", [cup(), BALL], [move(), move(0.3 - 2 * T, 0, 0)], False),
-    ("rod along a tube's axis", [tube(0.3, 1.0), tube(0.05, 1.5)], [move(), move()], False),
-    ("rod through a tube's wall", [tube(0.3, 1.0), tube(0.05, 1.5)],
-     [move(), move(0, 0, 0, TURN_Y)], True),
-    ("plate through an open box's walls", [cup(), plate(1.6)], [move(), move(0, 0, 0.1)], True),
-    ("plate one tolerance inside an open box's wall", [cup(), plate(0.5)],
-     [move(), move(0.5 - 1.5 * T, 0, 0, TURN_Y)], False),
-    ("disc through a ball", [BALL, disc(0.4)], [move(), move(0, 0, 0.05)], True),
-    ("disc 2 t above a ball", [BALL, disc(0.4)], [move(), move(0, 0, 0.2 + 2 * T)], False),
-    ("disc inside a ball", [BALL, disc(0.1)], [move(), move(0, 0, 0.02)], True),
-    ("ball inside a closed box (solids still count)", [trimesh.creation.box((1, 1, 1)), BALL],
-     [move(), move(0, 0, 0.05)], True),
-]
+CASES = open_body_cases(T)
 
 
 @pytest.mark.parametrize("name, meshes, transforms, reported", CASES, ids=[c[0] for c in CASES])
@@ -87,7 +33,7 @@ def test_open_bodies_by_their_surfaces(name, meshes, transforms, reported):
         w = m.copy()
         w.apply_transform(t)
         worlds.append(w)
-    distance = fcl_distance(*worlds)
+    distance = surface_distance(*worlds)
     closed = [m.is_watertight for m in meshes]
     if reported and all(not c for c in closed) or (reported and "through" in name):
         assert distance <= 0.0, f"{name}: the surfaces do not meet ({distance})"
@@ -137,7 +83,7 @@ def test_spheres_around_a_bunny_with_holes(bunny):
         w.apply_translation(c)
         if closest[k] <= inscribed - 2 * t:
             must.append(k)
-        elif fcl_distance(open_bunny, w) >= t:
+        elif surface_distance(open_bunny, w) >= t:
             never.append(k)
     assert len(must) > 5 and len(never) > 5
     det = pycinder.Detector(tolerance=t)
@@ -158,7 +104,7 @@ def test_open_primitives_never_reported_apart(seed):
     sphere = trimesh.creation.icosphere(subdivisions=2, radius=0.3)
     half_sphere = trimesh.Trimesh(sphere.vertices, sphere.faces[sphere.triangles_center[:, 2] > 0],
                                   process=False)
-    shapes = [cup(0.6), tube(0.2, 0.8), half_sphere, plate(0.6, 4), sphere,
+    shapes = [open_cup(0.6), open_tube(0.2, 0.8), half_sphere, grid_plate(0.6, 4), sphere,
               trimesh.creation.box((0.5, 0.3, 0.4))]
     meshes, transforms, worlds = [], [], []
     for k in range(12):
@@ -177,7 +123,7 @@ def test_open_primitives_never_reported_apart(seed):
     apart = crossing = 0
     for i in range(len(meshes)):
         for j in range(i + 1, len(meshes)):
-            d = fcl_distance(worlds[i], worlds[j])
+            d = surface_distance(worlds[i], worlds[j])
             if d >= t:
                 apart += 1
                 assert (i, j) not in found, (i, j, d)

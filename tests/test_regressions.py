@@ -17,28 +17,11 @@ import pytest
 import trimesh
 
 import pycinder
-from pycinder.testing import ground_truth, random_rotation
+from pycinder.testing import ground_truth, holed_plate, random_rotation, surface_distance
 
 from conftest import assert_matches_truth
 
 DATA = Path(__file__).parent / "data" / "regressions"
-
-
-def _fcl(mesh: trimesh.Trimesh):
-    import fcl
-
-    model = fcl.BVHModel()
-    model.beginModel(len(mesh.vertices), len(mesh.faces))
-    model.addSubModel(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int32))
-    model.endModel()
-    return fcl.CollisionObject(model, fcl.Transform())
-
-
-def fcl_distance(a: trimesh.Trimesh, b: trimesh.Trimesh) -> float:
-    """Exact distance between two world meshes' surfaces (python-fcl)."""
-    import fcl
-
-    return float(fcl.distance(_fcl(a), _fcl(b), fcl.DistanceRequest(), fcl.DistanceResult()))
 
 
 @lru_cache(maxsize=1)
@@ -55,7 +38,7 @@ def test_holed_link_pair_is_not_reported():
     a.apply_transform(d["Ta"])
     b.apply_transform(d["Tb"])
     assert a.is_watertight and b.is_watertight
-    assert fcl_distance(a, b) > 19 * t
+    assert surface_distance(a, b) > 19 * t
     for records in ("found", "all"):
         result = pycinder.find_collisions([(d["va"], d["fa"]), (d["vb"], d["fb"])],
                                           [d["Ta"], d["Tb"]], tolerance=t, records=records)
@@ -81,20 +64,6 @@ def test_holed_link_pair_under_rigid_moves(k):
         shift[:3, 3] = rng.normal(size=3) * t
         result = det.find_collisions(bodies, [move @ d["Ta"], move @ shift @ d["Tb"]])
         assert result.pairs.tolist() == []
-
-
-def holed_plate(size: float = 1.0, holes: int = 3) -> trimesh.Trimesh:
-    """A plate with ``holes`` round holes through it (manifold3d), watertight, genus ``holes``."""
-    import manifold3d as m3d
-
-    plate = m3d.Manifold.cube((size, size, 0.1 * size), center=True)
-    for k in range(holes):
-        x = (k + 0.5) / holes * size - size / 2
-        hole = m3d.Manifold.cylinder(0.4 * size, 0.12 * size / holes, 0.12 * size / holes, 32,
-                                     center=True).translate((x, 0.0, 0.0))
-        plate = plate - hole
-    mesh = plate.to_mesh()
-    return trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
 
 
 @pytest.mark.parametrize("seed", range(3))

@@ -286,6 +286,22 @@ def _fcl_object(mesh: trimesh.Trimesh) -> Any:
     return fcl.CollisionObject(model, fcl.Transform())
 
 
+def surface_distance(a: Any, b: Any, transforms: Any = None) -> float:
+    """Exact distance between two meshes' surfaces (python-fcl), 0 or less where they meet.
+
+    Parameters
+    ----------
+    a, b : trimesh.Trimesh or (vertices, faces)
+    transforms : pair of (4, 4) float, optional
+        World from body of ``a`` and ``b`` (default: the meshes are in world coordinates).
+    """
+    import fcl
+
+    ta, tb = (None, None) if transforms is None else transforms
+    oa, ob = _fcl_object(world_mesh(a, ta)), _fcl_object(world_mesh(b, tb))
+    return float(fcl.distance(oa, ob, fcl.DistanceRequest(), fcl.DistanceResult()))
+
+
 def first_contact(a: trimesh.Trimesh, b: trimesh.Trimesh, direction: np.ndarray,
                   gap: float = 0.0, iterations: int = 60) -> float:
     """How far to move ``b`` along ``direction`` (from where it is) so that, coming in from far
@@ -347,3 +363,89 @@ def l_shape(size: float = 1.0, thickness: float = 0.3, depth: float = 0.5) -> tr
     out = trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
     out.apply_translation(-out.bounds.mean(axis=0))
     return out
+
+
+# -- Open surfaces and holed solids (the contract's open-body and holed-body cases) -------------
+
+def open_cup(size: float = 1.0) -> trimesh.Trimesh:
+    """A box without its top: an open surface."""
+    box = trimesh.creation.box((size, size, size))
+    keep = box.face_normals[:, 2] < 0.9
+    return trimesh.Trimesh(box.vertices, box.faces[keep], process=False)
+
+
+def open_tube(radius: float, height: float, sections: int = 32) -> trimesh.Trimesh:
+    """A cylinder without its caps: an open surface."""
+    c = trimesh.creation.cylinder(radius=radius, height=height, sections=sections)
+    keep = np.abs(c.face_normals[:, 2]) < 0.5
+    return trimesh.Trimesh(c.vertices, c.faces[keep], process=False)
+
+
+def grid_plate(size: float = 1.0, n: int = 8) -> trimesh.Trimesh:
+    """A flat square grid of triangles in the plane z = 0: an open surface."""
+    xs = np.linspace(-size / 2, size / 2, n + 1)
+    x, y = np.meshgrid(xs, xs)
+    v = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
+    a = (np.arange(n)[:, None] * (n + 1) + np.arange(n)[None, :]).ravel()
+    f = np.concatenate([np.stack([a, a + 1, a + n + 2], 1), np.stack([a, a + n + 2, a + n + 1], 1)])
+    return trimesh.Trimesh(v, f, process=False)
+
+
+def disc(radius: float, sections: int = 32) -> trimesh.Trimesh:
+    """A flat disc in the plane z = 0, a fan of triangles: an open surface."""
+    angle = np.linspace(0, 2 * np.pi, sections, endpoint=False)
+    v = np.concatenate([[[0, 0, 0]], np.stack([radius * np.cos(angle), radius * np.sin(angle),
+                                               np.zeros(sections)], 1)])
+    k = np.arange(sections)
+    f = np.stack([np.zeros(sections, int), 1 + k, 1 + (k + 1) % sections], 1)
+    return trimesh.Trimesh(v, f, process=False)
+
+
+def holed_plate(size: float = 1.0, holes: int = 3) -> trimesh.Trimesh:
+    """A plate with ``holes`` round holes through it (manifold3d): watertight, genus ``holes``."""
+    m3d = _manifold3d()
+    plate = m3d.Manifold.cube((size, size, 0.1 * size), center=True)
+    for k in range(holes):
+        x = (k + 0.5) / holes * size - size / 2
+        hole = m3d.Manifold.cylinder(0.4 * size, 0.12 * size / holes, 0.12 * size / holes, 32,
+                                     center=True).translate((x, 0.0, 0.0))
+        plate = plate - hole
+    mesh = plate.to_mesh()
+    return trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
+
+
+def _placed(x: float = 0.0, y: float = 0.0, z: float = 0.0,
+            rotation: np.ndarray | None = None) -> np.ndarray:
+    m = np.eye(4) if rotation is None else rotation.copy()
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+def open_body_cases(t: float) -> list[tuple[str, list[trimesh.Trimesh], list[np.ndarray], bool]]:
+    """Open bodies against open and closed ones at tolerance ``t`` (bodies about 1 across):
+    ``(name, meshes, transforms, must be reported)``. Each answer is fixed by the construction:
+    the reported ones cross by far more than ``2 t``, the others are at least ``t`` apart by
+    their surfaces (python-fcl checks it in the tests)."""
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.2)
+    turn = trimesh.transformations.rotation_matrix(np.pi / 2, (0, 1, 0))
+    return [
+        ("ball in a cup, 20 t from every wall", [open_cup(), ball],
+         [_placed(), _placed(0, 0, 0.05)], False),
+        ("ball through a cup's wall", [open_cup(), ball], [_placed(), _placed(0.45, 0, 0)], True),
+        ("ball 2 t inside a cup's wall", [open_cup(), ball],
+         [_placed(), _placed(0.3 - 2 * t, 0, 0)], False),
+        ("rod along a tube's axis", [open_tube(0.3, 1.0), open_tube(0.05, 1.5)],
+         [_placed(), _placed()], False),
+        ("rod through a tube's wall", [open_tube(0.3, 1.0), open_tube(0.05, 1.5)],
+         [_placed(), _placed(rotation=turn)], True),
+        ("plate through an open box's walls", [open_cup(), grid_plate(1.6)],
+         [_placed(), _placed(0, 0, 0.1)], True),
+        ("plate 1.5 t inside an open box's wall", [open_cup(), grid_plate(0.5)],
+         [_placed(), _placed(0.5 - 1.5 * t, 0, 0, turn)], False),
+        ("disc through a ball", [ball, disc(0.4)], [_placed(), _placed(0, 0, 0.05)], True),
+        ("disc 2 t above a ball", [ball, disc(0.4)], [_placed(), _placed(0, 0, 0.2 + 2 * t)],
+         False),
+        ("disc inside a ball", [ball, disc(0.1)], [_placed(), _placed(0, 0, 0.02)], True),
+        ("ball inside a closed box (solids still count)", [trimesh.creation.box((1, 1, 1)), ball],
+         [_placed(), _placed(0, 0, 0.05)], True),
+    ]

@@ -203,6 +203,10 @@ def markdown(results: dict[str, Any]) -> str:
                          f"{p['normal_error_deg']:.1f} | {p['depth']:.4f} | {f['contacts']} | "
                          f"{f['normal_error_deg']:.1f} | {f['depth']:.4f} |")
         lines.append("")
+    if results.get("contract"):
+        from .contract import markdown as contract_markdown
+
+        lines += contract_markdown(results["contract"])
     if results.get("batch"):
         from .batch import markdown as batch_markdown
 

@@ -27,8 +27,8 @@ from .peers import PEERS, Pycinder, System
 from .scenes import SCENES, Scene, SphereField, Stairs
 
 DEFAULT_SCENES = ["floor", "stairs", "many", "deforming", "narrow", "sweep-extent", "sweep-bodies",
-                  "sweep-triangles", "sweep-tolerance", "manager", "contacts", "modes", "batch",
-                  "soak"]
+                  "sweep-triangles", "sweep-tolerance", "manager", "contacts", "contract", "modes",
+                  "batch", "soak"]
 DEFAULT_PEERS = ["python-fcl", "coal", "trimesh", "warp"]
 TOLERANCE_SWEEP = (0.001, 0.0028, 0.005, 0.01)
 """World tolerances of the Stairs tolerance sweep (the spheres are 0.16 across; pycinder's
@@ -399,7 +399,7 @@ def run_contact_accuracy() -> list[dict[str, Any]]:
 def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAULT_PEERS,
         soak_frames: int = 100_000, progress: Progress | None = None) -> dict[str, Any]:
     """Run the named scenes, ``repeat`` frames each."""
-    extra = ("floor", "modes", "soak", "manager", "contacts", "batch")
+    extra = ("floor", "modes", "soak", "manager", "contacts", "batch", "contract")
     unknown = [n for n in scenes if n not in SCENES and n not in extra]
     if unknown:
         raise ValueError(f"unknown scene {unknown[0]!r}; choose from "
@@ -423,6 +423,11 @@ def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAUL
             continue
         if name == "manager":
             results["manager"] = run_manager(repeat)
+            continue
+        if name == "contract":
+            from .contract import run_contract
+
+            results["contract"] = run_contract()
             continue
         if name == "contacts":
             results["contacts"] = run_contact_accuracy()

@@ -52,20 +52,10 @@ fn position(v: u32) -> vec3f {
     return vec3f(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
 }
 
-// The tile-space box of cluster c of side `side`, grown by a pixel for rounding.
+// The tile-space box (lo, hi) of cluster c of side `side`, grown by a pixel for rounding.
 fn cluster_box(t: Tile, side: u32, c: u32) -> array<vec3f, 2> {
-    let blo = bounds[2u * c].xyz;
-    let bhi = bounds[2u * c + 1u].xyz;
-    let centre = 0.5 * (blo + bhi);
-    let half = 0.5 * (bhi - blo);
-    var mid: vec3f;
-    var ext: vec3f;
-    for (var k = 0u; k < 3u; k++) {
-        let row = tile_row(t, side, k);
-        mid[k] = dot(row.xyz, centre) + row.w;
-        ext[k] = dot(abs(row.xyz), half) + 1.0;
-    }
-    return array<vec3f, 2>(mid - ext, mid + ext);
+    let box = tile_box(t, side, bounds[2u * c].xyz, bounds[2u * c + 1u].xyz, 1.0);
+    return array<vec3f, 2>(box[0] - box[1], box[0] + box[1]);
 }
 
 // Signed volume of the line p0 -> p1 with the face edge a -> b, from the lower-indexed vertex.

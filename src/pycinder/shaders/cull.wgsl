@@ -61,18 +61,10 @@ fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
         return;  // another tile of this pair already found it colliding
     }
     let c = entries[e].y + (i - entries[e].x);
-    let blo = bounds[2u * c].xyz;
-    let bhi = bounds[2u * c + 1u].xyz;
-    let centre = 0.5 * (blo + bhi);
-    let half = 0.5 * (bhi - blo);
-    var mid_p: vec3f;
-    var ext: vec3f;
-    for (var k = 0u; k < 3u; k++) {
-        let row = tile_row(t, side, k);
-        mid_p[k] = dot(row.xyz, centre) + row.w;
-        // Half a pixel more, so rounding never culls what touches the window.
-        ext[k] = dot(abs(row.xyz), half) + 0.5;
-    }
+    // Half a pixel more, so rounding never culls what touches the window.
+    let box = tile_box(t, side, bounds[2u * c].xyz, bounds[2u * c + 1u].xyz, 0.5);
+    let mid_p = box[0];
+    let ext = box[1];
     let w = f32(t.window.z);
     let h = f32(t.window.w);
     if (mid_p.x + ext.x < 0.0 || mid_p.x - ext.x > w || mid_p.y + ext.y < 0.0 || mid_p.y - ext.y > h) {

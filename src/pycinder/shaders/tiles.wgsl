@@ -29,6 +29,21 @@ fn tile_point(t: Tile, side: u32, p: vec3f) -> vec3f {
     return vec3f(dot(t.m1[0], q), dot(t.m1[1], q), dot(t.m1[2], q));
 }
 
+// The tile-space centre and half extent of the body-space box (lo, hi) of side `side`, grown by
+// `pad` pixels (a conservative box: every point of the body box maps inside it).
+fn tile_box(t: Tile, side: u32, lo: vec3f, hi: vec3f, pad: f32) -> array<vec3f, 2> {
+    let centre = 0.5 * (lo + hi);
+    let half = 0.5 * (hi - lo);
+    var mid: vec3f;
+    var ext: vec3f;
+    for (var k = 0u; k < 3u; k++) {
+        let row = tile_row(t, side, k);
+        mid[k] = dot(row.xyz, centre) + row.w;
+        ext[k] = dot(abs(row.xyz), half) + pad;
+    }
+    return array<vec3f, 2>(mid, ext);
+}
+
 fn tile_row(t: Tile, side: u32, k: u32) -> vec4f {
     if (side == 0u) {
         return t.m0[k];
