@@ -57,8 +57,9 @@ class Detector:
         self.request = request
         self.gpu = get_gpu()
         self.shapes = ShapeCache()
-        self.strategy: FocusedStrategy | SceneStrategy = self._make_strategy()
-        self._lock = threading.RLock()
+        self._lock = self.gpu.lock  # one query at a time on the device, from any thread
+        with self._lock:  # pipelines and buffers are made on the device too
+            self.strategy: FocusedStrategy | SceneStrategy = self._make_strategy()
 
     def _make_strategy(self) -> FocusedStrategy | SceneStrategy:
         if self.request.strategy == "focused":

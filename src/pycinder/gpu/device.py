@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+import threading
+from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
 
@@ -31,6 +32,10 @@ class Gpu:
     device: wgpu.GPUDevice
     depth_format: str
     timestamps: bool
+    lock: threading.RLock = field(default_factory=threading.RLock, compare=False, repr=False)
+    """Held by every query on this device: wgpu's OpenGL backend aborts the process when two
+    threads use one device at once (Vulkan does not), so queries from several threads, on one
+    detector or several, take turns."""
 
     @property
     def max_binding(self) -> int:
