@@ -17,7 +17,7 @@ import pytest
 import trimesh
 
 import pycinder
-from pycinder.testing import ground_truth, holed_plate, random_rotation, surface_distance
+from pycinder.testing import ground_truth, holed_scene, random_rotation, surface_distance
 
 from conftest import assert_matches_truth
 
@@ -70,19 +70,7 @@ def test_holed_link_pair_under_rigid_moves(k):
 def test_holed_and_thin_walled_bodies_at_random_poses(seed):
     """Plates with holes, tori and thin rings, each moved at random about the others: every pair
     scored against exact geometry (manifold3d volumes and distances)."""
-    rng = np.random.default_rng(100 + seed)
-    shapes = [holed_plate(1.0, 3), holed_plate(0.8, 1),
-              trimesh.creation.torus(major_radius=0.35, minor_radius=0.05, major_sections=48,
-                                     minor_sections=12),
-              trimesh.creation.torus(major_radius=0.3, minor_radius=0.12, major_sections=32,
-                                     minor_sections=16),
-              trimesh.creation.annulus(r_min=0.25, r_max=0.3, height=0.4, sections=40)]
-    meshes, transforms = [], []
-    for k in range(10):
-        meshes.append(shapes[k % len(shapes)])
-        pose = random_rotation(rng)
-        pose[:3, 3] = rng.uniform(-0.6, 0.6, 3)
-        transforms.append(pose)
+    meshes, transforms = holed_scene(10, 100 + seed)
     tolerance = 0.01
     truth = ground_truth(meshes, transforms, tolerance=tolerance)
     result = pycinder.find_collisions(meshes, transforms, tolerance=tolerance)

@@ -414,6 +414,26 @@ def holed_plate(size: float = 1.0, holes: int = 3) -> trimesh.Trimesh:
     return trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
 
 
+def holed_scene(count: int, seed: int) -> tuple[list[trimesh.Trimesh], list[np.ndarray]]:
+    """``count`` holed and thin-walled solids (plates with holes, a thin and a thick torus, a
+    ring), about 1 across, turned and placed at random in a cube 1.2 wide: meshes and (4, 4)
+    world-from-body transforms."""
+    rng = np.random.default_rng(seed)
+    shapes = [holed_plate(1.0, 3), holed_plate(0.8, 1),
+              trimesh.creation.torus(major_radius=0.35, minor_radius=0.05, major_sections=48,
+                                     minor_sections=12),
+              trimesh.creation.torus(major_radius=0.3, minor_radius=0.12, major_sections=32,
+                                     minor_sections=16),
+              trimesh.creation.annulus(r_min=0.25, r_max=0.3, height=0.4, sections=40)]
+    meshes, transforms = [], []
+    for k in range(count):
+        meshes.append(shapes[k % len(shapes)])
+        pose = random_rotation(rng)
+        pose[:3, 3] = rng.uniform(-0.6, 0.6, 3)
+        transforms.append(pose)
+    return meshes, transforms
+
+
 def _placed(x: float = 0.0, y: float = 0.0, z: float = 0.0,
             rotation: np.ndarray | None = None) -> np.ndarray:
     m = np.eye(4) if rotation is None else rotation.copy()

@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from ..testing import (first_contact, ground_truth, holed_plate, open_body_cases, random_rotation,
-                       surface_distance)
+from ..testing import (first_contact, ground_truth, holed_plate, holed_scene, open_body_cases,
+                       random_rotation, surface_distance)
 
 TOLERANCE = 0.01
 """World tolerance of every case (bodies are about 1 across)."""
@@ -51,21 +51,6 @@ def _margin_cases(t: float) -> list[tuple[str, list, list, bool]]:
     return out
 
 
-def _holed_scene(seed: int) -> tuple[list, list]:
-    rng = np.random.default_rng(seed)
-    shapes = [holed_plate(1.0, 3), holed_plate(0.8, 1),
-              trimesh.creation.torus(major_radius=0.35, minor_radius=0.05, major_sections=48,
-                                     minor_sections=12),
-              trimesh.creation.annulus(r_min=0.25, r_max=0.3, height=0.4, sections=40)]
-    meshes, transforms = [], []
-    for k in range(12):
-        meshes.append(shapes[k % len(shapes)])
-        pose = random_rotation(rng)
-        pose[:3, 3] = rng.uniform(-0.6, 0.6, 3)
-        transforms.append(pose)
-    return meshes, transforms
-
-
 def run_contract(seeds: int = 3) -> list[dict[str, Any]]:
     """Every group's cases answered by pycinder and python-fcl, one row per group."""
     from ..detector import Detector
@@ -94,7 +79,7 @@ def run_contract(seeds: int = 3) -> list[dict[str, Any]]:
     fcl_row = {"right": 0, "wrong": []}
     cases = 0
     for seed in range(seeds):
-        meshes, transforms = _holed_scene(100 + seed)
+        meshes, transforms = holed_scene(12, 100 + seed)
         truth = ground_truth(meshes, transforms, tolerance=t)
         found = {tuple(p) for p in Detector(tolerance=t).find_collisions(meshes, transforms)
                  .pairs.tolist()}
