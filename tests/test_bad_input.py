@@ -180,6 +180,8 @@ def test_wrong_shapes_and_types(det):
         det.find_collisions([42])
     with pytest.raises(ValueError, match=r"body 0\b.*vertices must have shape"):
         det.find_collisions([(np.zeros((4, 2)), np.zeros((1, 3), int))])
+    with pytest.raises(ValueError, match=r"body 1\b.*vertices must be real numbers"):
+        det.find_collisions([box_arrays(), (np.full((8, 3), "x", dtype=object), box_arrays()[1])])
     with pytest.raises(ValueError, match="not affine"):
         t = np.eye(4)
         t[3, 0] = 1

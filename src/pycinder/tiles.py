@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .errors import GpuMemoryError
 from .layout import FLAG_COUNT_BACK, FLAG_MIRROR, FLAG_OPEN, FLAG_SKIP_IF_HIT
 
 
@@ -327,8 +328,6 @@ def _check_pixels(cat: dict, pairs: np.ndarray, tolerance: np.ndarray, max_pixel
     total = float(pixels.sum())
     if total <= max_pixels:
         return
-    from .errors import GpuMemoryError
-
     order = np.argsort(-pixels)[:3]
     worst = ", ".join(f"bodies {pairs[cat['pair'][k]].tolist()} ({pixels[k]:.3g} pixels at "
                       f"tolerance {tolerance[cat['pair'][k]]:.3g})" for k in order)

@@ -255,8 +255,10 @@ class ShapeCache:
     def get(self, vertices: Any, faces: Any, label: str, strict: bool) -> Shape:
         """The shape of a mesh, checked and measured once per distinct content."""
         given = vertices if type(vertices).__name__ == "TrackedArray" else np.asarray(vertices)
-        if given.ndim != 2 or given.shape[1] != 3 or len(given) == 0:
-            check_vertices(given, label)  # raises with the message for the shape
+        if given.ndim != 2 or given.shape[1] != 3 or len(given) == 0 \
+                or not np.issubdtype(given.dtype, np.number) \
+                or np.issubdtype(given.dtype, np.complexfloating):
+            check_vertices(given, label)  # raises with the message for the shape or dtype
         topo, built = self.topologies.get(faces, len(given), label)
         key = (id(topo), _vertex_key(given))
         shape = self._entries.get(key)
