@@ -40,18 +40,18 @@ COUNTER_NAMES = (
     "C_RECORDS",           # records appended (samples found inside the other body, crossings)
     "C_UNDECIDED",         # samples at pixels whose crossing list overflowed
     "C_SAMPLES",           # edge samples tested
-    "C_CROSS_TESTS",       # edge-face pairs tested by the crossing pass
+    "C_SPARE0",
     "C_MAX_FACE_ITEMS",
     "C_MAX_EDGE_ITEMS",
     "C_MAX_TRIS",
     "C_TOTAL_TRIS",
     "C_TOTAL_FACE_ITEMS",
     "C_TOTAL_EDGE_ITEMS",
-    "C_SPARE0",
     "C_SPARE1",
+    "C_SPARE2",
 )
 COUNTERS = len(COUNTER_NAMES)
-(C_FACE_ITEMS, C_EDGE_ITEMS, C_TRIS, C_ACTIVE, C_RECORDS, C_UNDECIDED, C_SAMPLES, C_CROSS_TESTS,
+(C_FACE_ITEMS, C_EDGE_ITEMS, C_TRIS, C_ACTIVE, C_RECORDS, C_UNDECIDED, C_SAMPLES, _,
  C_MAX_FACE_ITEMS, C_MAX_EDGE_ITEMS, C_MAX_TRIS, C_TOTAL_TRIS, C_TOTAL_FACE_ITEMS,
  C_TOTAL_EDGE_ITEMS, _, _) = range(COUNTERS)
 ROUND_COUNTERS = 4

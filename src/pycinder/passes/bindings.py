@@ -14,7 +14,7 @@ from typing import Any, Union
 import numpy as np
 import wgpu
 
-from ..gpu.buffers import GrowableBuffer, Readback
+from ..gpu.buffers import GrowableBuffer
 from ..gpu.device import Gpu, shader_source
 
 Resource = Union[wgpu.GPUBuffer, GrowableBuffer, tuple]
@@ -172,4 +172,4 @@ class Profiler:
         return out
 
 
-__all__ = ["Profiler", "Readback", "Stage", "binding_numbers"]
+__all__ = ["Profiler", "Stage", "binding_numbers"]

@@ -307,12 +307,6 @@ class FocusedPasses:
             self._bound_pending = which
         return written
 
-    def reset_shapes(self) -> None:
-        """Forget what was uploaded (after an error left the buffers in doubt)."""
-        self.layout = None
-        self.uploaded = None
-        self._bound_pending = None
-
     def _encode_bounds(self, encoder: wgpu.GPUCommandEncoder) -> None:
         """Pass F0 for the clusters of shapes whose vertices changed."""
         which = self._bound_pending

@@ -167,7 +167,6 @@ fn crossing_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_ind
             workgroupBarrier();
         }
     }
-    atomicAdd(&counters[C_CROSS_TESTS], 1u);
     if (found > 0u) {
         atomicAdd(&tile_counts[2u * tile_index], found);
         mark_found(t);
