@@ -86,3 +86,58 @@ def test_two_queries_in_flight_answer_as_one_at_a_time():
         assert np.array_equal(np.sort(got.records["point"], axis=0),
                               np.sort(want.records["point"], axis=0))
     assert all(p.ready for p in pending)
+
+
+def comb_of(teeth: int, z0: float, thickness: float = 0.04, pitch: float = 0.12,
+            width: float = 3.0
+            ) -> trimesh.Trimesh:
+    """``comb`` with its teeth from ``z0`` at ``pitch``: rays along z cross 2 faces per tooth."""
+    slabs = []
+    for k in range(teeth):
+        slab = trimesh.creation.box((width, width, thickness))
+        slab.apply_translation((0, 0, z0 + pitch * k))
+        slabs.append(slab)
+    return trimesh.util.concatenate(slabs)
+
+
+@pytest.mark.parametrize("records", ["none", "found"])
+@pytest.mark.parametrize("capacity", [8, 2])
+def test_undecided_tiles_are_retried_inside_the_submission(monkeypatch, records, capacity):
+    """A comb between the teeth of a wider one: every ray of their tile crosses 24 faces in the
+    box, more than a pixel's list holds. The frame retries those tiles with longer lists itself, in its one
+    submission; where even those overflow (lists of 2, then 8), the host cuts the boxes. The
+    answers are those of exact geometry: teeth 0.02 apart (4 t) are apart, teeth 0.03 deep (6 t)
+    collide."""
+    from pycinder.passes.focused import FocusedPasses
+    from pycinder.testing import ground_truth, surface_distance
+
+    t = 0.005
+    base = comb_of(6, 0.0)
+    det = pycinder.Detector(tolerance=t, records=records)
+    if capacity != 8:
+        det.strategy.passes = FocusedPasses(det.gpu, list_capacity=capacity)
+    for shift, apart in ((0.06, True), (0.11, False)):
+        other = comb_of(6, shift, width=0.3)
+        meshes = [base, other]
+        if apart:
+            assert surface_distance(base, other) > 3.9 * t
+        truth = ground_truth(meshes, None, tolerance=t)
+        det.find_collisions(meshes)                        # warm-up: buffers grow here
+        count = _Count(monkeypatch)
+        result = det.find_collisions(meshes)
+        assert result.pairs.tolist() == ([] if apart else [[0, 1]])
+        assert result.pairs.tolist() == truth.overlap.tolist()
+        stats = result.stats
+        assert stats.undecided > 0 and stats.possibly_lost == 0
+        if not apart:
+            if capacity == 8:
+                # Found by some sample although others were undecided: nothing to retry.
+                assert stats.retries == 0 and (count.submits, count.maps) == (1, 1)
+        elif capacity == 8:
+            # Lists of 32 decide every pixel: the retry ran inside the frame.
+            assert stats.retries == 1 and (count.submits, count.maps) == (1, 1)
+            assert stats.tiles == len(result.tiles)
+        else:
+            # Lists of 8 still overflow: the host cuts the boxes, in frames of their own.
+            assert stats.retries > 1 and count.submits > 1
+        monkeypatch.undo()

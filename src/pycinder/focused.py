@@ -7,7 +7,9 @@ A pair collides when any of its tiles found a sample inside the other body. A ti
 could not all be decided (a pixel held more crossings within the tile's box than its list) and
 whose pair was not found by another tile is run again, with lists four times longer and then
 with its box cut in two along the view, until nothing is undecided; whatever is still undecided
-after that is counted in ``stats.possibly_lost`` and warned about.
+after that is counted in ``stats.possibly_lost`` and warned about. The first retry, with longer
+lists, runs on the GPU in the frame's own submission when lists that long fit the memory budget
+(records "none" and "found"); cutting boxes is planned by the host.
 """
 
 from __future__ import annotations
@@ -21,8 +23,8 @@ from .errors import GpuMemoryError, LossWarning, PrecisionWarning, warn_at_calle
 from .gpu.device import Gpu
 from .layout import (C_SAMPLES, C_TOTAL_TRIS, RECORD_ID_MASK, RECORD_KIND_SHIFT, RECORD_SIDE_BIT,
                      RECORD_SURFACE)
-from .passes.focused import (ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, FocusedOutput,
-                             FocusedPasses, RoundTooLarge, Submitted)
+from .passes.focused import (ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS,
+                             FocusedOutput, FocusedPasses, RoundTooLarge, Submitted)
 from .records import RECORD_DTYPE, empty_records, pair_keys, unique_pairs
 from .request import DEFAULT_RELATIVE_TOLERANCE, CollisionRequest
 from .result import CollisionResult, Stats
@@ -34,7 +36,7 @@ from .tiles import (MAX_TILE, TilePlan, concat_plans, plan_tiles, repack,
 RETRIES = 5
 """Times undecided tiles are run again: first with longer lists, then with thinner boxes."""
 LARGER_LISTS = 1
-"""Retries that multiply the list capacity by 4 (8 -> 32) before cutting boxes."""
+"""Retries that make the lists longer (8 -> 32 entries) before boxes are cut."""
 
 
 def body_sizes(scene: Scene) -> np.ndarray:
@@ -157,11 +159,19 @@ class FocusedStrategy:
         pack = self._shapes(scene, stats)
         first = self.passes.submit(plan, plan.tile_from_body(scene.transforms), scene.body_shape,
                                    pack, len(pairs), shapes=scene.shapes,
-                                   records=records != "none", all_records=records == "all")
+                                   records=records != "none", all_records=records == "all",
+                                   retry=self._retry_on_gpu(plan, records))
         t3 = time.perf_counter()
         stats.add_ms("upload", (t3 - t2) * 1e3)
         stats.submitted_ms = (t3 - t0) * 1e3
         return PendingFocused(self, None, (scene, stats, records, pairs, plan, pack, first, t3))
+
+    def _retry_on_gpu(self, plan: TilePlan, records: str) -> bool:
+        """Whether ``plan``'s frame ends with its own retry rounds (see the module's docstring):
+        lists of the retry's length fit the memory budget, and not records="all" (whose retries
+        cover tiles of pairs already found)."""
+        return records != "all" and max(plan.round_rows) * plan.atlas_width \
+            <= self._budget(self.passes.capacity * RETRY_LISTS)
 
     def _complete(self, scene: Scene, stats: Stats, records: str, pairs: np.ndarray,
                   plan: TilePlan, pack: ShapePack, first: Submitted, t3: float
@@ -170,10 +180,16 @@ class FocusedStrategy:
         of undecided tiles, and the decoding."""
         found_tiles, rows, plans = [], [], []
         current, capacity = plan, self.passes.capacity
+        retries = 0
         for attempt in range(RETRIES + 1):
             current, out = self._run_plan(current, scene, pack, len(pairs), records, capacity,
                                           first if attempt == 0 else None)
             self._count(stats, current, out)
+            if out.retried_tiles:
+                # The frame ran its undecided tiles again itself, with longer lists.
+                retries += 1
+                stats.retries += 1
+                capacity = out.capacity
             hit = out.tile_counts[:, 0] > 0
             found_tiles.append(current.bodies[hit])
             rows.append((current, out.records))
@@ -186,9 +202,10 @@ class FocusedStrategy:
                 undecided & ~_member(current.bodies, decided)
             if not again.any():
                 break
-            if attempt == RETRIES:
+            if retries == RETRIES:
                 self._report_loss(stats, current.bodies[again], decided, capacity)
                 break
+            retries += 1
             stats.retries += 1
             # First with longer lists (few tiles overflow, so memory is no concern), then with
             # the boxes cut in two along the view.
@@ -197,8 +214,8 @@ class FocusedStrategy:
             # would come twice.
             done, kept = rows[-1]
             rows[-1] = (done, kept[~np.isin(kept[:, 0], which)])
-            if attempt < LARGER_LISTS:
-                capacity *= 4
+            if capacity == self.passes.capacity:
+                capacity *= RETRY_LISTS
                 current = split_depth(current, which, self._budget(capacity), cut=False)
             else:
                 current = split_depth(current, which, self._budget(capacity))
@@ -286,7 +303,7 @@ class FocusedStrategy:
         stats.rounds += len(plan.round_rows)
         stats.triangles += int(out.counters[C_TOTAL_TRIS])
         stats.samples += int(out.counters[C_SAMPLES])
-        stats.undecided += int(out.tile_counts[:, 1].sum())
+        stats.undecided += int(out.tile_counts[:, 1].sum()) + out.retried_undecided
         stats.bytes_read += out.bytes_read
         stats.reruns += out.reruns
         stats.dropped_records += out.dropped_records

@@ -40,20 +40,20 @@ COUNTER_NAMES = (
     "C_RECORDS",           # records appended (samples found inside the other body, crossings)
     "C_UNDECIDED",         # samples at pixels whose crossing list overflowed
     "C_SAMPLES",           # edge samples tested
-    "C_SPARE0",
+    "C_RETRY_TILES",       # tiles run again in the frame's own retry round (longer lists)
     "C_MAX_FACE_ITEMS",
     "C_MAX_EDGE_ITEMS",
     "C_MAX_TRIS",
     "C_TOTAL_TRIS",
     "C_TOTAL_FACE_ITEMS",
     "C_TOTAL_EDGE_ITEMS",
-    "C_SPARE1",
+    "C_RETRY_UNDECIDED",   # undecided samples of those tiles before their retry
     "C_SPARE2",
 )
 COUNTERS = len(COUNTER_NAMES)
-(C_FACE_ITEMS, C_EDGE_ITEMS, C_TRIS, C_ACTIVE, C_RECORDS, C_UNDECIDED, C_SAMPLES, _,
+(C_FACE_ITEMS, C_EDGE_ITEMS, C_TRIS, C_ACTIVE, C_RECORDS, C_UNDECIDED, C_SAMPLES, C_RETRY_TILES,
  C_MAX_FACE_ITEMS, C_MAX_EDGE_ITEMS, C_MAX_TRIS, C_TOTAL_TRIS, C_TOTAL_FACE_ITEMS,
- C_TOTAL_EDGE_ITEMS, _, _) = range(COUNTERS)
+ C_TOTAL_EDGE_ITEMS, C_RETRY_UNDECIDED, _) = range(COUNTERS)
 ROUND_COUNTERS = 4
 """The first counters, reset before every round."""
 

@@ -7,10 +7,13 @@
     F5 surface test (compute, indirect) every listed surface point tested against the other body
     F4 edge test  (compute, indirect)  kept edges sampled and tested, unless F5 found the pair
     F6 crossing test (compute, indirect) tiles with an open body: edges through the other's faces
+    retry         (compute)  tiles left undecided, unless their pair was found: F1-F6 again with
+                             lists four times longer, in the same submission (when they fit)
 
 Each pass is a :class:`~pycinder.passes.bindings.Stage` (a pipeline, its bindings by name) and
 is encoded by :meth:`FocusedPasses._encode_round`. F1 to F6 run once per round of the atlas (one
-round unless the memory budget is exceeded), F0 before them when vertices changed, all in one
+round unless the memory budget is exceeded), F0 before them when vertices changed, and then,
+when asked, a retry round per round for the tiles left undecided, with longer lists: all in one
 submission; one readback brings back the counters, the per-tile hit counts, the first records and
 the timestamps. Pipelines and buffers are created once and grown when a frame needs more; a frame
 whose counts outgrow a buffer is run again with the buffer grown, so nothing is dropped.
@@ -25,8 +28,8 @@ import wgpu
 
 from ..gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ..gpu.device import Gpu
-from ..layout import (C_MAX_TRIS, C_RECORDS, COUNTERS, FLAG_OPEN, ROUND_COUNTERS, ROW, TILE_WORDS,
-                      WORKGROUP)
+from ..layout import (C_MAX_TRIS, C_RECORDS, C_RETRY_TILES, C_RETRY_UNDECIDED, COUNTERS, FLAG_OPEN,
+                      ROUND_COUNTERS, ROW, TILE_WORDS, WORKGROUP)
 from ..scene.pack import ShapePack
 from ..tiles import TilePlan
 from .bindings import Profiler, Stage
@@ -34,6 +37,9 @@ from .states import FOCUSED_CROSSINGS
 
 LIST_CAPACITY = 8
 """Crossings kept per pixel within a tile's box (both bodies together)."""
+
+RETRY_LISTS = 4
+"""The retry round's lists are this many times longer than the frame's."""
 
 FOUND_RECORDS_PER_PAIR = 16
 """Records kept per pair with records="found" (the first samples found); "all" keeps every one."""
@@ -50,9 +56,10 @@ PIXEL_BYTES = 12
 """Per atlas pixel: crossings listed, winding outside the box, tile."""
 ENTRY_BYTES = 8
 """Per listed crossing: depth and flags, face."""
-P_FINALIZE, P_CLIP, P_ATLAS, P_EDGES, P_BOUNDS, P_CROSS = range(6)
-"""Blocks of the frame parameter buffer."""
-ARGS_CLIP, ARGS_EDGES, ARGS_DRAW, ARGS_SURFACE = 0, 12, 24, 40
+P_FINALIZE, P_CLIP, P_ATLAS, P_EDGES, P_BOUNDS, P_CROSS, P_RETRY, P_ATLAS_RETRY, P_EDGES_RETRY = \
+    range(9)
+"""Blocks of the frame parameter buffer (the last two: P_ATLAS and P_EDGES of the retry round)."""
+ARGS_CLIP, ARGS_EDGES, ARGS_DRAW, ARGS_SURFACE, ARGS_RETRY_CULL = 0, 12, 24, 40, 52
 """Byte offsets of the indirect arguments written by ``finalize.wgsl``."""
 
 _U = wgpu.BufferUsage
@@ -107,6 +114,13 @@ class FocusedOutput:
         GPU milliseconds per pass (summed over rounds), when profiling.
     dropped_records : int
         Records found but not kept: more than one records buffer of this device holds.
+    retried_tiles : int
+        Tiles run again in the frame's own retry round (``tile_counts`` then holds the retry's
+        counts for them).
+    retried_undecided : int
+        Undecided samples of those tiles before the retry.
+    capacity : int
+        The list capacity of the frame's last round (the retry's when it ran).
     """
 
     tile_counts: np.ndarray
@@ -116,6 +130,9 @@ class FocusedOutput:
     reruns: int
     gpu_ms: dict[str, float]
     dropped_records: int = 0
+    retried_tiles: int = 0
+    retried_undecided: int = 0
+    capacity: int = LIST_CAPACITY
 
 
 SLOTS = 2
@@ -184,7 +201,8 @@ def _dispatch(cpass: wgpu.GPUComputePassEncoder, stage: Stage, group: wgpu.GPUBi
 
 TIMED_PASSES = ("F1 cull", "F2 clip", "F3 crossings", "F5 surface test", "F4 edge test",
                 "F6 crossing test")
-"""Names of the passes timed per round when profiling (F0 is timed once per frame)."""
+"""Names of the passes timed per round when profiling (F0, and "retry" (the choice of the retry
+rounds' tiles), are timed once per frame)."""
 
 
 class FocusedPasses:
@@ -225,6 +243,8 @@ class FocusedPasses:
         self.edge_test = Stage(gpu, "edgetest", "edge_test", label="F4 edge test")
         self.crossing_test = Stage(gpu, "crossingtest", "crossing_test",
                                    label="F6 crossing test")
+        self.select_retry = Stage(gpu, "retry", "select_retry", label="retry: choose tiles")
+        self.retry_args = Stage(gpu, "retry", "retry_args")
 
         storage = _U.STORAGE | _U.COPY_DST
 
@@ -257,7 +277,7 @@ class FocusedPasses:
         self.args = device.create_buffer(label="indirect args", size=64,
                                          usage=_U.STORAGE | _U.INDIRECT)
         self.round_params = grow("round parameters", _U.UNIFORM | _U.COPY_DST)
-        self.frame_params = device.create_buffer(label="frame parameters", size=6 * PARAM_STRIDE,
+        self.frame_params = device.create_buffer(label="frame parameters", size=9 * PARAM_STRIDE,
                                                  usage=_U.UNIFORM | _U.COPY_DST)
         self.readbacks = [Readback(device, f"focused readback {k}") for k in range(SLOTS)]
         self.readbacks_more = [Readback(device, f"focused records {k}") for k in range(SLOTS)]
@@ -326,16 +346,17 @@ class FocusedPasses:
 
     def run(self, plan: TilePlan, matrices: np.ndarray, body_shape: np.ndarray,
             pack: ShapePack, n_pairs: int, *, shapes: list | None = None, records: bool = True,
-            all_records: bool = False, list_capacity: int | None = None) -> FocusedOutput:
+            all_records: bool = False, list_capacity: int | None = None,
+            retry: bool = False) -> FocusedOutput:
         """Run passes F0-F6 for every tile and read back what they found (see :meth:`submit`)."""
         return self.finish(self.submit(plan, matrices, body_shape, pack, n_pairs, shapes=shapes,
                                        records=records, all_records=all_records,
-                                       list_capacity=list_capacity))
+                                       list_capacity=list_capacity, retry=retry))
 
     def submit(self, plan: TilePlan, matrices: np.ndarray, body_shape: np.ndarray,
                pack: ShapePack, n_pairs: int, *, shapes: list | None = None,
                records: bool = True, all_records: bool = False,
-               list_capacity: int | None = None) -> Submitted:
+               list_capacity: int | None = None, retry: bool = False) -> Submitted:
         """Encode passes F0-F6 for every tile in one command buffer, submit it and start its
         readback; :meth:`finish` waits for it. Two frames can be in flight: a third waits for
         the oldest.
@@ -360,7 +381,16 @@ class FocusedPasses:
             Test every edge of every tile (otherwise tiles of pairs already found are skipped).
         list_capacity : int, optional
             Crossings kept per pixel in this run (default: the one given at construction).
+        retry : bool
+            End the frame with retry rounds (one per round): the tiles left undecided whose pair
+            was not found run again with lists :data:`RETRY_LISTS` times longer, in the same
+            submission. Not with ``all_records`` (a found pair's tiles are not retried, so their
+            records would be missing). The caller checks that lists that long fit its memory
+            budget.
         """
+        if retry and all_records:
+            raise ValueError("retry rounds leave out the tiles of pairs already found: not with "
+                             "all_records")
         slot = self._next_slot
         self._next_slot = (slot + 1) % SLOTS
         older = self.in_flight[slot]
@@ -368,7 +398,7 @@ class FocusedPasses:
             self.finish(older)  # its staging buffers are about to be reused
         sub = Submitted((plan, matrices, body_shape, pack, n_pairs),
                         dict(shapes=shapes, records=records, all_records=all_records,
-                             list_capacity=list_capacity), slot)
+                             list_capacity=list_capacity, retry=retry), slot)
         self.in_flight[slot] = sub
         self._submit(sub)
         return sub
@@ -442,14 +472,17 @@ class FocusedPasses:
         items = int(round_threads.max()) if len(round_threads) else 0
         self.face_items.ensure(8 * max(items, 1))
         self.edge_items.ensure(8 * max(items, 1))
-        self.tile_counts.ensure(8 * t + 4 * n_pairs + 4)
+        self.retry = bool(opts["retry"])
+        # Per tile (found, undecided), per pair a hit flag, per tile a retry flag.
+        self.tile_counts.ensure(8 * t + 4 * n_pairs + 4 * t + 4)
         self.n_pairs = n_pairs
         self.any_open = bool((plan.flags & (FLAG_OPEN[0] | FLAG_OPEN[1])).any())
         width = plan.atlas_width
         rows = max(plan.round_rows) if plan.round_rows else 1
         self._ensure_target(width, rows)
         self.pixels.ensure(PIXEL_BYTES * width * rows)
-        self.lists.ensure(ENTRY_BYTES * self.run_capacity * width * rows)
+        longest = self.run_capacity * (RETRY_LISTS if self.retry else 1)
+        self.lists.ensure(ENTRY_BYTES * longest * width * rows)
         self.active.ensure(4 * width * rows)
         self.caps["tris"] = min(self.caps["tris"], self.tris.limit // 48)
         self.caps["records"] = min(self.caps["records"], self.records.limit // 16)
@@ -477,48 +510,72 @@ class FocusedPasses:
         caps = self.caps
         record_cap = caps["records"] if want_records else 0
         pair_records = 0xFFFFFFFF if self.all_records else FOUND_RECORDS_PER_PAIR
-        # Per-round parameters of the cull and the surface test, one uniform block each.
-        self.round_params.ensure(ROUND_STRIDE * max(n_rounds, 1))
-        block = np.zeros((max(n_rounds, 1), ROUND_STRIDE // 4), dtype=np.uint32)
+        t = len(plan)
+        pairs_at, retry_at = 2 * t, 2 * t + self.n_pairs
+        # Per-round parameters of the cull and the surface test, one uniform block each; the
+        # retry rounds' (one per round) come after the last round's.
+        blocks = n_rounds * (1 + self.retry)
+        self.round_params.ensure(ROUND_STRIDE * max(blocks, 1))
+        block = np.zeros((max(blocks, 1), ROUND_STRIDE // 4), dtype=np.uint32)
         surface = PARAM_STRIDE // 4
-        for r in range(n_rounds):
-            block[r, :6] = (round_threads[r], 2 * bounds[r], 2 * (bounds[r + 1] - bounds[r]),
-                            items, items, 2 * len(plan))
-            block[r, surface:surface + 6] = (plan.atlas_width, plan.round_rows[r],
-                                             self.run_capacity, record_cap, 2 * len(plan),
+        for r in range(blocks):
+            retry = r >= n_rounds
+            b = r % n_rounds
+            block[r, :7] = (round_threads[b], 2 * bounds[b], 2 * (bounds[b + 1] - bounds[b]),
+                            items, items, pairs_at, retry_at if retry else 0)
+            block[r, surface:surface + 6] = (plan.atlas_width, plan.round_rows[b],
+                                             self.round_capacity(retry), record_cap, pairs_at,
                                              pair_records)
         self.round_params.write(block)
-        frame = np.zeros((6, PARAM_STRIDE // 4), dtype=np.uint32)
+        frame = np.zeros((9, PARAM_STRIDE // 4), dtype=np.uint32)
         early_out = 0 if self.all_records else 1
         frame[P_FINALIZE, :4] = (items, items, caps["tris"], 0)
         frame[P_CLIP, :4] = (caps["tris"], items, 0, 0)
-        frame[P_ATLAS, :4] = (plan.atlas_width, self.target.height, self.run_capacity,
-                              self.target.width)
-        frame[P_EDGES, :7] = (plan.atlas_width, self.run_capacity, record_cap, items,
-                              2 * len(plan), early_out, pair_records)
-        frame[P_CROSS, :5] = (record_cap, items, 2 * len(plan), early_out, pair_records)
+        frame[P_CROSS, :5] = (record_cap, items, pairs_at, early_out, pair_records)
         frame[P_BOUNDS, 0] = 0 if self._bound_pending is None else len(self._bound_pending)
+        frame[P_RETRY, :3] = (t, pairs_at, retry_at)
+        for at, edges, retry in ((P_ATLAS, P_EDGES, False), (P_ATLAS_RETRY, P_EDGES_RETRY, True)):
+            capacity = self.round_capacity(retry)
+            frame[at, :4] = (plan.atlas_width, self.target.height, capacity, self.target.width)
+            frame[edges, :7] = (plan.atlas_width, capacity, record_cap, items, pairs_at,
+                                early_out, pair_records)
         self.gpu.device.queue.write_buffer(self.frame_params, 0, frame)
 
+    def round_capacity(self, retry: bool = False) -> int:
+        """List entries per pixel of this frame's rounds (of its retry round)."""
+        return self.run_capacity * (RETRY_LISTS if retry else 1)
+
     def _encode_round(self, encoder: wgpu.GPUCommandEncoder, r: int, threads: int,
-                      rows: int, slot: int) -> None:
+                      rows: int, slot: int, retry: bool = False) -> None:
         """Passes F1-F6 of round ``r`` (``threads`` cull threads, ``rows`` atlas rows), writing
-        records to the buffer of frame slot ``slot``."""
+        records to the buffer of frame slot ``slot``. A retry round (``retry``, numbered after
+        the last round; the tiles it may run were chosen by :meth:`_encode_retry_choice`) culls
+        only the chosen tiles of its round, with longer lists."""
         records = self._records(slot)
         b = self
         finalize = dict(counters=b.counters, args=b.args,
                         params=(b.frame_params, P_FINALIZE * PARAM_STRIDE, 16))
         round_block = (b.round_params.buffer, r * ROUND_STRIDE, 32)
         surface_block = (b.round_params.buffer, r * ROUND_STRIDE + PARAM_STRIDE, 32)
+        atlas_block = (b.frame_params, (P_ATLAS_RETRY if retry else P_ATLAS) * PARAM_STRIDE, 16)
+        edges_block = (b.frame_params, (P_EDGES_RETRY if retry else P_EDGES) * PARAM_STRIDE, 32)
+        kind = "retry" if retry else "rounds"
         encoder.clear_buffer(self.counters, 0, 4 * ROUND_COUNTERS)
         encoder.clear_buffer(self.pixels.buffer, 0, PIXEL_BYTES * self.target_width * rows)
         scope = _ComputeScope(encoder, self.profiler, r)
-        cpass = scope.begin("F1 cull")
-        _dispatch(cpass, self.cull, self.cull.group(
+        cull_group = self.cull.group(
             f"round {r}", tiles=b.tiles, clusters=b.clusters, bounds=b.cluster_bounds,
             entries=b.entries, face_items=b.face_items, edge_items=b.edge_items,
-            counters=b.counters, params=round_block, counts=b.tile_counts),
-            _groups(-(-threads // WORKGROUP)))
+            counters=b.counters, params=round_block, counts=b.tile_counts)
+        if retry:
+            cpass = scope.begin("F1 cull")
+            _dispatch(cpass, self.retry_args, self.retry_args.group(
+                f"round {r}", counters=b.counters, args=b.args,
+                round=(b.round_params.buffer, r * ROUND_STRIDE, 16)), (1,))
+            _dispatch(cpass, self.cull, cull_group, indirect=(self.args, ARGS_RETRY_CULL))
+        else:
+            cpass = scope.begin("F1 cull")
+            _dispatch(cpass, self.cull, cull_group, _groups(-(-threads // WORKGROUP)))
         _dispatch(cpass, self.after_cull, self.after_cull.group(**finalize), (1,))
         cpass = scope.begin("F2 clip")
         _dispatch(cpass, self.clip, self.clip.group(
@@ -534,8 +591,8 @@ class FocusedPasses:
                                 "store_op": "discard"}], **self.profiler.writes("F3 crossings"))
         rpass.set_pipeline(self.crossings.pipeline)
         rpass.set_bind_group(0, self.crossings.group(
-            tris=b.tris, tiles=b.tiles, pixels=b.pixels, crossings=b.lists,
-            atlas=(b.frame_params, P_ATLAS * PARAM_STRIDE, 16), tri_face=b.tri_face,
+            kind, tris=b.tris, tiles=b.tiles, pixels=b.pixels, crossings=b.lists,
+            atlas=atlas_block, tri_face=b.tri_face,
             active_pixels=b.active, counters=b.counters))
         rpass.draw_indirect(self.args, ARGS_DRAW)
         rpass.end()
@@ -547,10 +604,10 @@ class FocusedPasses:
             params=surface_block, active_pixels=b.active), indirect=(self.args, ARGS_SURFACE))
         cpass = scope.begin("F4 edge test")
         _dispatch(cpass, self.edge_test, self.edge_test.group(
-            f"slot {slot}", tiles=b.tiles, clusters=b.clusters, positions=b.positions,
+            f"{kind} slot {slot}", tiles=b.tiles, clusters=b.clusters, positions=b.positions,
             edges=b.edges, edge_items=b.edge_items, pixels=b.pixels, crossings=b.lists,
             tile_counts=b.tile_counts, records=records, counters=b.counters,
-            params=(b.frame_params, P_EDGES * PARAM_STRIDE, 32)), indirect=(self.args, ARGS_EDGES))
+            params=edges_block), indirect=(self.args, ARGS_EDGES))
         if self.any_open:
             cpass = scope.begin("F6 crossing test")
             _dispatch(cpass, self.crossing_test, self.crossing_test.group(
@@ -561,6 +618,17 @@ class FocusedPasses:
                 indirect=(self.args, ARGS_EDGES))
         scope.end()
 
+    def _encode_retry_choice(self, encoder: wgpu.GPUCommandEncoder) -> None:
+        """Choose the tiles of the retry rounds: undecided, and their pair not found."""
+        b = self
+        cpass = encoder.begin_compute_pass(label="retry: choose tiles",
+                                           **self.profiler.writes("retry"))
+        _dispatch(cpass, self.select_retry, self.select_retry.group(
+            tiles=b.tiles, tile_counts=b.tile_counts, counters=b.counters,
+            params=(b.frame_params, P_RETRY * PARAM_STRIDE, 16)),
+            _groups(-(-self.n_tiles // WORKGROUP)))
+        cpass.end()
+
     def _frame(self, sub: Submitted, plan: TilePlan, bounds: np.ndarray,
                round_threads: np.ndarray, items: int, want_records: bool) -> None:
         """Encode the frame, submit it and start mapping its readback."""
@@ -568,8 +636,9 @@ class FocusedPasses:
         n_rounds = len(plan.round_rows)
         t = len(plan)
         self.target_width = plan.atlas_width
+        self.n_tiles = t
         self._write_params(plan, bounds, round_threads, items, want_records)
-        self.profiler.begin(1 + len(TIMED_PASSES) * n_rounds)
+        self.profiler.begin(2 + len(TIMED_PASSES) * n_rounds * (1 + self.retry))
         encoder = device.create_command_encoder()
         self._encode_bounds(encoder)
         encoder.clear_buffer(self.counters)
@@ -578,6 +647,12 @@ class FocusedPasses:
             if round_threads[r]:
                 self._encode_round(encoder, r, int(round_threads[r]), plan.round_rows[r],
                                    sub.slot)
+        if self.retry:
+            self._encode_retry_choice(encoder)
+            for r in range(n_rounds):
+                if round_threads[r]:
+                    self._encode_round(encoder, n_rounds + r, int(round_threads[r]),
+                                       plan.round_rows[r], sub.slot, retry=True)
         speculative = min(max(SPECULATIVE_RECORDS, self.recent_records * 5 // 4),
                           self.caps["records"]) if want_records else 0
         head = 4 * COUNTERS + 8 * t
@@ -596,6 +671,7 @@ class FocusedPasses:
         self._bound_pending = None
         sub.layout = dict(t=t, head=head, stamps=stamps, nbytes=nbytes, speculative=speculative,
                           timed=list(self.profiler.names), records=want_records,
+                          capacity=(self.run_capacity, self.round_capacity(retry=True)),
                           waiting=f"a frame of {t} tiles in {n_rounds} rounds")
         sub.pending = readback.start(nbytes)
 
@@ -627,4 +703,7 @@ class FocusedPasses:
             bytes_read += 16 * n_records
         if len(recs):
             recs = recs[np.lexsort((recs[:, 3], recs[:, 2], recs[:, 1], recs[:, 0]))]
-        return FocusedOutput(tile_counts, recs, counters, bytes_read, 0, gpu_ms)
+        return FocusedOutput(tile_counts, recs, counters, bytes_read, 0, gpu_ms,
+                             retried_tiles=int(counters[C_RETRY_TILES]),
+                             retried_undecided=int(counters[C_RETRY_UNDECIDED]),
+                             capacity=lay["capacity"][1 if counters[C_RETRY_TILES] else 0])

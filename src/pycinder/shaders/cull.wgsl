@@ -14,7 +14,7 @@ struct Params {
     face_cap: u32,
     edge_cap: u32,
     pair_offset: u32,  // where the per-pair hit flags start in `counts`
-    _p1: u32,
+    retry_offset: u32, // the retry round: where the per-tile retry flags start (0: every tile)
     _p2: u32,
 };
 
@@ -28,7 +28,8 @@ struct Params {
 @group(0) @binding(5) var<storage, read_write> edge_items: array<vec2u>;
 @group(0) @binding(6) var<storage, read_write> counters: array<atomic<u32>>;
 @group(0) @binding(7) var<uniform> params: Params;
-// Per tile (found, undecided), then per candidate pair a hit flag (set by passes F4-F6).
+// Per tile (found, undecided), then per candidate pair a hit flag (set by passes F4-F6), then
+// (in the retry round) per tile whether it is run again (set by retry.wgsl).
 @group(0) @binding(8) var<storage, read> counts: array<u32>;
 
 @compute @workgroup_size(WORKGROUP)
@@ -56,6 +57,9 @@ fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     let e = lo;
     let tile_index = e / 2u;
     let side = e % 2u;
+    if (params.retry_offset != 0u && counts[params.retry_offset + tile_index] == 0u) {
+        return;  // the retry round runs only the tiles chosen for it
+    }
     let t = tiles[tile_index];
     if ((t.info.z & FLAG_SKIP_IF_HIT) != 0u && counts[params.pair_offset + t.info.w] != 0u) {
         return;  // another tile of this pair already found it colliding

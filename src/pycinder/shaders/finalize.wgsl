@@ -11,7 +11,8 @@ struct Params {
 
 @group(0) @binding(0) var<storage, read_write> counters: array<u32>;
 // [0..3) face-clip dispatch, [3..6) edge-test dispatch, [6..10) draw (vertices, 1, 0, 0),
-// [10..13) surface-test dispatch (WORKGROUP pixels per workgroup)
+// [10..13) surface-test dispatch (WORKGROUP pixels per workgroup); [13..16) is the retry rounds'
+// cull dispatch (retry.wgsl)
 @group(0) @binding(1) var<storage, read_write> args: array<u32>;
 @group(0) @binding(2) var<uniform> params: Params;
 

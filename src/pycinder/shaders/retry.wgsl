@@ -1,0 +1,60 @@
+// Focused strategy: choose the tiles of the frame's retry rounds (run after the last round, in the
+// same submission: one retry round per round of the frame, over the same atlas rows).
+//
+// A tile is run again, with lists four times longer, when some of its samples were undecided (a
+// pixel listed more crossings than its list holds) and no tile of its pair found the pair: only
+// then can its answer change. Its undecided count is cleared (the retry counts its own) and
+// moved to counter C_RETRY_UNDECIDED; its flag after the per-pair flags tells pass F1 to cull it
+// again. Tiles of pairs already found are never retried, so no record comes twice.
+//!include tiles.wgsl
+
+struct Params {
+    tiles: u32,         // tiles of the frame
+    pair_offset: u32,   // where the per-pair hit flags start in `tile_counts`
+    retry_offset: u32,  // where the per-tile retry flags start
+    _p0: u32,
+};
+
+@group(0) @binding(0) var<storage, read> tiles: array<Tile>;
+// Per tile (found, undecided), per pair a hit flag, per tile a retry flag.
+@group(0) @binding(1) var<storage, read_write> tile_counts: array<u32>;
+@group(0) @binding(2) var<storage, read_write> counters: array<atomic<u32>>;
+@group(0) @binding(3) var<uniform> params: Params;
+
+// The first words of one retry round's cull parameters (cull.wgsl's Params).
+struct Round {
+    total: u32,  // cull threads of the round
+    _p0: u32,
+    _p1: u32,
+    _p2: u32,
+};
+
+@group(0) @binding(4) var<uniform> round: Round;
+@group(0) @binding(5) var<storage, read_write> args: array<u32>;
+
+@compute @workgroup_size(WORKGROUP)
+fn select_retry(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
+    let i = (wg.y * ROW + wg.x) * WORKGROUP + lid;
+    if (i >= params.tiles) {
+        return;
+    }
+    let undecided = tile_counts[2u * i + 1u];
+    let again = undecided > 0u && tile_counts[params.pair_offset + tiles[i].info.w] == 0u;
+    tile_counts[params.retry_offset + i] = select(0u, 1u, again);
+    if (again) {
+        tile_counts[2u * i + 1u] = 0u;
+        atomicAdd(&counters[C_RETRY_TILES], 1u);
+        atomicAdd(&counters[C_RETRY_UNDECIDED], undecided);
+    }
+}
+
+// Before each retry round: its cull's indirect dispatch (args[13..16)), or nothing when no tile is
+// retried.
+@compute @workgroup_size(1)
+fn retry_args() {
+    let groups = select(0u, (round.total + WORKGROUP - 1u) / WORKGROUP,
+                        atomicLoad(&counters[C_RETRY_TILES]) > 0u);
+    args[13] = min(groups, ROW);
+    args[14] = (groups + ROW - 1u) / ROW;
+    args[15] = 1u;
+}
