@@ -27,6 +27,7 @@ from ..gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ..gpu.device import Gpu
 from ..layout import (C_MAX_TRIS, C_RECORDS, COUNTERS, FLAG_OPEN, ROUND_COUNTERS, ROW, TILE_WORDS,
                       WORKGROUP)
+from ..request import RecordMode
 from ..scene.pack import ShapePack
 from ..tiles import TilePlan
 from .bindings import Profiler, Stage
@@ -34,9 +35,6 @@ from .states import FOCUSED_CROSSINGS
 
 LIST_CAPACITY = 8
 """Crossings kept per pixel within a tile's box (both bodies together)."""
-
-FOUND_RECORDS_PER_PAIR = 16
-"""Records kept per pair with records="found" (the first samples found); "all" keeps every one."""
 
 SPECULATIVE_RECORDS = 4096
 """Fewest records copied into the frame's one readback; a frame copies a quarter more than the
@@ -325,17 +323,15 @@ class FocusedPasses:
     # -- one frame --------------------------------------------------------------------------
 
     def run(self, plan: TilePlan, matrices: np.ndarray, body_shape: np.ndarray,
-            pack: ShapePack, n_pairs: int, *, shapes: list | None = None, records: bool = True,
-            all_records: bool = False, list_capacity: int | None = None) -> FocusedOutput:
+            pack: ShapePack, n_pairs: int, *, shapes: list | None = None,
+            records: RecordMode, list_capacity: int | None = None) -> FocusedOutput:
         """Run passes F0-F6 for every tile and read back what they found (see :meth:`submit`)."""
         return self.finish(self.submit(plan, matrices, body_shape, pack, n_pairs, shapes=shapes,
-                                       records=records, all_records=all_records,
-                                       list_capacity=list_capacity))
+                                       records=records, list_capacity=list_capacity))
 
     def submit(self, plan: TilePlan, matrices: np.ndarray, body_shape: np.ndarray,
                pack: ShapePack, n_pairs: int, *, shapes: list | None = None,
-               records: bool = True, all_records: bool = False,
-               list_capacity: int | None = None) -> Submitted:
+               records: RecordMode, list_capacity: int | None = None) -> Submitted:
         """Encode passes F0-F6 for every tile in one command buffer, submit it and start its
         readback; :meth:`finish` waits for it. Two frames can be in flight: a third waits for
         the oldest.
@@ -354,10 +350,10 @@ class FocusedPasses:
         shapes : list of Shape, optional
             The shapes uploaded for this frame: uploaded again should the frame have to run
             again after a later frame replaced them.
-        records : bool
-            Read back the records (False: only the per-tile counts).
-        all_records : bool
-            Test every edge of every tile (otherwise tiles of pairs already found are skipped).
+        records : RecordMode
+            Whether records are read back (otherwise only the per-tile counts), whether every
+            tile is tested (otherwise tiles of pairs already found are skipped) and how many
+            records a pair keeps.
         list_capacity : int, optional
             Crossings kept per pixel in this run (default: the one given at construction).
         """
@@ -367,8 +363,7 @@ class FocusedPasses:
         if older is not None:
             self.finish(older)  # its staging buffers are about to be reused
         sub = Submitted((plan, matrices, body_shape, pack, n_pairs),
-                        dict(shapes=shapes, records=records, all_records=all_records,
-                             list_capacity=list_capacity), slot)
+                        dict(shapes=shapes, records=records, list_capacity=list_capacity), slot)
         self.in_flight[slot] = sub
         self._submit(sub)
         return sub
@@ -387,7 +382,7 @@ class FocusedPasses:
                     raise RoundTooLarge(int(c[C_MAX_TRIS]), max_tris)
                 self.caps["tris"] = min(int(c[C_MAX_TRIS] * 1.5) + 1024, max_tris)
                 grown = True
-            if c[C_RECORDS] > self.caps["records"] and sub.options["records"] \
+            if c[C_RECORDS] > self.caps["records"] and sub.options["records"].read \
                     and self.caps["records"] < max_records:
                 # More records than one buffer holds are dropped (and counted): pairs come
                 # from the per-tile counts, which are complete.
@@ -403,7 +398,7 @@ class FocusedPasses:
                 continue
             out.reruns = sub.reruns
             out.dropped_records = max(int(c[C_RECORDS]) - self.caps["records"], 0) \
-                if sub.options["records"] else 0
+                if sub.options["records"].read else 0
             sub.output = out
             if self.in_flight[sub.slot] is sub:
                 self.in_flight[sub.slot] = None
@@ -421,7 +416,7 @@ class FocusedPasses:
         plan, matrices, body_shape, pack, n_pairs = sub.args
         opts = sub.options
         self.run_capacity = int(opts["list_capacity"] or self.capacity)
-        self.all_records = opts["all_records"]
+        self.record_mode = opts["records"]
         t = len(plan)
         words = tile_words(plan, matrices)
         shapes = body_shape[plan.bodies].reshape(-1)                    # entry e = 2 * tile + side
@@ -456,7 +451,7 @@ class FocusedPasses:
         self.tris.ensure(48 * self.caps["tris"])
         self.tri_face.ensure(4 * self.caps["tris"])
         self._records(sub.slot).ensure(16 * self.caps["records"])
-        self._frame(sub, plan, bounds, round_threads, items, opts["records"])
+        self._frame(sub, plan, bounds, round_threads, items, opts["records"].read)
 
     def _ensure_target(self, width: int, rows: int) -> None:
         if self.target is not None and self.target.width >= width and self.target.height >= rows:
@@ -476,7 +471,8 @@ class FocusedPasses:
         n_rounds = len(plan.round_rows)
         caps = self.caps
         record_cap = caps["records"] if want_records else 0
-        pair_records = 0xFFFFFFFF if self.all_records else FOUND_RECORDS_PER_PAIR
+        per_pair = self.record_mode.per_pair
+        pair_records = 0xFFFFFFFF if per_pair is None else per_pair
         # Per-round parameters of the cull and the surface test, one uniform block each.
         self.round_params.ensure(ROUND_STRIDE * max(n_rounds, 1))
         block = np.zeros((max(n_rounds, 1), ROUND_STRIDE // 4), dtype=np.uint32)
@@ -489,7 +485,7 @@ class FocusedPasses:
                                              pair_records)
         self.round_params.write(block)
         frame = np.zeros((6, PARAM_STRIDE // 4), dtype=np.uint32)
-        early_out = 0 if self.all_records else 1
+        early_out = 0 if self.record_mode.every_tile else 1
         frame[P_FINALIZE, :4] = (items, items, caps["tris"], 0)
         frame[P_CLIP, :4] = (caps["tris"], items, 0, 0)
         frame[P_ATLAS, :4] = (plan.atlas_width, self.target.height, self.run_capacity,
