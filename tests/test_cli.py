@@ -63,6 +63,13 @@ def test_check_json(files, capsys):
     assert code == 1 and json.loads(capsys.readouterr().out)["resolution"] == 256
     assert main(["check", "--resolution", "256", str(files / "box.stl")]) == 2
     assert "--strategy scene" in capsys.readouterr().err
+    # The options are checked (by CollisionRequest, in the command line's words) before any
+    # file is read.
+    assert main(["check", "--json", "--strategy", "scene", "--tolerance", "0.1",
+                 str(files / "missing.stl")]) == 2
+    assert json.loads(capsys.readouterr().out)["errors"] == [
+        "--tolerance applies to --strategy focused; the scene strategy's accuracy is set by its "
+        "resolution"]
 
 
 def test_json_carries_warnings_and_errors(tmp_path, files, capsys):

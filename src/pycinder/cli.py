@@ -28,6 +28,7 @@ import numpy as np
 
 from . import __version__
 from .files import DEFAULT_MAX_BYTES, DEFAULT_MAX_TRIANGLES, Limits, human_bytes, parse_size
+from .request import CollisionRequest
 
 DESCRIPTION = f"""\
 pycinder {__version__}: collision detection on the GPU for closed triangle meshes
@@ -45,8 +46,11 @@ files' units.
 
 
 def _cli_words(message: str, strict: bool) -> str:
-    """Library messages name the library's option; on the command line it is --strict, and
-    under --strict the advice to pass it is dropped."""
+    """Library messages name the library's options; on the command line they are flags
+    (--strategy, --tolerance, --resolution, --strict), and under --strict the advice to pass it
+    is dropped."""
+    message = re.sub(r"\bstrategy='(\w+)'", r"--strategy \1", message)
+    message = re.sub(r"^(tolerance|resolution)\b", r"--\1", message)
     if strict:
         return re.sub(r",?\s*or ask for strict checking to make this an error", "", message)
     return message.replace("ask for strict checking", "pass --strict")
@@ -95,19 +99,12 @@ def _load(args: argparse.Namespace, update: Callable[[int, int, str], None]) -> 
                        progress=lambda k, n, label: update(k, steps, f"loading {label}"))
 
 
-def _detector_options(args: argparse.Namespace) -> dict:
-    options: dict = {"strict": args.strict}
-    if args.strategy == "scene":
-        if args.tolerance is not None:
-            raise ValueError("--tolerance sizes the focused strategy's pixels; --strategy scene "
-                             "has one image of --resolution pixels instead")
-        options.update(strategy="scene", resolution=args.resolution or 1024)
-    else:
-        if args.resolution is not None:
-            raise ValueError("--resolution sets the image of --strategy scene; the focused "
-                             "strategy sizes its pixels by --tolerance")
-        options["tolerance"] = args.tolerance
-    return options
+def _request(args: argparse.Namespace) -> CollisionRequest:
+    """``pycinder check``'s options as a request, checked (before any file is read) by
+    :class:`~pycinder.CollisionRequest`, whose messages :func:`_cli_words` puts in the command
+    line's words."""
+    return CollisionRequest(strict=args.strict, strategy=args.strategy,
+                            tolerance=args.tolerance, resolution=args.resolution)
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -117,13 +114,13 @@ def cmd_check(args: argparse.Namespace) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            options = _detector_options(args)
+            request = _request(args)
             with _progress(args.progress, "loading") as update:
                 bodies = _load(args, update)
                 names = [b.name for b in bodies]
                 update(len(args.files), len(args.files) + 1,
                        f"checking {len(bodies)} bodies")
-                det = Detector(**options)
+                det = Detector(request)
                 result = det.find_collisions([b.mesh for b in bodies],
                                              np.array([b.transform for b in bodies]),
                                              names=names)

@@ -20,7 +20,7 @@ import wgpu
 from .errors import GpuError, GpuTimeoutError
 from .focused import FocusedStrategy
 from .gpu.device import get_gpu
-from .request import RECORD_MODES, CollisionRequest
+from .request import CollisionRequest, record_mode
 from .result import CollisionResult, Stats, remember_query
 from .scene import ShapeCache, prepare_scene
 from .view import View
@@ -178,8 +178,7 @@ class Detector:
         if records is not None:
             if self.request.strategy != "focused":
                 raise ValueError("records per call applies to strategy='focused'")
-            if records not in RECORD_MODES:
-                raise ValueError(f"records must be one of {RECORD_MODES}, got {records!r}")
+            record_mode(records)  # a ValueError naming the modes for any other value
         scene = prepare_scene(bodies, transforms, names=names, strict=self.request.strict,
                               cache=self.shapes, max_bodies=self.request.max_bodies)
         stats = Stats(strategy=self.request.strategy, adapter=self.gpu.description,

@@ -26,7 +26,7 @@ from .layout import (C_SAMPLES, C_TOTAL_TRIS, RECORD_ID_MASK, RECORD_KIND_SHIFT,
 from .passes.focused import (ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS,
                              FocusedOutput, FocusedPasses, RoundTooLarge, Submitted)
 from .records import RECORD_DTYPE, empty_records, pair_keys, unique_pairs
-from .request import DEFAULT_RELATIVE_TOLERANCE, CollisionRequest
+from .request import CollisionRequest, RecordMode, body_sizes, pair_tolerance, record_mode
 from .result import CollisionResult, Stats
 from .scene import Scene
 from .scene.pack import ShapePack, pack_shapes, shape_layout
@@ -37,12 +37,6 @@ RETRIES = 5
 """Times undecided tiles are run again: first with longer lists, then with thinner boxes."""
 LARGER_LISTS = 1
 """Retries that make the lists longer (8 -> 32 entries) before boxes are cut."""
-
-
-def body_sizes(scene: Scene) -> np.ndarray:
-    """(N,) world length of each body's bounding-box diagonal."""
-    diag = scene.local_hi - scene.local_lo
-    return np.linalg.norm(np.einsum("nij,nj->ni", scene.transforms[:, :3, :3], diag), axis=1)
 
 
 class FocusedStrategy:
@@ -80,14 +74,11 @@ class FocusedStrategy:
         precision (see :func:`resolvable_tolerance`): a default tolerance below that is raised to
         it with a :class:`~pycinder.errors.PrecisionWarning`; a tolerance given below it raises.
         """
-        size = body_sizes(scene)
+        size = body_sizes(scene.local_lo, scene.local_hi, scene.transforms)
         a, b = pairs[:, 0], pairs[:, 1]
         floor = resolvable_tolerance(scene, pairs, size)
-        tol = DEFAULT_RELATIVE_TOLERANCE * np.minimum(size[a], size[b])
-        chosen = np.zeros(len(pairs), dtype=bool)
-        if self.request.tolerance is not None:
-            tol[:] = self.request.tolerance
-            chosen[:] = True
+        tol = pair_tolerance(size[a], size[b], self.request.tolerance)
+        chosen = np.full(len(pairs), self.request.tolerance is not None)
         if given is not None:
             g = np.asarray(given, dtype=np.float64)[a]
             chosen |= ~np.isnan(g)
@@ -133,7 +124,7 @@ class FocusedStrategy:
                tolerance: np.ndarray | None = None) -> PendingFocused:
         """:meth:`run` up to the first frame's submission: the broad phase, the tiles, the
         upload and the frame's command buffer. The GPU then works while the caller does."""
-        records = records or self.request.records
+        mode = record_mode(records or self.request.records)
         t0 = time.perf_counter()
         if len(scene) < 2:
             return PendingFocused(self, CollisionResult.empty(stats))
@@ -149,7 +140,7 @@ class FocusedStrategy:
         tol = self.tolerances(scene, pairs, tolerance)
         stats.tolerance = (float(tol.min()), float(tol.max()))
         plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
-                          budget_pixels=self.budget_pixels, probe=records != "all",
+                          budget_pixels=self.budget_pixels, probe=mode.probe,
                           open_bodies=scene.open, max_pixels=self.request.max_pixels)
         stats.separated = plan.separated
         t2 = time.perf_counter()
@@ -158,22 +149,21 @@ class FocusedStrategy:
             return PendingFocused(self, CollisionResult.empty(stats))
         pack = self._shapes(scene, stats)
         first = self.passes.submit(plan, plan.tile_from_body(scene.transforms), scene.body_shape,
-                                   pack, len(pairs), shapes=scene.shapes,
-                                   records=records != "none", all_records=records == "all",
-                                   retry=self._retry_on_gpu(plan, records))
+                                   pack, len(pairs), shapes=scene.shapes, records=mode,
+                                   retry=self._retry_on_gpu(plan, mode))
         t3 = time.perf_counter()
         stats.add_ms("upload", (t3 - t2) * 1e3)
         stats.submitted_ms = (t3 - t0) * 1e3
-        return PendingFocused(self, None, (scene, stats, records, pairs, plan, pack, first, t3))
+        return PendingFocused(self, None, (scene, stats, mode, pairs, plan, pack, first, t3))
 
-    def _retry_on_gpu(self, plan: TilePlan, records: str) -> bool:
+    def _retry_on_gpu(self, plan: TilePlan, records: RecordMode) -> bool:
         """Whether ``plan``'s frame ends with its own retry rounds (see the module's docstring):
-        lists of the retry's length fit the memory budget, and not records="all" (whose retries
-        cover tiles of pairs already found)."""
-        return records != "all" and max(plan.round_rows) * plan.atlas_width \
+        lists of the retry's length fit the memory budget, and not every tile is tested (retry
+        rounds leave out the tiles of pairs already found)."""
+        return not records.every_tile and max(plan.round_rows) * plan.atlas_width \
             <= self._budget(self.passes.capacity * RETRY_LISTS)
 
-    def _complete(self, scene: Scene, stats: Stats, records: str, pairs: np.ndarray,
+    def _complete(self, scene: Scene, stats: Stats, records: RecordMode, pairs: np.ndarray,
                   plan: TilePlan, pack: ShapePack, first: Submitted, t3: float
                   ) -> CollisionResult:
         """The rest of :meth:`run` once the first frame is submitted: its readback, the retries
@@ -198,7 +188,7 @@ class FocusedStrategy:
             decided = unique_pairs(*np.concatenate(found_tiles).T)
             # An undecided tile of a pair found elsewhere changes no answer, but with
             # records="all" its records are wanted too.
-            again = undecided if records == "all" else \
+            again = undecided if records.every_tile else \
                 undecided & ~_member(current.bodies, decided)
             if not again.any():
                 break
@@ -239,7 +229,7 @@ class FocusedStrategy:
         return CollisionResult(result_pairs, rec, stats, tiles=concat_plans(plans), scene=scene)
 
     def _run_plan(self, plan: TilePlan, scene: Scene, pack: ShapePack, n_pairs: int,
-                  records: str, capacity: int, submitted: Submitted | None = None
+                  records: RecordMode, capacity: int, submitted: Submitted | None = None
                   ) -> tuple[TilePlan, FocusedOutput]:
         """Run ``plan``'s passes (or read ``submitted``, the plan's frame already on the GPU);
         when a round clips more triangles than the device's buffers hold, plan the same tiles
@@ -253,8 +243,7 @@ class FocusedStrategy:
                 pack = self._shapes(scene, Stats())
                 return plan, self.passes.run(
                     plan, plan.tile_from_body(scene.transforms), scene.body_shape, pack,
-                    n_pairs, shapes=scene.shapes, records=records != "none",
-                    all_records=records == "all", list_capacity=capacity)
+                    n_pairs, shapes=scene.shapes, records=records, list_capacity=capacity)
             except RoundTooLarge as exc:
                 submitted = None
                 # Fewer atlas pixels per round, down to one band each; then narrower bands
@@ -356,7 +345,8 @@ def resolvable_tolerance(scene: Scene, pairs: np.ndarray, size: np.ndarray | Non
     """(K,) the smallest tolerance at which each pair's tiles are resolved in single precision:
     each body at most :data:`MAX_PIXELS_ACROSS` pixels across and :data:`MAX_PIXELS_FROM_ORIGIN`
     pixels from the origin."""
-    size = body_sizes(scene) if size is None else size
+    if size is None:
+        size = body_sizes(scene.local_lo, scene.local_hi, scene.transforms)
     centre = np.einsum("nij,nj->ni", scene.transforms[:, :3, :3],
                        0.5 * (scene.local_lo + scene.local_hi)) + scene.transforms[:, :3, 3]
     far = np.abs(centre).max(axis=1) + size

@@ -28,8 +28,9 @@ centre, at most ``0.71 t`` from the edge (still promise 1): an edge point ``1.6 
 always within reach of a sample.
 
 Without a tolerance, each pair gets ``DEFAULT_RELATIVE_TOLERANCE`` (1%) of the smaller body's
-size (the length of its bounding box's diagonal in world units): the promises then hold per pair
-at that scale, again independent of the rest of the scene.
+size (the length of its bounding box's diagonal in world units, :func:`body_sizes`): the promises
+then hold per pair at that scale, again independent of the rest of the scene
+(:func:`pair_tolerance`).
 
 Open bodies. A body that is not a closed solid (it has holes, or faces wound inconsistently: any
 edge walked more often one way than the other) has no inside, so ray parity is never used for it.
@@ -62,11 +63,16 @@ import numbers
 from dataclasses import dataclass, fields
 from typing import Any, Literal
 
+import numpy as np
+
 STRATEGIES = ("focused", "scene")
 SELF_INTERFERENCE_MODES = ("prevent", "filter", "offset")
 READBACK_MODES = ("compact", "full", "mipmap", "adaptive")
 ENCODINGS = ("edge", "normal")
 RECORD_MODES = ("found", "all", "none")
+
+FOUND_RECORDS_PER_PAIR = 16
+"""Records kept per pair with ``records="found"`` (the first samples found)."""
 
 DEFAULT_RELATIVE_TOLERANCE = 0.01
 """Default tolerance of a pair, as a fraction of the smaller body's bounding-box diagonal."""
@@ -83,6 +89,80 @@ DEFAULT_MEMORY_BUDGET = 256 * 2**20
 MAX_BODIES = {"focused": 2**24 - 1, "scene": 65535}
 """Bodies one query can hold: the scene strategy writes 16-bit ids as the paper does; the focused
 strategy is limited by tile and record layouts."""
+
+
+@dataclass(frozen=True)
+class RecordMode:
+    """What one value of the focused strategy's ``records`` option means (see
+    :func:`record_mode`).
+
+    Attributes
+    ----------
+    name : {"found", "all", "none"}
+    read : bool
+        Records are kept and read back (otherwise only the per-tile counts are).
+    every_tile : bool
+        Every tile is tested: tiles of pairs already found are not skipped (no early-out), and
+        undecided tiles of a pair found elsewhere are run again for their records.
+    probe : bool
+        Windows larger than a probe tile are probed at their centre first.
+    per_pair : int or None
+        Records kept per pair (None: every one).
+    """
+
+    name: str
+    read: bool
+    every_tile: bool
+    probe: bool
+    per_pair: int | None
+
+    @property
+    def complete(self) -> bool:
+        """Every record of every pair is kept (what contacts are reduced from)."""
+        return self.read and self.per_pair is None
+
+
+_RECORD_MODES = {
+    "found": RecordMode("found", read=True, every_tile=False, probe=True,
+                        per_pair=FOUND_RECORDS_PER_PAIR),
+    "all": RecordMode("all", read=True, every_tile=True, probe=False, per_pair=None),
+    "none": RecordMode("none", read=False, every_tile=False, probe=True, per_pair=0),
+}
+
+
+def record_mode(records: str) -> RecordMode:
+    """The meaning of a ``records`` value ("found", "all" or "none"); raises ValueError for any
+    other."""
+    _one_of("records", records, RECORD_MODES)
+    return _RECORD_MODES[records]
+
+
+def body_sizes(local_lo: np.ndarray, local_hi: np.ndarray, transforms: np.ndarray
+               ) -> np.ndarray:
+    """(N,) each body's size: the world length of its bounding-box diagonal.
+
+    Parameters
+    ----------
+    local_lo, local_hi : (N, 3) float
+        Corners of each body's bounding box in its own coordinates.
+    transforms : (N, 4, 4) float
+        Each body's world-from-body transform (its linear part scales the diagonal).
+    """
+    diag = np.asarray(local_hi, np.float64) - np.asarray(local_lo, np.float64)
+    linear = np.asarray(transforms, np.float64)[:, :3, :3]
+    return np.linalg.norm(np.einsum("nij,nj->ni", linear, diag), axis=1)
+
+
+def pair_tolerance(size_a: np.ndarray, size_b: np.ndarray, tolerance: float | None = None
+                   ) -> np.ndarray:
+    """(K,) tolerance of pairs of bodies ``size_a`` and ``size_b`` ((K,) :func:`body_sizes`)
+    across: ``tolerance`` where given, else :data:`DEFAULT_RELATIVE_TOLERANCE` of the smaller
+    body's size."""
+    smaller = np.minimum(np.asarray(size_a, np.float64), np.asarray(size_b, np.float64))
+    if tolerance is not None:
+        return np.full(smaller.shape, float(tolerance))
+    return DEFAULT_RELATIVE_TOLERANCE * smaller
+
 
 _SCENE_ONLY = ("resolution", "self_interference", "readback", "mipmap_levels", "edge_offset")
 
@@ -132,9 +212,10 @@ class CollisionRequest:
     records : {"found", "all", "none"}
         Focused strategy: ``"found"`` (default) stops testing a pair as soon as one of its tiles
         found it colliding (large windows are probed at their centre first) and returns the
-        first records found (up to 16 per pair); ``"all"`` tests every tile and returns every sample inside the
-        other body (for contact generation); ``"none"`` returns pairs only. The pairs are the
-        same in every mode. The scene strategy always returns its records.
+        first records found (up to :data:`FOUND_RECORDS_PER_PAIR` per pair); ``"all"`` tests
+        every tile and returns every sample inside the other body (for contact generation);
+        ``"none"`` returns pairs only. The pairs are the same in every mode (see
+        :class:`RecordMode`). The scene strategy always returns its records.
     """
 
     strategy: Literal["focused", "scene"] = "focused"
@@ -205,6 +286,11 @@ class CollisionRequest:
     def max_bodies(self) -> int:
         return MAX_BODIES[self.strategy]
 
+    @property
+    def record_mode(self) -> RecordMode:
+        """What :attr:`records` means (see :func:`record_mode`)."""
+        return record_mode(self.records)
+
     def replace(self, **changes: Any) -> CollisionRequest:
         """A copy with some options changed (checked again)."""
         values = {f.name: getattr(self, f.name) for f in fields(self)}
@@ -216,8 +302,6 @@ class CollisionRequest:
 
 
 def _positive_int(value: Any) -> bool:
-    import numpy as np
-
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value > 0
 
 

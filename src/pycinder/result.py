@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .records import RECORD_DTYPE
+from .request import record_mode
 
 if TYPE_CHECKING:
     from .contacts import Contacts
@@ -342,7 +343,7 @@ class CollisionResult:
                              "comes from strategy='scene'. Run the query with the default "
                              "strategy for contacts.")
         source = self
-        if len(self.pairs) and self.query is not None and self.query.records != "all":
+        if len(self.pairs) and self.query is not None and not record_mode(self.query.records).complete:
             source = self.query.run("all")
         contacts = reduce_contacts(source).restricted_to(self.pairs)
         contacts.names = self.names

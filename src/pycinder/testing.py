@@ -27,7 +27,7 @@ import numpy as np
 import trimesh
 
 from .optional import require
-from .request import DEFAULT_RELATIVE_TOLERANCE
+from .request import body_sizes, pair_tolerance
 
 SURFACE_SAMPLES = 1500
 """Evenly spaced surface points per body (besides its vertices) for the depth test."""
@@ -56,17 +56,17 @@ def _manifold(mesh: trimesh.Trimesh) -> Any:
 
 def pair_tolerances(meshes: list, transforms: list | np.ndarray | None, pairs: np.ndarray,
                     tolerance: float | None) -> np.ndarray:
-    """(K,) tolerance of each pair: ``tolerance``, or the documented default (1% of the smaller
-    body's bounding-box diagonal in world units)."""
-    if tolerance is not None:
-        return np.full(len(pairs), float(tolerance))
-    sizes = []
-    for i, m in enumerate(meshes):
-        v = np.asarray(m.vertices if hasattr(m, "vertices") else m[0], np.float64)
-        t = np.eye(4) if transforms is None else np.asarray(transforms[i], np.float64)
-        sizes.append(np.linalg.norm(t[:3, :3] @ (v.max(axis=0) - v.min(axis=0))))
-    sizes = np.asarray(sizes)
-    return DEFAULT_RELATIVE_TOLERANCE * np.minimum(sizes[pairs[:, 0]], sizes[pairs[:, 1]])
+    """(K,) tolerance of each pair ((K, 2) body indices): ``tolerance``, or the documented
+    default (:func:`pycinder.request.pair_tolerance`: 1% of the smaller body's bounding-box
+    diagonal in world units), from the meshes' own vertices and ``transforms``."""
+    vertices = [np.asarray(m.vertices if hasattr(m, "vertices") else m[0], np.float64)
+                for m in meshes]
+    lo = np.array([v.min(axis=0) for v in vertices]).reshape(-1, 3)
+    hi = np.array([v.max(axis=0) for v in vertices]).reshape(-1, 3)
+    world = np.broadcast_to(np.eye(4), (len(meshes), 4, 4)) if transforms is None \
+        else np.asarray(transforms, np.float64).reshape(-1, 4, 4)
+    sizes = body_sizes(lo, hi, world)
+    return pair_tolerance(sizes[pairs[:, 0]], sizes[pairs[:, 1]], tolerance)
 
 
 @dataclass

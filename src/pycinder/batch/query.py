@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..request import RECORD_MODES, CollisionRequest
+from ..request import CollisionRequest, record_mode
 from ..result import CollisionResult, Stats
 from ..scene import Scene, prepare_scene
 
@@ -109,8 +109,8 @@ def find_collisions_batch(detector: Detector, scenes: Sequence[Any], *, toleranc
     if request.strategy != "focused":
         raise ValueError("find_collisions_batch needs strategy='focused': the scene strategy "
                          "draws one image of everything")
-    if records is not None and records not in RECORD_MODES:
-        raise ValueError(f"records must be one of {RECORD_MODES}, got {records!r}")
+    if records is not None:
+        record_mode(records)  # a ValueError naming the modes for any other value
     t0 = time.perf_counter()
     scenes = list(scenes)
     labels = list(range(len(scenes))) if labels is None else list(labels)

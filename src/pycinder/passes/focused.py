@@ -30,6 +30,7 @@ from ..gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ..gpu.device import Gpu
 from ..layout import (C_MAX_TRIS, C_RECORDS, C_RETRY_TILES, C_RETRY_UNDECIDED, COUNTERS, FLAG_OPEN,
                       ROUND_COUNTERS, ROW, TILE_WORDS, WORKGROUP)
+from ..request import RecordMode
 from ..scene.pack import ShapePack
 from ..tiles import TilePlan
 from .bindings import Profiler, Stage
@@ -40,9 +41,6 @@ LIST_CAPACITY = 8
 
 RETRY_LISTS = 4
 """The retry round's lists are this many times longer than the frame's."""
-
-FOUND_RECORDS_PER_PAIR = 16
-"""Records kept per pair with records="found" (the first samples found); "all" keeps every one."""
 
 SPECULATIVE_RECORDS = 4096
 """Fewest records copied into the frame's one readback; a frame copies a quarter more than the
@@ -345,18 +343,18 @@ class FocusedPasses:
     # -- one frame --------------------------------------------------------------------------
 
     def run(self, plan: TilePlan, matrices: np.ndarray, body_shape: np.ndarray,
-            pack: ShapePack, n_pairs: int, *, shapes: list | None = None, records: bool = True,
-            all_records: bool = False, list_capacity: int | None = None,
+            pack: ShapePack, n_pairs: int, *, shapes: list | None = None,
+            records: RecordMode, list_capacity: int | None = None,
             retry: bool = False) -> FocusedOutput:
         """Run passes F0-F6 for every tile and read back what they found (see :meth:`submit`)."""
         return self.finish(self.submit(plan, matrices, body_shape, pack, n_pairs, shapes=shapes,
-                                       records=records, all_records=all_records,
-                                       list_capacity=list_capacity, retry=retry))
+                                       records=records, list_capacity=list_capacity,
+                                       retry=retry))
 
     def submit(self, plan: TilePlan, matrices: np.ndarray, body_shape: np.ndarray,
                pack: ShapePack, n_pairs: int, *, shapes: list | None = None,
-               records: bool = True, all_records: bool = False,
-               list_capacity: int | None = None, retry: bool = False) -> Submitted:
+               records: RecordMode, list_capacity: int | None = None,
+               retry: bool = False) -> Submitted:
         """Encode passes F0-F6 for every tile in one command buffer, submit it and start its
         readback; :meth:`finish` waits for it. Two frames can be in flight: a third waits for
         the oldest.
@@ -375,30 +373,30 @@ class FocusedPasses:
         shapes : list of Shape, optional
             The shapes uploaded for this frame: uploaded again should the frame have to run
             again after a later frame replaced them.
-        records : bool
-            Read back the records (False: only the per-tile counts).
-        all_records : bool
-            Test every edge of every tile (otherwise tiles of pairs already found are skipped).
+        records : RecordMode
+            Whether records are read back (otherwise only the per-tile counts), whether every
+            tile is tested (otherwise tiles of pairs already found are skipped) and how many
+            records a pair keeps.
         list_capacity : int, optional
             Crossings kept per pixel in this run (default: the one given at construction).
         retry : bool
             End the frame with retry rounds (one per round): the tiles left undecided whose pair
             was not found run again with lists :data:`RETRY_LISTS` times longer, in the same
-            submission. Not with ``all_records`` (a found pair's tiles are not retried, so their
-            records would be missing). The caller checks that lists that long fit its memory
-            budget.
+            submission. Not when ``records`` tests every tile (a found pair's tiles are not
+            retried, so their records would be missing). The caller checks that lists that long
+            fit its memory budget.
         """
-        if retry and all_records:
+        if retry and records.every_tile:
             raise ValueError("retry rounds leave out the tiles of pairs already found: not with "
-                             "all_records")
+                             "a records mode that tests every tile")
         slot = self._next_slot
         self._next_slot = (slot + 1) % SLOTS
         older = self.in_flight[slot]
         if older is not None:
             self.finish(older)  # its staging buffers are about to be reused
         sub = Submitted((plan, matrices, body_shape, pack, n_pairs),
-                        dict(shapes=shapes, records=records, all_records=all_records,
-                             list_capacity=list_capacity, retry=retry), slot)
+                        dict(shapes=shapes, records=records, list_capacity=list_capacity,
+                             retry=retry), slot)
         self.in_flight[slot] = sub
         self._submit(sub)
         return sub
@@ -417,7 +415,7 @@ class FocusedPasses:
                     raise RoundTooLarge(int(c[C_MAX_TRIS]), max_tris)
                 self.caps["tris"] = min(int(c[C_MAX_TRIS] * 1.5) + 1024, max_tris)
                 grown = True
-            if c[C_RECORDS] > self.caps["records"] and sub.options["records"] \
+            if c[C_RECORDS] > self.caps["records"] and sub.options["records"].read \
                     and self.caps["records"] < max_records:
                 # More records than one buffer holds are dropped (and counted): pairs come
                 # from the per-tile counts, which are complete.
@@ -433,7 +431,7 @@ class FocusedPasses:
                 continue
             out.reruns = sub.reruns
             out.dropped_records = max(int(c[C_RECORDS]) - self.caps["records"], 0) \
-                if sub.options["records"] else 0
+                if sub.options["records"].read else 0
             sub.output = out
             if self.in_flight[sub.slot] is sub:
                 self.in_flight[sub.slot] = None
@@ -451,7 +449,7 @@ class FocusedPasses:
         plan, matrices, body_shape, pack, n_pairs = sub.args
         opts = sub.options
         self.run_capacity = int(opts["list_capacity"] or self.capacity)
-        self.all_records = opts["all_records"]
+        self.record_mode = opts["records"]
         t = len(plan)
         words = tile_words(plan, matrices)
         shapes = body_shape[plan.bodies].reshape(-1)                    # entry e = 2 * tile + side
@@ -489,7 +487,7 @@ class FocusedPasses:
         self.tris.ensure(48 * self.caps["tris"])
         self.tri_face.ensure(4 * self.caps["tris"])
         self._records(sub.slot).ensure(16 * self.caps["records"])
-        self._frame(sub, plan, bounds, round_threads, items, opts["records"])
+        self._frame(sub, plan, bounds, round_threads, items, opts["records"].read)
 
     def _ensure_target(self, width: int, rows: int) -> None:
         if self.target is not None and self.target.width >= width and self.target.height >= rows:
@@ -509,7 +507,8 @@ class FocusedPasses:
         n_rounds = len(plan.round_rows)
         caps = self.caps
         record_cap = caps["records"] if want_records else 0
-        pair_records = 0xFFFFFFFF if self.all_records else FOUND_RECORDS_PER_PAIR
+        per_pair = self.record_mode.per_pair
+        pair_records = 0xFFFFFFFF if per_pair is None else per_pair
         t = len(plan)
         pairs_at, retry_at = 2 * t, 2 * t + self.n_pairs
         # Per-round parameters of the cull and the surface test, one uniform block each; the
@@ -528,7 +527,7 @@ class FocusedPasses:
                                              pair_records)
         self.round_params.write(block)
         frame = np.zeros((9, PARAM_STRIDE // 4), dtype=np.uint32)
-        early_out = 0 if self.all_records else 1
+        early_out = 0 if self.record_mode.every_tile else 1
         frame[P_FINALIZE, :4] = (items, items, caps["tris"], 0)
         frame[P_CLIP, :4] = (caps["tris"], items, 0, 0)
         frame[P_CROSS, :5] = (record_cap, items, pairs_at, early_out, pair_records)
