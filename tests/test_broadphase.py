@@ -9,7 +9,7 @@ from pycinder import broadphase
 from pycinder.broadphase import sweep_and_prune
 from pycinder.scene import prepare_scene
 from pycinder.testing import random_rotation, random_scene
-from pycinder.tiles import FLAG_SKIP_IF_HIT, MAX_TILE, PROBE, plan_tiles
+from pycinder.tiles import FLAG_SKIP_IF_HIT, MAX_TILE, PROBE, PROBE_PLAN, PROBE_WINDOW, plan_tiles
 
 
 def brute(lo, hi):
@@ -95,7 +95,9 @@ def test_atlas_tiles_never_overlap_and_cover_their_windows(budget):
     # The probes come first: the pieces after them are skipped once their pair is found.
     probes = plan.flags & FLAG_SKIP_IF_HIT == 0
     assert probes.any() and (~probes).any()
-    assert (w[probes] <= PROBE[0]).all() and (h[probes] <= PROBE[1]).all()
+    # (a probe, or a window too small to be worth probing)
+    assert (((w[probes] <= PROBE[0]) & (h[probes] <= PROBE[1]))
+            | (w[probes] * h[probes] <= PROBE_WINDOW)).all()
     assert not (probes[1:] & ~probes[:-1]).any(), "a probe comes after a skippable piece"
     assert plan.round[probes].max() <= plan.round[~probes].min()
 
@@ -109,3 +111,28 @@ def test_apart_oriented_boxes_need_no_tile():
     result = pycinder.Detector().find_collisions([short, long_], [np.eye(4), turn])
     assert result.stats.candidates == 1 and result.stats.separated == 1
     assert result.stats.tiles == 0 and result.pairs.tolist() == []
+
+
+def test_only_large_windows_of_large_plans_are_probed():
+    """A probe costs a second round of passes: a box resting on a ball is tested in one round;
+    the same pair overlapping deeply at a fine tolerance gets its probe first."""
+    box = trimesh.creation.box((1, 1, 1))
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.4)
+
+    def plan_for(gap: float, tolerance: float):
+        poses = np.stack([np.eye(4)] * 2)
+        poses[1, 2, 3] = 0.9 + gap
+        scene = prepare_scene([box, ball], poses)
+        lo, hi = scene.world_boxes()
+        pairs = sweep_and_prune(lo, hi)
+        return plan_tiles(pairs, np.full(len(pairs), tolerance), scene.local_lo,
+                          scene.local_hi, lo, hi, scene.transforms, budget_pixels=2**22)
+
+    touching = plan_for(0.0, 0.01)
+    assert touching.pixels < PROBE_PLAN and len(touching.round_rows) == 1
+    assert not (touching.flags & FLAG_SKIP_IF_HIT).any()
+    deep = plan_for(-0.4, 0.002)
+    assert deep.pixels > PROBE_PLAN and len(deep.round_rows) == 2
+    first = deep.round == 0
+    assert (deep.window[first, 2] <= PROBE[0]).all() and (deep.window[first, 3] <= PROBE[1]).all()
+    assert (deep.flags[~first] & FLAG_SKIP_IF_HIT).all()

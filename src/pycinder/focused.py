@@ -7,9 +7,10 @@ A pair collides when any of its tiles found a sample inside the other body. A ti
 could not all be decided (a pixel held more crossings within the tile's box than its list) and
 whose pair was not found by another tile is run again, with lists four times longer and then
 with its box cut in two along the view, until nothing is undecided; whatever is still undecided
-after that is counted in ``stats.possibly_lost`` and warned about. The first retry, with longer
-lists, runs on the GPU in the frame's own submission when lists that long fit the memory budget
-(records "none" and "found"); cutting boxes is planned by the host.
+after that is counted in ``stats.possibly_lost`` and warned about. Once a query has left samples
+undecided, the next ones run their first retry, with longer lists, on the GPU in the frame's own
+submission (records "none" and "found", when lists that long fit the memory budget); cutting
+boxes is planned by the host.
 """
 
 from __future__ import annotations
@@ -58,6 +59,8 @@ class FocusedStrategy:
                                      gpu.max_binding // (ENTRY_BYTES * LIST_CAPACITY),
                                      gpu.max_resolution * 2048))
         self._pack: ShapePack | None = None
+        self.recently_undecided = False
+        """Whether the last query left samples undecided in its first frame."""
 
     def _budget(self, capacity: int) -> int:
         """Atlas pixels per round with lists of ``capacity`` crossings."""
@@ -158,9 +161,13 @@ class FocusedStrategy:
 
     def _retry_on_gpu(self, plan: TilePlan, records: RecordMode) -> bool:
         """Whether ``plan``'s frame ends with its own retry rounds (see the module's docstring):
-        lists of the retry's length fit the memory budget, and not every tile is tested (retry
-        rounds leave out the tiles of pairs already found)."""
-        return not records.every_tile and max(plan.round_rows) * plan.atlas_width \
+        the last query left samples undecided (frames of an animation are alike; retry rounds
+        that find nothing to retry still cost a frame their passes' fixed cost, about as much
+        as the frame itself for two small bodies on a CPU adapter), lists of the retry's length
+        fit the memory budget, and not every tile is tested (retry rounds leave out the tiles
+        of pairs already found)."""
+        return self.recently_undecided and not records.every_tile \
+            and max(plan.round_rows) * plan.atlas_width \
             <= self._budget(self.passes.capacity * RETRY_LISTS)
 
     def _complete(self, scene: Scene, stats: Stats, records: RecordMode, pairs: np.ndarray,
@@ -209,6 +216,7 @@ class FocusedStrategy:
                 current = split_depth(current, which, self._budget(capacity), cut=False)
             else:
                 current = split_depth(current, which, self._budget(capacity))
+        self.recently_undecided = stats.undecided > 0
         t4 = time.perf_counter()
         stats.add_ms("gpu", (t4 - t3) * 1e3)
         both = np.concatenate(found_tiles)

@@ -75,30 +75,28 @@ class Stage:
 
         Every binding the pipeline uses must be given; names the shader does not declare are an
         error (a renamed binding is caught at once)."""
-        unknown = set(resources) - set(self.numbers)
-        if unknown:
-            raise KeyError(f"{self.label} declares no binding {sorted(unknown)}")
-        entries, ident = [], []
-        for name, resource in resources.items():
-            if isinstance(resource, GrowableBuffer):
-                resource = resource.buffer
-            if isinstance(resource, tuple):
-                buffer, offset, size = resource
-                entry = {"buffer": buffer, "offset": offset, "size": size}
-            else:
-                buffer, offset = resource, 0
-                entry = {"buffer": buffer}
-            entries.append({"binding": self.numbers[name], "resource": entry})
-            ident.append((buffer, offset))
+        resolved = [r.buffer if isinstance(r, GrowableBuffer) else r for r in resources.values()]
+        ident = tuple((r[0], r[1]) if isinstance(r, tuple) else (r, 0) for r in resolved)
         cached = self._groups.get(key)
         # The key holds the buffers themselves: an id alone can be reused by a new buffer once a
         # grown one is freed.
         if cached is not None and len(cached[0]) == len(ident) and all(
                 a[0] is b[0] and a[1] == b[1] for a, b in zip(cached[0], ident)):
             return cached[1]
+        unknown = set(resources) - set(self.numbers)
+        if unknown:
+            raise KeyError(f"{self.label} declares no binding {sorted(unknown)}")
+        entries = []
+        for name, resource in zip(resources, resolved):
+            if isinstance(resource, tuple):
+                buffer, offset, size = resource
+                entry = {"buffer": buffer, "offset": offset, "size": size}
+            else:
+                entry = {"buffer": resource}
+            entries.append({"binding": self.numbers[name], "resource": entry})
         group = self.device.create_bind_group(layout=self.pipeline.get_bind_group_layout(0),
                                               entries=entries)
-        self._groups[key] = (tuple(ident), group)
+        self._groups[key] = (ident, group)
         return group
 
 
