@@ -47,14 +47,13 @@ has a pixel centre in the window."""
 
 
 PROBE = (24, 24)
-"""Largest probe tile: windows of more than :data:`PROBE_WINDOW` pixels are probed at their
-centre first. Deep overlaps, where most pixels go, are then decided by the probe alone."""
-PROBE_WINDOW = 4 * PROBE[0] * PROBE[1]
-"""Fewest pixels of a window that is probed: a smaller one is tested whole at once (a probe
-would spare it little)."""
+"""Largest probe tile: windows larger than this are probed at their centre first. Deep overlaps,
+where most pixels go, are then decided by the probe alone."""
 PROBE_PLAN = 2**16
 """Fewest pixels of a plan whose windows are probed: probes cost the frame a second round of
-passes, which a plan this small would not repay."""
+passes, which a small plan does not repay (measured on lavapipe: Stairs, 300,000 pixels, runs
+about 15% faster with its probes; a box touching a ball, 234 pixels, in 4.0 ms without a probe
+against 5.0 ms with one)."""
 
 
 @dataclass
@@ -372,13 +371,12 @@ def _pieces(t: dict, which: np.ndarray, extra_flags: int = 0) -> dict:
 
 def _phases(t: dict, probe: bool) -> list[dict]:
     """The tiles of each phase. Without probes, one phase of every window's pieces. With probes,
-    windows of more than :data:`PROBE_WINDOW` pixels first get a probe at their centre (phase 0,
-    with the small windows), and their pieces come in phase 1, skipped on the GPU once the pair
-    has a hit. A plan of fewer than :data:`PROBE_PLAN` pixels is not probed."""
+    windows larger than :data:`PROBE` first get a probe at their centre (phase 0, with the small
+    windows), and their pieces come in phase 1, skipped on the GPU once the pair has a hit. A plan
+    of fewer than :data:`PROBE_PLAN` pixels is not probed."""
     everything = np.arange(len(t["w"]))
-    pixels = t["w"] * t["h"]
-    big = pixels > PROBE_WINDOW
-    if not probe or pixels.sum() < PROBE_PLAN or not big.any():
+    big = (t["w"] > PROBE[0]) | (t["h"] > PROBE[1])
+    if not probe or (t["w"] * t["h"]).sum() < PROBE_PLAN or not big.any():
         return [_pieces(t, everything)]
     small = np.flatnonzero(~big)
     large = np.flatnonzero(big)
