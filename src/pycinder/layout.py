@@ -48,14 +48,14 @@ COUNTER_NAMES = (
     "C_TOTAL_FACE_ITEMS",
     "C_TOTAL_EDGE_ITEMS",
     "C_RETRY_UNDECIDED",   # undecided samples of those tiles before their retry
-    "C_SPARE2",
+    "C_CUTS",              # faces listed for cutting by pass F2 (this round)
 )
 COUNTERS = len(COUNTER_NAMES)
 (C_FACE_ITEMS, C_EDGE_ITEMS, C_TRIS, C_ACTIVE, C_RECORDS, C_UNDECIDED, C_SAMPLES, C_RETRY_TILES,
  C_MAX_FACE_ITEMS, C_MAX_EDGE_ITEMS, C_MAX_TRIS, C_TOTAL_TRIS, C_TOTAL_FACE_ITEMS,
- C_TOTAL_EDGE_ITEMS, C_RETRY_UNDECIDED, _) = range(COUNTERS)
+ C_TOTAL_EDGE_ITEMS, C_RETRY_UNDECIDED, C_CUTS) = range(COUNTERS)
 ROUND_COUNTERS = 4
-"""The first counters, reset before every round."""
+"""The first counters, reset before every round (and C_CUTS)."""
 
 # Record rows: (tile, u | v << 16, f32 bits of z, id | kind << RECORD_KIND_SHIFT | side << 31).
 RECORD_KIND_SHIFT = 29

@@ -28,7 +28,7 @@ import wgpu
 
 from ..gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ..gpu.device import Gpu
-from ..layout import (C_MAX_TRIS, C_RECORDS, C_RETRY_TILES, C_RETRY_UNDECIDED, COUNTERS, FLAG_OPEN,
+from ..layout import (C_CUTS, C_MAX_TRIS, C_RECORDS, C_RETRY_TILES, C_RETRY_UNDECIDED, COUNTERS, FLAG_OPEN,
                       ROUND_COUNTERS, ROW, TILE_WORDS, WORKGROUP)
 from ..request import RecordMode
 from ..scene.pack import ShapePack
@@ -57,7 +57,7 @@ ENTRY_BYTES = 8
 P_FINALIZE, P_CLIP, P_ATLAS, P_EDGES, P_BOUNDS, P_CROSS, P_RETRY, P_ATLAS_RETRY, P_EDGES_RETRY = \
     range(9)
 """Blocks of the frame parameter buffer (the last two: P_ATLAS and P_EDGES of the retry round)."""
-ARGS_CLIP, ARGS_EDGES, ARGS_DRAW, ARGS_SURFACE, ARGS_RETRY_CULL = 0, 12, 24, 40, 52
+ARGS_CLIP, ARGS_EDGES, ARGS_DRAW, ARGS_SURFACE, ARGS_RETRY_CULL, ARGS_CUT = 0, 12, 24, 40, 52, 64
 """Byte offsets of the indirect arguments written by ``finalize.wgsl``."""
 
 _U = wgpu.BufferUsage
@@ -230,6 +230,8 @@ class FocusedPasses:
         self.cull = Stage(gpu, "cull", "cull", label="F1 cull")
         self.after_cull = Stage(gpu, "finalize", "after_cull")
         self.clip = Stage(gpu, "clip", "clip", label="F2 clip")
+        self.after_clip_faces = Stage(gpu, "finalize", "after_clip_faces")
+        self.cut = Stage(gpu, "clip", "cut", label="F2 clip: cuts")
         self.after_clip = Stage(gpu, "finalize", "after_clip")
         state = FOCUSED_CROSSINGS
         self.crossings = Stage(gpu, "crossings", render={
@@ -263,6 +265,7 @@ class FocusedPasses:
         self.edge_items = grow("edge items", _U.STORAGE)
         self.tris = grow("clipped triangles", _U.STORAGE)
         self.tri_face = grow("triangle faces", _U.STORAGE)
+        self.cuts = grow("faces to cut", _U.STORAGE)
         self.active = grow("active pixels", _U.STORAGE)
         self.pixels = grow("pixel counts", _U.STORAGE | _U.COPY_DST)
         self.lists = grow("pixel crossings", _U.STORAGE)
@@ -272,7 +275,7 @@ class FocusedPasses:
                               for k in range(SLOTS)]
         self.counters = device.create_buffer(label="counters", size=4 * COUNTERS,
                                              usage=_U.STORAGE | _U.COPY_SRC | _U.COPY_DST)
-        self.args = device.create_buffer(label="indirect args", size=64,
+        self.args = device.create_buffer(label="indirect args", size=80,
                                          usage=_U.STORAGE | _U.INDIRECT)
         self.round_params = grow("round parameters", _U.UNIFORM | _U.COPY_DST)
         self.frame_params = device.create_buffer(label="frame parameters", size=9 * PARAM_STRIDE,
@@ -486,6 +489,7 @@ class FocusedPasses:
         self.caps["records"] = min(self.caps["records"], self.records.limit // 16)
         self.tris.ensure(48 * self.caps["tris"])
         self.tri_face.ensure(4 * self.caps["tris"])
+        self.cuts.ensure(8 * self.caps["tris"])
         self._records(sub.slot).ensure(16 * self.caps["records"])
         self._frame(sub, plan, bounds, round_threads, items, opts["records"].read)
 
@@ -560,6 +564,7 @@ class FocusedPasses:
         edges_block = (b.frame_params, (P_EDGES_RETRY if retry else P_EDGES) * PARAM_STRIDE, 32)
         kind = "retry" if retry else "rounds"
         encoder.clear_buffer(self.counters, 0, 4 * ROUND_COUNTERS)
+        encoder.clear_buffer(self.counters, 4 * C_CUTS, 4)
         encoder.clear_buffer(self.pixels.buffer, 0, PIXEL_BYTES * self.target_width * rows)
         scope = _ComputeScope(encoder, self.profiler, r)
         cull_group = self.cull.group(
@@ -577,11 +582,13 @@ class FocusedPasses:
             _dispatch(cpass, self.cull, cull_group, _groups(-(-threads // WORKGROUP)))
         _dispatch(cpass, self.after_cull, self.after_cull.group(**finalize), (1,))
         cpass = scope.begin("F2 clip")
-        _dispatch(cpass, self.clip, self.clip.group(
-            tiles=b.tiles, clusters=b.clusters, positions=b.positions, faces=b.faces,
-            face_items=b.face_items, tris=b.tris, counters=b.counters,
-            params=(b.frame_params, P_CLIP * PARAM_STRIDE, 16), tri_face=b.tri_face),
-            indirect=(self.args, ARGS_CLIP))
+        clip = dict(tiles=b.tiles, clusters=b.clusters, positions=b.positions, faces=b.faces,
+                    face_items=b.face_items, tris=b.tris, counters=b.counters,
+                    params=(b.frame_params, P_CLIP * PARAM_STRIDE, 16), tri_face=b.tri_face,
+                    cuts=b.cuts)
+        _dispatch(cpass, self.clip, self.clip.group(**clip), indirect=(self.args, ARGS_CLIP))
+        _dispatch(cpass, self.after_clip_faces, self.after_clip_faces.group(**finalize), (1,))
+        _dispatch(cpass, self.cut, self.cut.group(**clip), indirect=(self.args, ARGS_CUT))
         _dispatch(cpass, self.after_clip, self.after_clip.group(**finalize), (1,))
         scope.end()
         rpass = encoder.begin_render_pass(

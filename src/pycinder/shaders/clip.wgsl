@@ -1,6 +1,11 @@
 // Focused strategy, pass F2 (compute): the faces of each kept cluster, projected into their tile
 // and clipped to its window, as triangles for pass F3 to rasterise.
 //
+// Two entry points: `clip` (one workgroup per kept cluster, one thread per face) passes on the
+// faces within the window and lists those reaching beyond it; `cut` (one thread per listed face)
+// cuts them. Cutting is long and branchy: in threads of its own it runs side by side with other
+// cuts, not masked beside faces that needed none.
+//
 // A face within GUARD pixels of the window is passed on as it is; pass F3 discards what it covers
 // outside the window. A face reaching further is cut to the window grown by GUARD: the polygon of
 // its vertices inside that rectangle, the points where its edges cross the rectangle's sides, and
@@ -21,7 +26,7 @@ const GUARD: f32 = 0.0;
 const SNAP_MARGIN: f32 = 0.125;
 
 struct Params {
-    tri_cap: u32,
+    tri_cap: u32,   // triangles the buffer holds (and faces the cut list holds)
     item_cap: u32,
     _p1: u32,
     _p2: u32,
@@ -39,6 +44,8 @@ struct Params {
 @group(0) @binding(7) var<uniform> params: Params;
 // The packed face (cluster order) each triangle comes from.
 @group(0) @binding(8) var<storage, read_write> tri_face: array<u32>;
+// Faces to cut: face item, face within its cluster (counter C_CUTS).
+@group(0) @binding(9) var<storage, read_write> cuts: array<vec2u>;
 
 fn position(v: u32) -> vec3f {
     return vec3f(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
@@ -83,6 +90,36 @@ fn emit(slot: u32, a: vec3f, b: vec3f, c: vec3f, origin: vec2f, z0: f32, flags: 
     tris[base + 2u] = vec4u(bitcast<vec3u>(vec3f(c.xy + origin, c.z - z0)), flags);
 }
 
+// Face `lid` of face item `item_index` in its tile.
+struct TileFace {
+    p: array<vec3f, 3>,  // its corners in tile coordinates
+    ids: vec3u,          // their vertices
+    face: u32,           // the packed face
+    flags: u32,          // what its triangles carry (see `tris`)
+    area: f32,           // twice its signed projected area
+};
+
+fn tile_face(item_index: u32, lid: u32) -> TileFace {
+    let item = face_items[item_index];
+    let c = item.y & 0x7FFFFFFFu;
+    let side = item.y >> 31u;
+    let t = tiles[item.x];
+    var out: TileFace;
+    out.face = clusters[c].face_start + lid;
+    let f = out.face;
+    out.ids = vec3u(faces[3u * f], faces[3u * f + 1u], faces[3u * f + 2u]);
+    out.p[0] = tile_point(t, side, position(out.ids.x));
+    out.p[1] = tile_point(t, side, position(out.ids.y));
+    out.p[2] = tile_point(t, side, position(out.ids.z));
+    out.area = cross2(out.p[1].xy - out.p[0].xy, out.p[2].xy - out.p[0].xy);
+    // Tile coordinates are right-handed with z pointing away from the viewer, so the outward
+    // normal of a counter-clockwise face has z component `area`: negative when it faces the viewer.
+    let front = (out.area < 0.0) != mirrored(t, side);
+    let back = (t.info.z & FLAG_COUNT_BACK) != 0u;
+    out.flags = (item.x << 3u) | (select(0u, 4u, back)) | (select(0u, 2u, front)) | side;
+    return out;
+}
+
 @compute @workgroup_size(WORKGROUP)
 fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
     let item_index = wg.y * ROW + wg.x;
@@ -90,19 +127,12 @@ fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
         return;
     }
     let item = face_items[item_index];
-    let c = item.y & 0x7FFFFFFFu;
-    let side = item.y >> 31u;
-    let info = clusters[c];
-    if (lid >= info.face_count) {
+    if (lid >= clusters[item.y & 0x7FFFFFFFu].face_count) {
         return;
     }
     let t = tiles[item.x];
-    let f = info.face_start + lid;
-    let ids = vec3u(faces[3u * f], faces[3u * f + 1u], faces[3u * f + 2u]);
-    var p: array<vec3f, 3>;
-    p[0] = tile_point(t, side, position(ids.x));
-    p[1] = tile_point(t, side, position(ids.y));
-    p[2] = tile_point(t, side, position(ids.z));
+    let face = tile_face(item_index, lid);
+    var p = face.p;
     let w = f32(t.window.z);
     let h = f32(t.window.w);
     let lo = min(min(p[0], p[1]), p[2]);
@@ -123,25 +153,40 @@ fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     if (any(first_centre > floor(hi.xy - 0.5 + SNAP_MARGIN))) {
         return;
     }
-    let area = cross2(p[1].xy - p[0].xy, p[2].xy - p[0].xy);
-    if (area == 0.0) {
+    if (face.area == 0.0) {
         return;  // seen edge-on: covers no pixel centre
     }
-    // Tile coordinates are right-handed with z pointing away from the viewer, so the outward
-    // normal of a counter-clockwise face has z component `area`: negative when it faces the viewer.
-    let front = (area < 0.0) != mirrored(t, side);
-    let flags = (item.x << 3u) | (select(0u, 4u, back)) | (select(0u, 2u, front)) | side;
+    if (lo.x >= -GUARD && hi.x <= w + GUARD && lo.y >= -GUARD && hi.y <= h + GUARD) {
+        let origin = vec2f(f32(t.window.x), f32(t.window.y));
+        emit(atomicAdd(&counters[C_TRIS], 1u), p[0], p[1], p[2], origin, t.slab.x, face.flags,
+             face.face);
+        return;
+    }
+    let slot = atomicAdd(&counters[C_CUTS], 1u);
+    if (slot < params.tri_cap) {
+        cuts[slot] = vec2u(item_index, lid);
+    }
+}
+
+// The listed faces cut to the window grown by GUARD: one thread each.
+@compute @workgroup_size(WORKGROUP)
+fn cut(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
+    let i = (wg.y * ROW + wg.x) * WORKGROUP + lid;
+    if (i >= min(atomicLoad(&counters[C_CUTS]), params.tri_cap)) {
+        return;
+    }
+    let listed = cuts[i];
+    let face = tile_face(listed.x, listed.y);
+    let t = tiles[face_items[listed.x].x];
+    var p = face.p;
+    let area = face.area;
     let origin = vec2f(f32(t.window.x), f32(t.window.y));
     let z0 = t.slab.x;
     let r0 = -GUARD;
-    let rw = w + GUARD;
-    let rh = h + GUARD;
-    if (lo.x >= r0 && hi.x <= rw && lo.y >= r0 && hi.y <= rh) {
-        emit(atomicAdd(&counters[C_TRIS], 1u), p[0], p[1], p[2], origin, z0, flags, f);
-        return;
-    }
+    let rw = f32(t.window.z) + GUARD;
+    let rh = f32(t.window.w) + GUARD;
     // The face cut to the rectangle: a convex polygon of at most 7 corners (13 candidates).
-    let id = array<u32, 3>(ids.x, ids.y, ids.z);
+    let id = array<u32, 3>(face.ids.x, face.ids.y, face.ids.z);
     var pts: array<vec3f, 13>;
     var n = 0u;
     for (var k = 0u; k < 3u; k++) {
@@ -215,6 +260,6 @@ fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     }
     let slot = atomicAdd(&counters[C_TRIS], n - 2u);
     for (var k = 1u; k + 1u < n; k++) {
-        emit(slot + k - 1u, pts[0], pts[k], pts[k + 1u], origin, z0, flags, f);
+        emit(slot + k - 1u, pts[0], pts[k], pts[k + 1u], origin, z0, face.flags, face.face);
     }
 }

@@ -12,7 +12,7 @@ struct Params {
 @group(0) @binding(0) var<storage, read_write> counters: array<u32>;
 // [0..3) face-clip dispatch, [3..6) edge-test dispatch, [6..10) draw (vertices, 1, 0, 0),
 // [10..13) surface-test dispatch (WORKGROUP pixels per workgroup); [13..16) is the retry rounds'
-// cull dispatch (retry.wgsl)
+// cull dispatch (retry.wgsl); [16..19) the cut dispatch
 @group(0) @binding(1) var<storage, read_write> args: array<u32>;
 @group(0) @binding(2) var<uniform> params: Params;
 
@@ -35,7 +35,16 @@ fn after_cull() {
     rows(min(edges, params.edge_cap), 3u);
 }
 
-// After the face clip: draw every emitted triangle.
+// After the face clip: cut the faces it listed (one thread each). A cut face yields at least
+// one triangle, and the cut list is as long as the triangle buffer: growing that grows both.
+@compute @workgroup_size(1)
+fn after_clip_faces() {
+    let cuts = counters[C_CUTS];
+    counters[C_MAX_TRIS] = max(counters[C_MAX_TRIS], cuts);
+    rows((min(cuts, params.tri_cap) + WORKGROUP - 1u) / WORKGROUP, 16u);
+}
+
+// After the cuts: draw every emitted triangle.
 @compute @workgroup_size(1)
 fn after_clip() {
     let tris = counters[C_TRIS];
