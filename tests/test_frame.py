@@ -9,6 +9,7 @@ import trimesh
 import wgpu
 
 import pycinder
+from pycinder.layout import COUNTERS
 
 
 class _Count:
@@ -48,6 +49,12 @@ def test_one_submission_and_one_map_per_query(monkeypatch, records, profile):
         vertices = np.array(ball.vertices) * (1 + 0.01 * k)  # deforming: F0 runs too
         result = det.find_collisions([(vertices, np.array(ball.faces))] * 40, poses)
         assert result.pairs.tolist() == [[i, i + 1] for i in range(39)]
+        if records == "none" and not profile:
+            # What comes back: the counters and one flag per candidate pair (decided on the
+            # GPU, whatever the number of tiles), nothing per tile.
+            flags = 4 * (COUNTERS + result.stats.candidates)
+            assert result.stats.bytes_read == -(-flags // 16) * 16
+            assert result.stats.tiles > result.stats.candidates
     assert (count.submits, count.maps) == (3, 3)
 
 

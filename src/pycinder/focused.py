@@ -7,8 +7,8 @@ A pair collides when any of its tiles found a sample inside the other body. A ti
 could not all be decided (a pixel held more crossings within the tile's box than its list) and
 whose pair was not found by another tile is run again, with lists four times longer and then
 with its box cut in two along the view, until nothing is undecided; whatever is still undecided
-after that is counted in ``stats.possibly_lost`` and warned about. Once a query has left samples
-undecided, the next ones run their first retry, with longer lists, on the GPU in the frame's own
+after that is counted in ``stats.possibly_lost`` and warned about. Once a query has run tiles
+again, the next ones run their first retry, with longer lists, on the GPU in the frame's own
 submission (records "none" and "found", when lists that long fit the memory budget); cutting
 boxes is planned by the host.
 """
@@ -59,8 +59,8 @@ class FocusedStrategy:
                                      gpu.max_binding // (ENTRY_BYTES * LIST_CAPACITY),
                                      gpu.max_resolution * 2048))
         self._pack: ShapePack | None = None
-        self.recently_undecided = False
-        """Whether the last query left samples undecided in its first frame."""
+        self.recently_retried = False
+        """Whether the last query ran tiles again (their samples were left undecided)."""
 
     def _budget(self, capacity: int) -> int:
         """Atlas pixels per round with lists of ``capacity`` crossings."""
@@ -161,12 +161,12 @@ class FocusedStrategy:
 
     def _retry_on_gpu(self, plan: TilePlan, records: RecordMode) -> bool:
         """Whether ``plan``'s frame ends with its own retry rounds (see the module's docstring):
-        the last query left samples undecided (frames of an animation are alike; retry rounds
+        the last query ran tiles again (frames of an animation are alike; retry rounds
         that find nothing to retry still cost a frame their passes' fixed cost, about as much
         as the frame itself for two small bodies on a CPU adapter), lists of the retry's length
         fit the memory budget, and not every tile is tested (retry rounds leave out the tiles
         of pairs already found)."""
-        return self.recently_undecided and not records.every_tile \
+        return self.recently_retried and not records.every_tile \
             and max(plan.round_rows) * plan.atlas_width \
             <= self._budget(self.passes.capacity * RETRY_LISTS)
 
@@ -175,7 +175,8 @@ class FocusedStrategy:
                   ) -> CollisionResult:
         """The rest of :meth:`run` once the first frame is submitted: its readback, the retries
         of undecided tiles, and the decoding."""
-        found_tiles, rows, plans = [], [], []
+        found = np.zeros(len(pairs), dtype=bool)
+        rows, plans = [], []
         current, capacity = plan, self.passes.capacity
         retries = 0
         for attempt in range(RETRIES + 1):
@@ -187,16 +188,16 @@ class FocusedStrategy:
                 retries += 1
                 stats.retries += 1
                 capacity = out.capacity
-            hit = out.tile_counts[:, 0] > 0
-            found_tiles.append(current.bodies[hit])
+            found |= out.pair_found
             rows.append((current, out.records))
             plans.append(current)
-            undecided = out.tile_counts[:, 1] > 0
-            decided = unique_pairs(*np.concatenate(found_tiles).T)
+            if out.tile_counts is None:
+                break  # no tile left undecided whose answer could change
+            decided = pairs[found]
             # An undecided tile of a pair found elsewhere changes no answer, but with
             # records="all" its records are wanted too.
-            again = undecided if records.every_tile else \
-                undecided & ~_member(current.bodies, decided)
+            undecided = out.tile_counts[:, 1] > 0
+            again = undecided if records.every_tile else undecided & ~found[current.pair]
             if not again.any():
                 break
             if retries == RETRIES:
@@ -216,11 +217,10 @@ class FocusedStrategy:
                 current = split_depth(current, which, self._budget(capacity), cut=False)
             else:
                 current = split_depth(current, which, self._budget(capacity))
-        self.recently_undecided = stats.undecided > 0
+        self.recently_retried = stats.retries > 0
         t4 = time.perf_counter()
         stats.add_ms("gpu", (t4 - t3) * 1e3)
-        both = np.concatenate(found_tiles)
-        result_pairs = unique_pairs(both[:, 0], both[:, 1])
+        result_pairs = unique_pairs(pairs[found, 0], pairs[found, 1])
         # Every attempt's records name tiles of its own plan: number them in the plans' order,
         # so that ``records["view"]`` indexes the concatenated plan the result carries.
         first_tile = np.cumsum([0] + [len(p) for p in plans[:-1]])
@@ -300,7 +300,7 @@ class FocusedStrategy:
         stats.rounds += len(plan.round_rows)
         stats.triangles += int(out.counters[C_TOTAL_TRIS])
         stats.samples += int(out.counters[C_SAMPLES])
-        stats.undecided += int(out.tile_counts[:, 1].sum()) + out.retried_undecided
+        stats.undecided += out.undecided
         stats.bytes_read += out.bytes_read
         stats.reruns += out.reruns
         stats.dropped_records += out.dropped_records

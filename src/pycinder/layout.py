@@ -47,13 +47,13 @@ COUNTER_NAMES = (
     "C_TOTAL_TRIS",
     "C_TOTAL_FACE_ITEMS",
     "C_TOTAL_EDGE_ITEMS",
-    "C_RETRY_UNDECIDED",   # undecided samples of those tiles before their retry
     "C_CUTS",              # faces listed for cutting by pass F2 (this round)
+    "C_AGAIN",             # tiles left undecided whose answer could still change (host retries)
 )
 COUNTERS = len(COUNTER_NAMES)
 (C_FACE_ITEMS, C_EDGE_ITEMS, C_TRIS, C_ACTIVE, C_RECORDS, C_UNDECIDED, C_SAMPLES, C_RETRY_TILES,
  C_MAX_FACE_ITEMS, C_MAX_EDGE_ITEMS, C_MAX_TRIS, C_TOTAL_TRIS, C_TOTAL_FACE_ITEMS,
- C_TOTAL_EDGE_ITEMS, C_RETRY_UNDECIDED, C_CUTS) = range(COUNTERS)
+ C_TOTAL_EDGE_ITEMS, C_CUTS, C_AGAIN) = range(COUNTERS)
 ROUND_COUNTERS = 4
 """The first counters, reset before every round (and C_CUTS)."""
 

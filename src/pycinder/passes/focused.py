@@ -28,8 +28,8 @@ import wgpu
 
 from ..gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ..gpu.device import Gpu
-from ..layout import (C_CUTS, C_MAX_TRIS, C_RECORDS, C_RETRY_TILES, C_RETRY_UNDECIDED, COUNTERS, FLAG_OPEN,
-                      ROUND_COUNTERS, ROW, TILE_WORDS, WORKGROUP)
+from ..layout import (C_AGAIN, C_CUTS, C_MAX_TRIS, C_RECORDS, C_RETRY_TILES, C_UNDECIDED, COUNTERS,
+                      FLAG_OPEN, ROUND_COUNTERS, ROW, TILE_WORDS, WORKGROUP)
 from ..request import RecordMode
 from ..scene.pack import ShapePack
 from ..tiles import TilePlan
@@ -99,9 +99,13 @@ class FocusedOutput:
 
     Attributes
     ----------
-    tile_counts : (T, 2) int64
+    pair_found : (K,) bool
+        Per candidate pair: whether a tile of it found a sample inside the other body (or a
+        crossing). Decided on the GPU, where the tiles of a pair meet.
+    tile_counts : (T, 2) int64 or None
         Per tile: samples found inside the other body (or crossings), samples undecided (list
-        overflow).
+        overflow). Read only when some tile is left undecided and its answer could still change
+        (the host then runs it again); None otherwise.
     records : (R, 4) uint32
         tile, u | v << 16, f32 bits of z, id | kind | side (see :mod:`pycinder.layout`); sorted.
     counters : (COUNTERS,) int64
@@ -112,24 +116,25 @@ class FocusedOutput:
         GPU milliseconds per pass (summed over rounds), when profiling.
     dropped_records : int
         Records found but not kept: more than one records buffer of this device holds.
+    undecided : int
+        Samples undecided (list overflow), in every round and retry round of the frame.
     retried_tiles : int
-        Tiles run again in the frame's own retry round (``tile_counts`` then holds the retry's
+        Tiles run again in the frame's own retry rounds (``tile_counts`` then holds the retry's
         counts for them).
-    retried_undecided : int
-        Undecided samples of those tiles before the retry.
     capacity : int
         The list capacity of the frame's last round (the retry's when it ran).
     """
 
-    tile_counts: np.ndarray
+    pair_found: np.ndarray
+    tile_counts: np.ndarray | None
     records: np.ndarray
     counters: np.ndarray
     bytes_read: int
     reruns: int
     gpu_ms: dict[str, float]
     dropped_records: int = 0
+    undecided: int = 0
     retried_tiles: int = 0
-    retried_undecided: int = 0
     capacity: int = LIST_CAPACITY
 
 
@@ -199,8 +204,8 @@ def _dispatch(cpass: wgpu.GPUComputePassEncoder, stage: Stage, group: wgpu.GPUBi
 
 TIMED_PASSES = ("F1 cull", "F2 clip", "F3 crossings", "F5 surface test", "F4 edge test",
                 "F6 crossing test")
-"""Names of the passes timed per round when profiling (F0, and "retry" (the choice of the retry
-rounds' tiles), are timed once per frame)."""
+"""Names of the passes timed per round when profiling (F0, and "decisions" (the choice of the retry
+rounds' tiles and the count of tiles left undecided), are timed once per frame)."""
 
 
 class FocusedPasses:
@@ -245,6 +250,7 @@ class FocusedPasses:
                                    label="F6 crossing test")
         self.select_retry = Stage(gpu, "retry", "select_retry", label="retry: choose tiles")
         self.retry_args = Stage(gpu, "retry", "retry_args")
+        self.count_again = Stage(gpu, "retry", "count_again", label="count tiles left undecided")
 
         storage = _U.STORAGE | _U.COPY_DST
 
@@ -270,6 +276,9 @@ class FocusedPasses:
         self.pixels = grow("pixel counts", _U.STORAGE | _U.COPY_DST)
         self.lists = grow("pixel crossings", _U.STORAGE)
         self.tile_counts = grow("tile counts", _U.STORAGE | _U.COPY_SRC | _U.COPY_DST)
+        # Per frame in flight: its per-tile counts, copied on the GPU, mapped only when needed.
+        self.tile_copies = [grow(f"tile counts {k}", _U.COPY_SRC | _U.COPY_DST)
+                            for k in range(SLOTS)]
         # Per frame in flight: the records and the staging buffers they are read through.
         self.records_slots = [grow(f"records {k}", _U.STORAGE | _U.COPY_SRC)
                               for k in range(SLOTS)]
@@ -281,7 +290,8 @@ class FocusedPasses:
         self.frame_params = device.create_buffer(label="frame parameters", size=9 * PARAM_STRIDE,
                                                  usage=_U.UNIFORM | _U.COPY_DST)
         self.readbacks = [Readback(device, f"focused readback {k}") for k in range(SLOTS)]
-        self.readbacks_more = [Readback(device, f"focused records {k}") for k in range(SLOTS)]
+        self.readbacks_more = [Readback(device, f"focused tiles and records {k}")
+                               for k in range(SLOTS)]
         self.in_flight: list[Submitted | None] = [None] * SLOTS
         self._next_slot = 0
         self.target: wgpu.GPUTexture | None = None
@@ -536,7 +546,7 @@ class FocusedPasses:
         frame[P_CLIP, :4] = (caps["tris"], items, 0, 0)
         frame[P_CROSS, :5] = (record_cap, items, pairs_at, early_out, pair_records)
         frame[P_BOUNDS, 0] = 0 if self._bound_pending is None else len(self._bound_pending)
-        frame[P_RETRY, :3] = (t, pairs_at, retry_at)
+        frame[P_RETRY, :4] = (t, pairs_at, retry_at, int(self.record_mode.every_tile))
         for at, edges, retry in ((P_ATLAS, P_EDGES, False), (P_ATLAS_RETRY, P_EDGES_RETRY, True)):
             capacity = self.round_capacity(retry)
             frame[at, :4] = (plan.atlas_width, self.target.height, capacity, self.target.width)
@@ -624,12 +634,13 @@ class FocusedPasses:
                 indirect=(self.args, ARGS_EDGES))
         scope.end()
 
-    def _encode_retry_choice(self, encoder: wgpu.GPUCommandEncoder) -> None:
-        """Choose the tiles of the retry rounds: undecided, and their pair not found."""
+    def _encode_decision(self, encoder: wgpu.GPUCommandEncoder, stage: Stage) -> None:
+        """One thread per tile of ``stage`` (retry.wgsl): choosing the tiles of the retry
+        rounds, or counting the tiles the host must run again."""
         b = self
-        cpass = encoder.begin_compute_pass(label="retry: choose tiles",
-                                           **self.profiler.writes("retry"))
-        _dispatch(cpass, self.select_retry, self.select_retry.group(
+        cpass = encoder.begin_compute_pass(label=stage.label,
+                                           **self.profiler.writes("decisions"))
+        _dispatch(cpass, stage, stage.group(
             tiles=b.tiles, tile_counts=b.tile_counts, counters=b.counters,
             params=(b.frame_params, P_RETRY * PARAM_STRIDE, 16)),
             _groups(-(-self.n_tiles // WORKGROUP)))
@@ -644,7 +655,7 @@ class FocusedPasses:
         self.target_width = plan.atlas_width
         self.n_tiles = t
         self._write_params(plan, bounds, round_threads, items, want_records)
-        self.profiler.begin(2 + len(TIMED_PASSES) * n_rounds * (1 + self.retry))
+        self.profiler.begin(3 + len(TIMED_PASSES) * n_rounds * (1 + self.retry))
         encoder = device.create_command_encoder()
         self._encode_bounds(encoder)
         encoder.clear_buffer(self.counters)
@@ -654,21 +665,29 @@ class FocusedPasses:
                 self._encode_round(encoder, r, int(round_threads[r]), plan.round_rows[r],
                                    sub.slot)
         if self.retry:
-            self._encode_retry_choice(encoder)
+            self._encode_decision(encoder, self.select_retry)
             for r in range(n_rounds):
                 if round_threads[r]:
                     self._encode_round(encoder, n_rounds + r, int(round_threads[r]),
                                        plan.round_rows[r], sub.slot, retry=True)
+        if t:
+            self._encode_decision(encoder, self.count_again)
         speculative = min(max(SPECULATIVE_RECORDS, self.recent_records * 5 // 4),
                           self.caps["records"]) if want_records else 0
-        head = 4 * COUNTERS + 8 * t
+        # The readback: the counters, the per-pair flags, the first records, the timestamps.
+        flags = 4 * self.n_pairs
+        head = -(-(4 * COUNTERS + flags) // 16) * 16
         stamps = -(-(head + 16 * speculative) // 8) * 8
         nbytes = stamps + self.profiler.nbytes
         readback = self.readbacks[sub.slot]
         staging = readback.ensure(nbytes)
         encoder.copy_buffer_to_buffer(self.counters, 0, staging, 0, 4 * COUNTERS)
         if t:
-            encoder.copy_buffer_to_buffer(self.tile_counts.buffer, 0, staging, 4 * COUNTERS, 8 * t)
+            encoder.copy_buffer_to_buffer(self.tile_counts.buffer, 8 * t, staging, 4 * COUNTERS,
+                                          flags)
+            copy = self.tile_copies[sub.slot]
+            copy.ensure(8 * t)
+            encoder.copy_buffer_to_buffer(self.tile_counts.buffer, 0, copy.buffer, 0, 8 * t)
         if speculative:
             encoder.copy_buffer_to_buffer(self._records(sub.slot).buffer, 0, staging, head,
                                           16 * speculative)
@@ -678,38 +697,51 @@ class FocusedPasses:
         sub.layout = dict(t=t, head=head, stamps=stamps, nbytes=nbytes, speculative=speculative,
                           timed=list(self.profiler.names), records=want_records,
                           capacity=(self.run_capacity, self.round_capacity(retry=True)),
+                          pairs=self.n_pairs,
                           waiting=f"a frame of {t} tiles in {n_rounds} rounds")
         sub.pending = readback.start(nbytes)
 
     def _read(self, sub: Submitted) -> FocusedOutput:
-        """Wait for a submitted frame's readback (one map) and decode its words."""
+        """Wait for a submitted frame's readback (one map) and decode its words. A second map
+        reads the per-tile counts when some tile must run again, and the records beyond those
+        the first brought."""
         lay = sub.layout
         t, head, stamps, speculative = lay["t"], lay["head"], lay["stamps"], lay["speculative"]
         data = self.readbacks[sub.slot].wait(sub.pending, lay["nbytes"], timeout=self.timeout,
                                              waiting_for=lay["waiting"])
         gpu_ms = self.profiler.times(data[stamps // 4:], lay["timed"])
         counters = data[:COUNTERS].astype(np.int64)
-        tile_counts = data[COUNTERS:COUNTERS + 2 * t].reshape(t, 2).astype(np.int64)
+        pair_found = data[COUNTERS:COUNTERS + lay["pairs"]] != 0
         n_records = int(min(counters[C_RECORDS], self.caps["records"])) if lay["records"] else 0
         if lay["records"]:
             self.recent_records = n_records
         bytes_read = lay["nbytes"]
-        if n_records <= speculative:
-            recs = data[head // 4: head // 4 + 4 * n_records].reshape(-1, 4)
-        else:
+        tiles = 8 * t if counters[C_AGAIN] else 0
+        more_records = 16 * n_records if n_records > speculative else 0
+        tile_counts = None
+        recs = data[head // 4: head // 4 + 4 * n_records].reshape(-1, 4)
+        if tiles or more_records:
             device = self.gpu.device
             encoder = device.create_command_encoder()
             more = self.readbacks_more[sub.slot]
-            staging = more.ensure(16 * n_records)
-            encoder.copy_buffer_to_buffer(self._records(sub.slot).buffer, 0, staging, 0,
-                                          16 * n_records)
+            staging = more.ensure(tiles + more_records)
+            if tiles:
+                encoder.copy_buffer_to_buffer(self.tile_copies[sub.slot].buffer, 0, staging, 0,
+                                              tiles)
+            if more_records:
+                encoder.copy_buffer_to_buffer(self._records(sub.slot).buffer, 0, staging, tiles,
+                                              more_records)
             device.queue.submit([encoder.finish()])
-            recs = more.read(16 * n_records, timeout=self.timeout,
-                             waiting_for=f"{n_records} records").reshape(-1, 4)
-            bytes_read += 16 * n_records
+            words = more.read(tiles + more_records, timeout=self.timeout,
+                              waiting_for=f"the counts of {t} tiles and {n_records} records")
+            bytes_read += tiles + more_records
+            if tiles:
+                tile_counts = words[:2 * t].reshape(t, 2).astype(np.int64)
+            if more_records:
+                recs = words[tiles // 4:].reshape(-1, 4)
         if len(recs):
             recs = recs[np.lexsort((recs[:, 3], recs[:, 2], recs[:, 1], recs[:, 0]))]
-        return FocusedOutput(tile_counts, recs, counters, bytes_read, 0, gpu_ms,
+        return FocusedOutput(pair_found, tile_counts, recs, counters, bytes_read, 0, gpu_ms,
+                             undecided=int(counters[C_UNDECIDED]),
                              retried_tiles=int(counters[C_RETRY_TILES]),
-                             retried_undecided=int(counters[C_RETRY_UNDECIDED]),
                              capacity=lay["capacity"][1 if counters[C_RETRY_TILES] else 0])

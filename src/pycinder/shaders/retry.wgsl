@@ -1,10 +1,11 @@
-// Focused strategy: choose the tiles of the frame's retry rounds (run after the last round, in the
-// same submission: one retry round per round of the frame, over the same atlas rows).
+// Focused strategy, decisions after the rounds: choose the tiles of the frame's retry rounds (run
+// after the last round, in the same submission: one retry round per round of the frame, over the
+// same atlas rows), and at the end of the frame count the tiles the host must still run again.
 //
 // A tile is run again, with lists four times longer, when some of its samples were undecided (a
 // pixel listed more crossings than its list holds) and no tile of its pair found the pair: only
-// then can its answer change. Its undecided count is cleared (the retry counts its own) and
-// moved to counter C_RETRY_UNDECIDED; its flag after the per-pair flags tells pass F1 to cull it
+// then can its answer change. Its undecided count is cleared (the retry counts its own; counter
+// C_UNDECIDED keeps every round's); its flag after the per-pair flags tells pass F1 to cull it
 // again. Tiles of pairs already found are never retried, so no record comes twice.
 //!include tiles.wgsl
 
@@ -12,7 +13,7 @@ struct Params {
     tiles: u32,         // tiles of the frame
     pair_offset: u32,   // where the per-pair hit flags start in `tile_counts`
     retry_offset: u32,  // where the per-tile retry flags start
-    _p0: u32,
+    every_tile: u32,    // 1: every tile's records are wanted (records "all"), found pair or not
 };
 
 @group(0) @binding(0) var<storage, read> tiles: array<Tile>;
@@ -44,7 +45,6 @@ fn select_retry(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
     if (again) {
         tile_counts[2u * i + 1u] = 0u;
         atomicAdd(&counters[C_RETRY_TILES], 1u);
-        atomicAdd(&counters[C_RETRY_UNDECIDED], undecided);
     }
 }
 
@@ -57,4 +57,19 @@ fn retry_args() {
     args[13] = min(groups, ROW);
     args[14] = (groups + ROW - 1u) / ROW;
     args[15] = 1u;
+}
+
+// At the end of the frame: count the tiles still undecided whose answer could change (their pair
+// not found, or every tile wanted). None: the per-pair flags are the whole answer, and the host
+// reads nothing per tile.
+@compute @workgroup_size(WORKGROUP)
+fn count_again(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
+    let i = (wg.y * ROW + wg.x) * WORKGROUP + lid;
+    if (i >= params.tiles) {
+        return;
+    }
+    if (tile_counts[2u * i + 1u] > 0u && (params.every_tile != 0u
+            || tile_counts[params.pair_offset + tiles[i].info.w] == 0u)) {
+        atomicAdd(&counters[C_AGAIN], 1u);
+    }
 }
