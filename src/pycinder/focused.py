@@ -262,7 +262,7 @@ class FocusedStrategy:
                 if max(smaller.round_rows) * width >= largest:
                     if width <= MAX_TILE[0]:
                         raise GpuMemoryError(
-                            f"one round of tiles clips {exc.needed} triangles, more than this "
+                            f"one round of tiles has {exc.needed} {exc.what}, more than this "
                             f"device's buffers hold ({exc.limit}), even in rounds of one atlas "
                             "band; use a coarser tolerance or split the scene") from None
                     width = max(MAX_TILE[0], width // 2)

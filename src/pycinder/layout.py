@@ -49,13 +49,15 @@ COUNTER_NAMES = (
     "C_TOTAL_EDGE_ITEMS",
     "C_CUTS",              # faces listed for cutting by pass F2 (this round)
     "C_AGAIN",             # tiles left undecided whose answer could still change (host retries)
+    "C_EDGES",             # edges listed for sampling by pass F4 (this round)
+    "C_MAX_EDGES",
 )
 COUNTERS = len(COUNTER_NAMES)
 (C_FACE_ITEMS, C_EDGE_ITEMS, C_TRIS, C_ACTIVE, C_RECORDS, C_UNDECIDED, C_SAMPLES, C_RETRY_TILES,
  C_MAX_FACE_ITEMS, C_MAX_EDGE_ITEMS, C_MAX_TRIS, C_TOTAL_TRIS, C_TOTAL_FACE_ITEMS,
- C_TOTAL_EDGE_ITEMS, C_CUTS, C_AGAIN) = range(COUNTERS)
+ C_TOTAL_EDGE_ITEMS, C_CUTS, C_AGAIN, C_EDGES, C_MAX_EDGES) = range(COUNTERS)
 ROUND_COUNTERS = 4
-"""The first counters, reset before every round (and C_CUTS)."""
+"""The first counters, reset before every round (and C_CUTS, C_EDGES)."""
 
 # Record rows: (tile, u | v << 16, f32 bits of z, id | kind << RECORD_KIND_SHIFT | side << 31).
 RECORD_KIND_SHIFT = 29

@@ -28,7 +28,7 @@ import wgpu
 
 from ..gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ..gpu.device import Gpu
-from ..layout import (C_AGAIN, C_CUTS, C_MAX_TRIS, C_RECORDS, C_RETRY_TILES, C_UNDECIDED, COUNTERS,
+from ..layout import (C_AGAIN, C_CUTS, C_EDGES, C_MAX_EDGES, C_MAX_TRIS, C_RECORDS, C_RETRY_TILES, C_UNDECIDED, COUNTERS,
                       FLAG_OPEN, ROUND_COUNTERS, ROW, TILE_WORDS, WORKGROUP)
 from ..request import RecordMode
 from ..scene.pack import ShapePack
@@ -57,7 +57,8 @@ ENTRY_BYTES = 8
 P_FINALIZE, P_CLIP, P_ATLAS, P_EDGES, P_BOUNDS, P_CROSS, P_RETRY, P_ATLAS_RETRY, P_EDGES_RETRY = \
     range(9)
 """Blocks of the frame parameter buffer (the last two: P_ATLAS and P_EDGES of the retry round)."""
-ARGS_CLIP, ARGS_EDGES, ARGS_DRAW, ARGS_SURFACE, ARGS_RETRY_CULL, ARGS_CUT = 0, 12, 24, 40, 52, 64
+ARGS_CLIP, ARGS_EDGES, ARGS_DRAW, ARGS_SURFACE, ARGS_RETRY_CULL, ARGS_CUT, ARGS_EDGE_TEST = \
+    0, 12, 24, 40, 52, 64, 76
 """Byte offsets of the indirect arguments written by ``finalize.wgsl``."""
 
 _U = wgpu.BufferUsage
@@ -161,12 +162,12 @@ class Submitted:
 
 
 class RoundTooLarge(Exception):
-    """A round clipped more triangles than one buffer of this device holds: the caller plans the
-    tiles in smaller rounds and runs them again."""
+    """A round clipped more triangles (or listed more edges) than one buffer of this device
+    holds: the caller plans the tiles in smaller rounds and runs them again."""
 
-    def __init__(self, needed: int, limit: int) -> None:
-        super().__init__(f"{needed} clipped triangles in one round, {limit} fit")
-        self.needed, self.limit = needed, limit
+    def __init__(self, needed: int, limit: int, what: str = "clipped triangles") -> None:
+        super().__init__(f"{needed} {what} in one round, {limit} fit")
+        self.needed, self.limit, self.what = needed, limit, what
 
 
 class _ComputeScope:
@@ -245,6 +246,8 @@ class FocusedPasses:
             label=f"pass {state.number}: {state.purpose}")
         self.after_crossings = Stage(gpu, "finalize", "after_crossings")
         self.surface_test = Stage(gpu, "surfacetest", "surface_test", label="F5 surface test")
+        self.list_edges = Stage(gpu, "edgetest", "list_edges", label="F4 edge test: list")
+        self.after_edge_list = Stage(gpu, "finalize", "after_edge_list")
         self.edge_test = Stage(gpu, "edgetest", "edge_test", label="F4 edge test")
         self.crossing_test = Stage(gpu, "crossingtest", "crossing_test",
                                    label="F6 crossing test")
@@ -272,6 +275,7 @@ class FocusedPasses:
         self.tris = grow("clipped triangles", _U.STORAGE)
         self.tri_face = grow("triangle faces", _U.STORAGE)
         self.cuts = grow("faces to cut", _U.STORAGE)
+        self.edge_list = grow("edges to sample", _U.STORAGE)
         self.active = grow("active pixels", _U.STORAGE)
         self.pixels = grow("pixel counts", _U.STORAGE | _U.COPY_DST)
         self.lists = grow("pixel crossings", _U.STORAGE)
@@ -284,7 +288,7 @@ class FocusedPasses:
                               for k in range(SLOTS)]
         self.counters = device.create_buffer(label="counters", size=4 * COUNTERS,
                                              usage=_U.STORAGE | _U.COPY_SRC | _U.COPY_DST)
-        self.args = device.create_buffer(label="indirect args", size=80,
+        self.args = device.create_buffer(label="indirect args", size=96,
                                          usage=_U.STORAGE | _U.INDIRECT)
         self.round_params = grow("round parameters", _U.UNIFORM | _U.COPY_DST)
         self.frame_params = device.create_buffer(label="frame parameters", size=9 * PARAM_STRIDE,
@@ -296,7 +300,7 @@ class FocusedPasses:
         self._next_slot = 0
         self.target: wgpu.GPUTexture | None = None
         self.target_view: wgpu.GPUTextureView | None = None
-        self.caps = {"tris": 1 << 16, "records": 1 << 16}
+        self.caps = {"tris": 1 << 16, "records": 1 << 16, "edges": 1 << 16}
         self.recent_records = 0
         self.layout: tuple | None = None
         self.uploaded: list | None = None
@@ -421,13 +425,16 @@ class FocusedPasses:
             out = self._read(sub)
             c = out.counters
             grown = False
-            max_tris, max_records = self.tris.limit // 48, self.records.limit // 16
-            if c[C_MAX_TRIS] > self.caps["tris"]:
-                self.in_flight[sub.slot] = None
-                if c[C_MAX_TRIS] > max_tris:
-                    raise RoundTooLarge(int(c[C_MAX_TRIS]), max_tris)
-                self.caps["tris"] = min(int(c[C_MAX_TRIS] * 1.5) + 1024, max_tris)
-                grown = True
+            max_records = self.records.limit // 16
+            for cap, counter, limit, what in (
+                    ("tris", C_MAX_TRIS, self.tris.limit // 48, "clipped triangles"),
+                    ("edges", C_MAX_EDGES, self.edge_list.limit // 8, "edges to sample")):
+                if c[counter] > self.caps[cap]:
+                    self.in_flight[sub.slot] = None
+                    if c[counter] > limit:
+                        raise RoundTooLarge(int(c[counter]), limit, what)
+                    self.caps[cap] = min(int(c[counter] * 1.5) + 1024, limit)
+                    grown = True
             if c[C_RECORDS] > self.caps["records"] and sub.options["records"].read \
                     and self.caps["records"] < max_records:
                 # More records than one buffer holds are dropped (and counted): pairs come
@@ -500,6 +507,8 @@ class FocusedPasses:
         self.tris.ensure(48 * self.caps["tris"])
         self.tri_face.ensure(4 * self.caps["tris"])
         self.cuts.ensure(8 * self.caps["tris"])
+        self.caps["edges"] = min(self.caps["edges"], self.edge_list.limit // 8)
+        self.edge_list.ensure(8 * self.caps["edges"])
         self._records(sub.slot).ensure(16 * self.caps["records"])
         self._frame(sub, plan, bounds, round_threads, items, opts["records"].read)
 
@@ -542,7 +551,7 @@ class FocusedPasses:
         self.round_params.write(block)
         frame = np.zeros((9, PARAM_STRIDE // 4), dtype=np.uint32)
         early_out = 0 if self.record_mode.every_tile else 1
-        frame[P_FINALIZE, :4] = (items, items, caps["tris"], 0)
+        frame[P_FINALIZE, :4] = (items, items, caps["tris"], caps["edges"])
         frame[P_CLIP, :4] = (caps["tris"], items, 0, 0)
         frame[P_CROSS, :5] = (record_cap, items, pairs_at, early_out, pair_records)
         frame[P_BOUNDS, 0] = 0 if self._bound_pending is None else len(self._bound_pending)
@@ -550,8 +559,8 @@ class FocusedPasses:
         for at, edges, retry in ((P_ATLAS, P_EDGES, False), (P_ATLAS_RETRY, P_EDGES_RETRY, True)):
             capacity = self.round_capacity(retry)
             frame[at, :4] = (plan.atlas_width, self.target.height, capacity, self.target.width)
-            frame[edges, :7] = (plan.atlas_width, capacity, record_cap, items, pairs_at,
-                                early_out, pair_records)
+            frame[edges, :8] = (plan.atlas_width, capacity, record_cap, items, pairs_at,
+                                early_out, pair_records, caps["edges"])
         self.gpu.device.queue.write_buffer(self.frame_params, 0, frame)
 
     def round_capacity(self, retry: bool = False) -> int:
@@ -575,6 +584,7 @@ class FocusedPasses:
         kind = "retry" if retry else "rounds"
         encoder.clear_buffer(self.counters, 0, 4 * ROUND_COUNTERS)
         encoder.clear_buffer(self.counters, 4 * C_CUTS, 4)
+        encoder.clear_buffer(self.counters, 4 * C_EDGES, 4)
         encoder.clear_buffer(self.pixels.buffer, 0, PIXEL_BYTES * self.target_width * rows)
         scope = _ComputeScope(encoder, self.profiler, r)
         cull_group = self.cull.group(
@@ -619,11 +629,16 @@ class FocusedPasses:
             tile_counts=b.tile_counts, records=records, counters=b.counters,
             params=surface_block, active_pixels=b.active), indirect=(self.args, ARGS_SURFACE))
         cpass = scope.begin("F4 edge test")
+        edges = dict(tiles=b.tiles, positions=b.positions, edges=b.edges,
+                     tile_counts=b.tile_counts, counters=b.counters, params=edges_block,
+                     edge_list=b.edge_list)
+        _dispatch(cpass, self.list_edges, self.list_edges.group(
+            kind, clusters=b.clusters, edge_items=b.edge_items, **edges),
+            indirect=(self.args, ARGS_EDGES))
+        _dispatch(cpass, self.after_edge_list, self.after_edge_list.group(**finalize), (1,))
         _dispatch(cpass, self.edge_test, self.edge_test.group(
-            f"{kind} slot {slot}", tiles=b.tiles, clusters=b.clusters, positions=b.positions,
-            edges=b.edges, edge_items=b.edge_items, pixels=b.pixels, crossings=b.lists,
-            tile_counts=b.tile_counts, records=records, counters=b.counters,
-            params=edges_block), indirect=(self.args, ARGS_EDGES))
+            f"{kind} slot {slot}", pixels=b.pixels, crossings=b.lists, records=records, **edges),
+            indirect=(self.args, ARGS_EDGE_TEST))
         if self.any_open:
             cpass = scope.begin("F6 crossing test")
             _dispatch(cpass, self.crossing_test, self.crossing_test.group(

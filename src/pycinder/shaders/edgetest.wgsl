@@ -7,6 +7,11 @@
 // counting side. A non-zero winding means the sample lies inside the other body: the pair
 // collides, and the sample is appended as a record. Samples at pixels whose list overflowed are
 // counted as undecided (the host then retries their tiles with thinner boxes).
+//
+// Two entry points: `list_edges` (one workgroup per kept cluster, its threads striding over the
+// cluster's edges) lists the edges that reach into the box; `edge_test` (one thread per listed
+// edge) samples and tests them. Most of a cluster's edges miss a small box: sampling in threads
+// of its own runs side by side with other sampling, not masked beside edges that return at once.
 //!include tiles.wgsl
 //!include lists.wgsl
 //!include records.wgsl
@@ -19,7 +24,7 @@ struct Params {
     pair_offset: u32,   // where the per-pair hit flags start in tile_counts
     early_out: u32,     // 1: skip tiles whose pair is already found (records "found" or "none")
     pair_records: u32,  // records kept per pair
-    _p2: u32,
+    list_cap: u32,      // edges the edge list holds
 };
 
 @group(0) @binding(0) var<storage, read> tiles: array<Tile>;
@@ -35,13 +40,24 @@ struct Params {
 @group(0) @binding(8) var<storage, read_write> records: array<vec4u>;
 @group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>>;
 @group(0) @binding(10) var<uniform> params: Params;
+// Edges reaching into their tile's box: tile << 1 | side, packed edge (counter C_EDGES).
+@group(0) @binding(11) var<storage, read_write> edge_list: array<vec2u>;
 
 fn position(v: u32) -> vec3f {
     return vec3f(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
 }
 
-// Sample edge `e` of side `side` of tile `tile_index` and test its samples.
-fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32) {
+// The part of edge `e` of side `side` inside the box of tile `t`: its start and its span
+// (`inside` false when it misses the box).
+struct EdgeInBox {
+    start: vec3f,
+    span: vec3f,
+    inside: bool,
+};
+
+fn edge_in_box(t: Tile, side: u32, e: u32) -> EdgeInBox {
+    var out: EdgeInBox;
+    out.inside = false;
     let a = tile_point(t, side, position(edges[2u * e]));
     let b = tile_point(t, side, position(edges[2u * e + 1u]));
     // Clip the edge to the box.
@@ -53,7 +69,7 @@ fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32) {
     for (var k = 0u; k < 3u; k++) {
         if (d[k] == 0.0) {
             if (a[k] < box_lo[k] || a[k] > box_hi[k]) {
-                return;
+                return out;
             }
         } else {
             let ta = (box_lo[k] - a[k]) / d[k];
@@ -63,10 +79,23 @@ fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32) {
         }
     }
     if (t0 > t1) {
+        return out;
+    }
+    out.start = a + t0 * d;
+    out.span = (t1 - t0) * d;
+    out.inside = true;
+    return out;
+}
+
+// Sample the part of edge `e` (of side `side` of tile `tile_index`) inside the box and test its
+// samples.
+fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32) {
+    let part = edge_in_box(t, side, e);
+    if (!part.inside) {
         return;
     }
-    let p = a + t0 * d;
-    let span = (t1 - t0) * d;
+    let p = part.start;
+    let span = part.span;
     let steps = u32(ceil(max(max(abs(span.x), abs(span.y)), abs(span.z))));
     let other = 1u - side;
     let back = (t.info.z & FLAG_COUNT_BACK) != 0u;
@@ -103,8 +132,12 @@ fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32) {
     }
 }
 
+fn pair_found(t: Tile) -> bool {
+    return params.early_out != 0u && atomicLoad(&tile_counts[params.pair_offset + t.info.w]) != 0u;
+}
+
 @compute @workgroup_size(WORKGROUP)
-fn edge_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
+fn list_edges(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
     let item_index = wg.y * ROW + wg.x;
     if (item_index >= min(atomicLoad(&counters[C_EDGE_ITEMS]), params.item_cap)) {
         return;
@@ -118,12 +151,32 @@ fn edge_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) 
     if (is_open(t, 1u - side)) {
         return;  // the other body has no inside (its surface is tested by pass F6)
     }
+    if (pair_found(t)) {
+        return;  // pass F5 or an earlier tile already found this pair
+    }
     // A cluster owns up to about twice as many edges as faces: the workgroup strides over them.
     for (var k = lid; k < info.edge_count; k += WORKGROUP) {
-        if (params.early_out != 0u
-                && atomicLoad(&tile_counts[params.pair_offset + t.info.w]) != 0u) {
-            return;  // pass F5 or an earlier tile already found this pair
+        let e = info.edge_start + k;
+        if (edge_in_box(t, side, e).inside) {
+            let slot = atomicAdd(&counters[C_EDGES], 1u);
+            if (slot < params.list_cap) {
+                edge_list[slot] = vec2u((tile_index << 1u) | side, e);
+            }
         }
-        test_edge(t, tile_index, side, info.edge_start + k);
     }
+}
+
+@compute @workgroup_size(WORKGROUP)
+fn edge_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
+    let i = (wg.y * ROW + wg.x) * WORKGROUP + lid;
+    if (i >= min(atomicLoad(&counters[C_EDGES]), params.list_cap)) {
+        return;
+    }
+    let listed = edge_list[i];
+    let tile_index = listed.x >> 1u;
+    let t = tiles[tile_index];
+    if (pair_found(t)) {
+        return;  // a sample of another edge already found this pair
+    }
+    test_edge(t, tile_index, listed.x & 1u, listed.y);
 }

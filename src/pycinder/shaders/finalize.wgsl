@@ -6,13 +6,13 @@ struct Params {
     face_cap: u32,
     edge_cap: u32,
     tri_cap: u32,
-    _p0: u32,
+    list_cap: u32,  // edges the edge list holds
 };
 
 @group(0) @binding(0) var<storage, read_write> counters: array<u32>;
 // [0..3) face-clip dispatch, [3..6) edge-test dispatch, [6..10) draw (vertices, 1, 0, 0),
 // [10..13) surface-test dispatch (WORKGROUP pixels per workgroup); [13..16) is the retry rounds'
-// cull dispatch (retry.wgsl); [16..19) the cut dispatch
+// cull dispatch (retry.wgsl); [16..19) the cut dispatch; [19..22) the edge-test dispatch
 @group(0) @binding(1) var<storage, read_write> args: array<u32>;
 @group(0) @binding(2) var<uniform> params: Params;
 
@@ -61,4 +61,12 @@ fn after_clip() {
 fn after_crossings() {
     _ = params.face_cap;  // the three entry points share one bind group layout
     rows((counters[C_ACTIVE] + WORKGROUP - 1u) / WORKGROUP, 10u);
+}
+
+// After the edges are listed: test them (one thread each).
+@compute @workgroup_size(1)
+fn after_edge_list() {
+    let listed = counters[C_EDGES];
+    counters[C_MAX_EDGES] = max(counters[C_MAX_EDGES], listed);
+    rows((min(listed, params.list_cap) + WORKGROUP - 1u) / WORKGROUP, 19u);
 }
