@@ -93,10 +93,27 @@ def test_rounds_shrink_when_the_device_holds_fewer_triangles(monkeypatch):
     assert narrow.pairs.tolist() == wide.pairs.tolist() == [[k, k + 1] for k in range(29)]
     assert narrow.stats.rounds > wide.stats.rounds
     monkeypatch.setattr(det.strategy.passes.tris, "limit", 48 * 10)
-    with pytest.raises(GpuMemoryError, match="clips .* triangles, more than this device's"):
+    with pytest.raises(GpuMemoryError, match="has .* clipped triangles, more than this device.s"):
         det.find_collisions(*scene)
     monkeypatch.undo()
     assert det.find_collisions(*scene).pairs.tolist() == wide.pairs.tolist()
+
+
+def test_rounds_shrink_when_the_device_holds_fewer_edges_to_sample(monkeypatch):
+    """Likewise for the edges pass F4 lists for sampling: a round listing more than one buffer
+    holds is planned again in smaller rounds, with the same answer."""
+    scene = ([BALL] * 30, [move(0.8 * k) for k in range(30)])
+    det = pycinder.Detector(tolerance=0.01, records="all")   # every edge of every tile listed
+    wide = det.find_collisions(*scene)
+    # The frame lists about 7,000 edges in its one round, and at most about 1,000 per atlas band.
+    monkeypatch.setattr(det.strategy.passes.edge_list, "limit", 8 * 4000)
+    narrow = det.find_collisions(*scene)
+    assert narrow.pairs.tolist() == wide.pairs.tolist() == [[k, k + 1] for k in range(29)]
+    assert narrow.stats.rounds > wide.stats.rounds
+    assert len(narrow.records) == len(wide.records)
+    monkeypatch.setattr(det.strategy.passes.edge_list, "limit", 8 * 4)
+    with pytest.raises(GpuMemoryError, match="edges to sample, more than this device's"):
+        det.find_collisions(*scene)
 
 
 def test_records_over_the_device_limit_are_dropped_and_counted(monkeypatch):
