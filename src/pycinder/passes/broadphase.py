@@ -1,0 +1,419 @@
+"""The broad phase on the GPU: world boxes, a bitonic sort and a sweep, in one submission.
+
+The GPU equivalent of :func:`pycinder.broadphase.world_boxes` followed by
+:func:`pycinder.broadphase.sweep_and_prune` (and the focused strategy's filter to pairs of bodies in
+different groups). Its passes (``shaders/broadphase.wgsl``), all in one command buffer:
+
+    world boxes   one thread per body: the box, in float32, grown to be conservative; the sort key
+    sort          bitonic sort of (within key, start on the sweep axis, body): one workgroup-local
+                  dispatch for blocks of 512, then per merge the steps of 512 and over globally
+                  and the rest locally (45 dispatches for 100k bodies)
+    gather        the boxes in sorted order
+    sweep         one thread per sorted box: the boxes after it that start before it ends, with
+                  its within key, are tested on all axes and groups; pairs are appended through
+                  an atomic counter
+
+One readback maps the pair count and the first pairs (as many as the last call found, and a
+quarter more). More pairs are read by a second copy; more pairs than the pairs buffer holds make it
+grow and the sweep run again, so nothing is dropped. The sweep axis is the one along which the
+bodies' translations spread most (computed on the host; any axis gives the same pairs).
+
+Conservative boxes
+------------------
+The boxes are computed in float32 from the transforms less a common origin (the midpoint of the
+translations' range, subtracted in float64), so that far-off scenes (1e6 from the origin) keep their
+precision. Along world axis ``k`` of body ``i``, with ``m`` the linear part and ``t`` the
+translation less the origin, every bound is moved outward by
+
+    pad[i, k] = 2**-19 * (|t[k]| + sum_j |m[k, j]| * (max(|lo_j|, |hi_j|) + radius))
+                + 2**-40 * max(|origin|)
+
+The first term is about three times the worst rounding error of the float32 evaluation (input
+rounding, the products and sums of a row, WGSL's 2.5 ulp ``sqrt``), all bounded by the row's sum
+of magnitudes; the second covers the float64 reference's own rounding at the origin's magnitude.
+So every pair the float64 reference finds is found. A pair the reference does not find may be
+reported when its boxes are apart by at most ``2 * (pad[a] + pad[b])`` along every axis (the
+padding, and the rounding it covers): a relative 4e-6 of the coordinates' magnitude at most.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import wgpu
+
+from ..broadphase import sweep_and_prune, world_boxes
+from ..gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
+from ..gpu.device import Gpu, get_gpu
+from ..layout import ROW, WORKGROUP
+from .bindings import Stage
+
+PAD_SCALE = 2.0 ** -19
+"""Padding per unit of a row's sum of magnitudes (``PAD_SCALE`` in ``broadphase.wgsl``)."""
+ORIGIN_PAD_SCALE = 2.0 ** -40
+"""Padding per unit of the origin's largest coordinate (the float64 reference's rounding)."""
+SORT_THREADS = 256
+SORT_BLOCK = 512
+"""Sort elements per workgroup of the local sort (``broadphase.wgsl``)."""
+PARAM_STRIDE = 256
+"""Bytes between uniform blocks (the uniform offset alignment)."""
+BODY_WORDS = 24
+"""32-bit words of one ``Body`` (``broadphase.wgsl``)."""
+FIRST_PAIRS = 4096
+"""Fewest pairs the pairs buffer holds and the first readback copies."""
+MAX_KEY = 0xFFFFFFFE
+"""Largest within key or group rank (0xFFFFFFFF marks the sort's padding)."""
+
+_U = wgpu.BufferUsage
+
+
+def _grid(workgroups: int) -> tuple[int, int]:
+    """Workgroup grid (x, y) for ``workgroups`` laid out in rows of :data:`ROW`."""
+    return min(workgroups, ROW), -(-workgroups // ROW)
+
+
+def sort_steps(count: int) -> list[tuple[str, int, int]]:
+    """The bitonic sort of ``count`` elements (a power of two, at least :data:`SORT_BLOCK`) as
+    dispatches: ``("local", k0, k1)`` sorts merges ``k0..k1`` within blocks (their steps below
+    :data:`SORT_BLOCK`), ``("step", k, j)`` is one global compare-exchange step."""
+    steps = [("local", 2, SORT_BLOCK)]
+    k = 2 * SORT_BLOCK
+    while k <= count:
+        j = k // 2
+        while j >= SORT_BLOCK:
+            steps.append(("step", k, j))
+            j //= 2
+        steps.append(("local", k, k))
+        k *= 2
+    return steps
+
+
+def reference_pairs(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
+                    transforms: np.ndarray, within: np.ndarray | None = None,
+                    groups: np.ndarray | None = None) -> np.ndarray:
+    """The NumPy broad phase that :class:`GpuBroadPhase` reproduces (same arguments): world
+    boxes, sweep and prune, then the pairs of different groups.
+
+    Returns
+    -------
+    (K, 2) int64
+        Sorted pairs ``(i, j)``, ``i < j``.
+    """
+    lo, hi = world_boxes(local_lo, local_hi, radius, transforms)
+    pairs = sweep_and_prune(lo, hi, within)
+    if groups is not None:
+        pairs = pairs[groups[pairs[:, 0]] != groups[pairs[:, 1]]]
+    return pairs
+
+
+def padding(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
+            transforms: np.ndarray) -> np.ndarray:
+    """How far :class:`GpuBroadPhase` grows each world box outward (the module's formula).
+
+    Parameters
+    ----------
+    local_lo, local_hi : (N, 3) float
+    radius : (N,) float
+    transforms : (N, 4, 4) float
+
+    Returns
+    -------
+    (N, 3) float64
+        Padding per body and world axis.
+    """
+    rows, origin = _rows(np.asarray(transforms, dtype=np.float64))
+    reach = np.maximum(np.abs(local_lo), np.abs(local_hi)) + np.asarray(radius)[:, None]
+    s = np.abs(rows[:, :, 3]) + np.einsum("nkj,nj->nk", np.abs(rows[:, :, :3]), reach)
+    return PAD_SCALE * s + ORIGIN_PAD_SCALE * float(np.abs(origin).max(initial=0.0))
+
+
+def _rows(transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 3, 4) world-from-body rows with the translation less the origin, and the origin."""
+    rows = transforms[:, :3, :].copy()
+    t = rows[:, :, 3]
+    origin = 0.5 * (t.min(axis=0) + t.max(axis=0)) if len(t) else np.zeros(3)
+    rows[:, :, 3] -= origin
+    return rows, origin
+
+
+def _ranks(keys: np.ndarray | None, name: str, n: int) -> np.ndarray:
+    """Integer keys as uint32 ranks that keep equality (0 where none are given)."""
+    if keys is None:
+        return np.zeros(n, dtype=np.uint32)
+    k = np.asarray(keys)
+    if k.shape != (n,) or not (np.issubdtype(k.dtype, np.integer) or k.dtype == bool):
+        raise ValueError(f"{name} must be ({n},) integers, one per body; got {k.dtype} "
+                         f"{k.shape}")
+    if n == 0:
+        return np.zeros(0, dtype=np.uint32)
+    k = k.astype(np.int64)
+    low = int(k.min())
+    if int(k.max()) - low <= MAX_KEY:
+        return (k - low).astype(np.uint32)
+    return np.unique(k, return_inverse=True)[1].reshape(-1).astype(np.uint32)
+
+
+def _checked(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
+             transforms: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The inputs as float64 arrays of agreeing shapes; a clear error naming the first bad body
+    otherwise."""
+    lo = np.asarray(local_lo, dtype=np.float64)
+    hi = np.asarray(local_hi, dtype=np.float64)
+    r = np.asarray(radius, dtype=np.float64)
+    t = np.asarray(transforms, dtype=np.float64)
+    n = len(r) if r.ndim == 1 else -1
+    for name, a, shape in (("radius", r, (n,)), ("local_lo", lo, (n, 3)),
+                           ("local_hi", hi, (n, 3)), ("transforms", t, (n, 4, 4))):
+        if n < 0 or a.shape != shape:
+            raise ValueError(f"{name} must have shape {shape if n >= 0 else '(N,)'}, got "
+                             f"{a.shape}")
+        bad = ~np.isfinite(a).all(axis=tuple(range(1, a.ndim)))
+        if bad.any():
+            raise ValueError(f"{name} of body {int(np.flatnonzero(bad)[0])} is not finite")
+    negative = r < 0
+    if negative.any():
+        raise ValueError(f"radius of body {int(np.flatnonzero(negative)[0])} is negative")
+    return lo, hi, r, t
+
+
+@dataclass
+class BroadPhaseStats:
+    """What the last call of :meth:`GpuBroadPhase.pairs` did.
+
+    Attributes
+    ----------
+    pairs : int
+        Pairs found.
+    submissions, maps : int
+        Command buffers submitted and staging buffers mapped (1 and 1 in the common case).
+    reruns : int
+        Sweeps run again because the pairs buffer had to grow.
+    bytes_read : int
+    axis : int
+        The sweep axis.
+    """
+
+    pairs: int = 0
+    submissions: int = 0
+    maps: int = 0
+    reruns: int = 0
+    bytes_read: int = 0
+    axis: int = 0
+
+
+class GpuBroadPhase:
+    """Candidate pairs of bodies whose world boxes overlap, found on the GPU.
+
+    Pipelines and buffers are made once; buffers grow when a call needs more and are reused.
+
+    Parameters
+    ----------
+    gpu : Gpu, optional
+        The device (default: pycinder's).
+    timeout : float
+        Seconds a call may wait for the GPU.
+    """
+
+    def __init__(self, gpu: Gpu | None = None, *, timeout: float = DEFAULT_TIMEOUT) -> None:
+        self.gpu = gpu = gpu or get_gpu()
+        self.timeout = float(timeout)
+        device = gpu.device
+        self.world = Stage(gpu, "broadphase", "world_boxes", label="broad phase: world boxes")
+        self.sort_local = Stage(gpu, "broadphase", "sort_local", label="broad phase: local sort")
+        self.sort_step = Stage(gpu, "broadphase", "sort_step", label="broad phase: sort step")
+        self.gather = Stage(gpu, "broadphase", "gather", label="broad phase: gather")
+        self.sweep = Stage(gpu, "broadphase", "sweep", label="broad phase: sweep")
+
+        def grow(label: str, usage: int = _U.STORAGE) -> GrowableBuffer:
+            return GrowableBuffer(device, label, usage)
+
+        self.params = grow("broad phase parameters", _U.UNIFORM | _U.COPY_DST)
+        self.bodies = grow("broad phase bodies", _U.STORAGE | _U.COPY_DST)
+        self.boxes_lo, self.boxes_hi = grow("world box minima"), grow("world box maxima")
+        self.elements = grow("sort elements")
+        self.sorted_lo, self.sorted_hi = grow("sorted minima"), grow("sorted maxima")
+        self.sorted_body = grow("sorted bodies")
+        self.pairs_buffer = grow("candidate pairs", _U.STORAGE | _U.COPY_SRC)
+        self.counter = device.create_buffer(label="pair counter", size=16,
+                                            usage=_U.STORAGE | _U.COPY_SRC | _U.COPY_DST)
+        self.readback = Readback(device, "broad phase readback")
+        self.readback_more = Readback(device, "broad phase pairs")
+        self.capacity = FIRST_PAIRS
+        self.recent = 0
+        self.stats = BroadPhaseStats()
+
+    def pairs(self, local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
+              transforms: np.ndarray, within: np.ndarray | None = None,
+              groups: np.ndarray | None = None) -> np.ndarray:
+        """The pairs of bodies whose world boxes overlap (touching counts).
+
+        Parameters
+        ----------
+        local_lo, local_hi : (N, 3) float
+            Body-space bounding boxes.
+        radius : (N,) float
+            Radius of each body's bounding sphere about the centre of its box.
+        transforms : (N, 4, 4) float
+            World-from-body matrices.
+        within : (N,) int, optional
+            Only pairs of bodies with the same key (the scenes of a batch).
+        groups : (N,) int, optional
+            Only pairs of bodies in different groups.
+
+        Returns
+        -------
+        (K, 2) int64
+            Pairs ``(i, j)`` with ``i < j``, sorted: those of :func:`reference_pairs`, and pairs
+            whose boxes are within the padding (see the module's doc).
+
+        Raises
+        ------
+        ValueError
+            Inputs of the wrong shape, not finite, or a negative radius (naming the body).
+        GpuMemoryError
+            More pairs (or bodies) than one buffer of this device holds.
+        GpuTimeoutError
+            The GPU did not finish within ``timeout``.
+        """
+        lo, hi, r, t = _checked(local_lo, local_hi, radius, transforms)
+        n = len(r)
+        within_keys, group_keys = _ranks(within, "within", n), _ranks(groups, "groups", n)
+        self.stats = BroadPhaseStats()
+        if n < 2:
+            return np.zeros((0, 2), dtype=np.int64)
+        rows, origin = _rows(t)
+        words = np.zeros((n, BODY_WORDS), dtype=np.float32)
+        words[:, :12] = rows.reshape(n, 12)
+        words[:, 12:15], words[:, 15] = lo, r
+        words[:, 16:19] = hi
+        keys = words[:, 20:22].view(np.uint32)
+        keys[:, 0], keys[:, 1] = within_keys, group_keys
+        if not np.isfinite(words).all() or np.abs(words[:, :19]).max() > 1e30:
+            raise ValueError("box or transform coordinates beyond float32's range")
+        axis = int(np.argmax(t[:, :3, 3].var(axis=0)))
+        base_pad = ORIGIN_PAD_SCALE * float(np.abs(origin).max())
+        with self.gpu.lock:
+            found = self._run(words, n, axis, base_pad, groups is not None)
+        self.stats.axis = axis
+        self.stats.pairs = len(found)
+        key = found[:, 0].astype(np.int64) * n + found[:, 1]
+        key.sort()
+        return np.stack(np.divmod(key, n), axis=1)
+
+    # -- GPU work -------------------------------------------------------------------------------
+
+    def _run(self, words: np.ndarray, n: int, axis: int, base_pad: float,
+             use_groups: bool) -> np.ndarray:
+        count = max(SORT_BLOCK, 1 << (n - 1).bit_length())
+        steps = sort_steps(count)
+        self.params.ensure(PARAM_STRIDE * (1 + len(steps)))
+        block = np.zeros((1 + len(steps), PARAM_STRIDE // 4), dtype=np.uint32)
+        block[0, :5] = (n, count, axis, self.capacity, int(use_groups))
+        block[0, 5] = np.float32(base_pad).view(np.uint32)
+        for s, (_, k, j) in enumerate(steps, start=1):
+            block[s, :2] = (k, j)
+        self.params.write(block)
+        self.bodies.ensure(words.nbytes)
+        self.bodies.write(words)
+        for buf in (self.boxes_lo, self.boxes_hi, self.sorted_lo, self.sorted_hi):
+            buf.ensure(16 * n)
+        self.sorted_body.ensure(4 * n)
+        self.elements.ensure(16 * count)
+        self.pairs_buffer.ensure(8 * self.capacity)
+
+        encoder = self.gpu.device.create_command_encoder(label="broad phase")
+        encoder.clear_buffer(self.counter)
+        cpass = encoder.begin_compute_pass(label="broad phase")
+        params = (self.params.buffer, 0, 32)
+        self._dispatch(cpass, self.world, self.world.group(
+            params=params, bodies=self.bodies, boxes_lo=self.boxes_lo, boxes_hi=self.boxes_hi,
+            elements=self.elements), -(-count // WORKGROUP))
+        for s, (kind, k, j) in enumerate(steps, start=1):
+            step = (self.params.buffer, s * PARAM_STRIDE, 16)
+            if kind == "local":
+                self._dispatch(cpass, self.sort_local, self.sort_local.group(
+                    f"step {s}", step=step, elements=self.elements), count // SORT_BLOCK)
+            else:
+                self._dispatch(cpass, self.sort_step, self.sort_step.group(
+                    f"step {s}", params=params, step=step, elements=self.elements),
+                    count // 2 // SORT_THREADS)
+        self._dispatch(cpass, self.gather, self.gather.group(
+            params=params, elements=self.elements, boxes_lo=self.boxes_lo,
+            boxes_hi=self.boxes_hi, sorted_lo=self.sorted_lo, sorted_hi=self.sorted_hi,
+            sorted_body=self.sorted_body), -(-n // WORKGROUP))
+        self._encode_sweep(cpass, n)
+        cpass.end()
+        first = min(max(FIRST_PAIRS, self.recent * 5 // 4), self.capacity)
+        while True:
+            total = self._read(encoder, first, n)
+            found = total["count"]
+            if found <= self.capacity:
+                break
+            # More pairs than the buffer holds: grow it and sweep again (the sorted boxes are
+            # still on the GPU), reading all of them this time.
+            self.stats.reruns += 1
+            self.capacity = found + found // 4 + FIRST_PAIRS
+            self.pairs_buffer.ensure(8 * self.capacity)
+            block[0, 3] = self.capacity
+            self.params.write(block[:1])
+            encoder = self.gpu.device.create_command_encoder(label="broad phase sweep")
+            encoder.clear_buffer(self.counter)
+            cpass = encoder.begin_compute_pass(label="broad phase sweep")
+            self._encode_sweep(cpass, n)
+            cpass.end()
+            first = found
+        self.recent = found
+        return total["pairs"]
+
+    def _encode_sweep(self, cpass: wgpu.GPUComputePassEncoder, n: int) -> None:
+        self._dispatch(cpass, self.sweep, self.sweep.group(
+            params=(self.params.buffer, 0, 32), sorted_lo=self.sorted_lo,
+            sorted_hi=self.sorted_hi, sorted_body=self.sorted_body, counter=self.counter,
+            pairs=self.pairs_buffer), -(-n // WORKGROUP))
+
+    @staticmethod
+    def _dispatch(cpass: wgpu.GPUComputePassEncoder, stage: Stage, group: wgpu.GPUBindGroup,
+                  workgroups: int) -> None:
+        cpass.set_pipeline(stage.pipeline)
+        cpass.set_bind_group(0, group)
+        cpass.dispatch_workgroups(*_grid(workgroups))
+
+    def _read(self, encoder: wgpu.GPUCommandEncoder, first: int, n: int) -> dict:
+        """Copy the count and the first ``first`` pairs, submit ``encoder`` and map them; read the
+        rest (when the buffer held them) with a second copy. Returns the count and the pairs,
+        (count, 2) uint32 (None when the buffer did not hold them)."""
+        device = self.gpu.device
+        head = 16
+        staging = self.readback.ensure(head + 8 * first)
+        encoder.copy_buffer_to_buffer(self.counter, 0, staging, 0, head)
+        if first:
+            encoder.copy_buffer_to_buffer(self.pairs_buffer.buffer, 0, staging, head, 8 * first)
+        device.queue.submit([encoder.finish()])
+        self.stats.submissions += 1
+        nbytes = head + 8 * first
+        waiting = f"the broad phase of {n} bodies"
+        data = self.readback.read(nbytes, timeout=self.timeout, waiting_for=waiting)
+        self.stats.maps += 1
+        self.stats.bytes_read += nbytes
+        count = int(data[0])
+        if count > self.capacity:
+            return {"count": count, "pairs": None}  # the caller grows the buffer
+        pairs = data[4:4 + 2 * min(count, first)].reshape(-1, 2)
+        if count > first:
+            rest = count - first
+            encoder = device.create_command_encoder(label="broad phase pairs")
+            staging = self.readback_more.ensure(8 * rest)
+            encoder.copy_buffer_to_buffer(self.pairs_buffer.buffer, 8 * first, staging, 0,
+                                          8 * rest)
+            device.queue.submit([encoder.finish()])
+            more = self.readback_more.read(8 * rest, timeout=self.timeout,
+                                           waiting_for=f"{rest} pairs of {waiting}")
+            self.stats.submissions += 1
+            self.stats.maps += 1
+            self.stats.bytes_read += 8 * rest
+            pairs = np.concatenate([pairs, more.reshape(-1, 2)])
+        return {"count": count, "pairs": pairs}
+
+
+__all__ = ["BroadPhaseStats", "GpuBroadPhase", "padding", "reference_pairs", "sort_steps"]
