@@ -1,0 +1,227 @@
+"""The GPU broad phase against the NumPy reference (world boxes, sweep and prune, groups filter).
+
+Every pair the reference finds must be found; a pair it does not find is allowed only where the
+reference's boxes are within the documented padding of each other (twice the padding of both
+boxes, along every axis), and only with equal within keys and different groups.
+"""
+
+import numpy as np
+import pytest
+
+from pycinder.broadphase import sweep_and_prune, world_boxes
+from pycinder.passes.broadphase import GpuBroadPhase
+from pycinder.testing import random_rotation
+
+
+@pytest.fixture(scope="module")
+def bp() -> GpuBroadPhase:
+    return GpuBroadPhase()
+
+
+def reference(lo, hi, r, t, within=None, groups=None):
+    wlo, whi = world_boxes(lo, hi, r, t)
+    pairs = sweep_and_prune(wlo, whi, within)
+    if groups is not None:
+        pairs = pairs[groups[pairs[:, 0]] != groups[pairs[:, 1]]]
+    return pairs, wlo, whi
+
+
+def documented_padding(lo, hi, r, t):
+    """The padding as the module's doc states it, per body and world axis."""
+    trans = t[:, :3, 3]
+    origin = 0.5 * (trans.min(axis=0) + trans.max(axis=0))
+    reach = np.maximum(np.abs(lo), np.abs(hi)) + r[:, None]
+    s = np.abs(trans - origin) + (np.abs(t[:, :3, :3]) * reach[:, None, :]).sum(axis=2)
+    return 2.0 ** -19 * s + 2.0 ** -40 * np.abs(origin).max()
+
+
+def check(bp, lo, hi, r, t, within=None, groups=None):
+    """Run both; assert the contract; return (gpu pairs, reference pairs)."""
+    got = bp.pairs(lo, hi, r, t, within=within, groups=groups)
+    ref, wlo, whi = reference(lo, hi, r, t, within, groups)
+    assert got.dtype == np.int64 and got.shape[1:] == (2,)
+    assert (got[:, 0] < got[:, 1]).all()
+    key = got[:, 0] * len(r) + got[:, 1]
+    assert (np.diff(key) > 0).all(), "pairs must be sorted and unique"
+    ref_set, got_set = set(map(tuple, ref.tolist())), set(map(tuple, got.tolist()))
+    missed = ref_set - got_set
+    assert not missed, f"{len(missed)} reference pairs missed, e.g. {sorted(missed)[:5]}"
+    extra = np.array(sorted(got_set - ref_set), dtype=np.int64).reshape(-1, 2)
+    if len(extra):
+        a, b = extra[:, 0], extra[:, 1]
+        pad = documented_padding(lo, hi, r, t)
+        gap = np.maximum(wlo[b] - whi[a], wlo[a] - whi[b])
+        assert (gap <= 2 * (pad[a] + pad[b])).all(), "an extra pair beyond the padding"
+        if within is not None:
+            assert (within[a] == within[b]).all()
+        if groups is not None:
+            assert (groups[a] != groups[b]).all()
+    return got, ref
+
+
+def random_bodies(rng, n, scale=1.0, offset=0.0, spread=None, linear="rotate"):
+    """Boxes about arbitrary centres (not the origin), their bounding spheres, and transforms."""
+    half = rng.uniform(0.05, 1.0, (n, 3)) * scale
+    centre = rng.normal(scale=0.3 * scale, size=(n, 3))
+    lo, hi = centre - half, centre + half
+    r = np.linalg.norm(half, axis=1)
+    t = np.tile(np.eye(4), (n, 1, 1))
+    for i in range(n):
+        m = random_rotation(rng)[:3, :3]
+        if linear == "scale":
+            m = m @ np.diag(rng.uniform(0.3, 3.0, 3)) @ random_rotation(rng)[:3, :3]
+        t[i, :3, :3] = m
+    spread = (scale * 3 * n ** (1 / 3)) if spread is None else spread
+    t[:, :3, 3] = offset + rng.uniform(0, spread, (n, 3))
+    return lo, hi, r, t
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+@pytest.mark.parametrize("offset", [0.0, -1e3, 1e6])
+def test_random_boxes_at_scales_and_offsets(bp, scale, offset):
+    rng = np.random.default_rng(round(np.log10(scale)) + 3 + 7 * round(np.log10(abs(offset) + 1)))
+    lo, hi, r, t = random_bodies(rng, 400, scale, offset)
+    got, ref = check(bp, lo, hi, r, t)
+    assert len(ref) > 100  # the scene has overlaps to find
+
+
+def test_rotated_and_scaled_transforms(bp):
+    rng = np.random.default_rng(3)
+    lo, hi, r, t = random_bodies(rng, 500, linear="scale")
+    got, ref = check(bp, lo, hi, r, t)
+    assert len(ref) > 100
+
+
+@pytest.mark.parametrize("offset", [0.0, 1e6])
+def test_touching_boxes_are_pairs(bp, offset):
+    # A 4 x 4 x 4 grid of unit cubes sharing faces, edges and corners: every two cubes at most one
+    # step apart along each axis touch (hand count: pairs at Chebyshev distance 1).
+    cells = np.stack(np.meshgrid(*[np.arange(4.0)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    n = len(cells)
+    lo, hi = np.full((n, 3), -0.5), np.full((n, 3), 0.5)
+    r = np.full(n, np.sqrt(3) / 2)
+    t = np.tile(np.eye(4), (n, 1, 1))
+    t[:, :3, 3] = cells + offset
+    got, ref = check(bp, lo, hi, r, t)
+    i, j = np.triu_indices(n, 1)
+    near = np.abs(cells[i] - cells[j]).max(axis=1) == 1
+    expected = np.stack([i[near], j[near]], 1)
+    assert np.array_equal(got, expected)  # no extra pair: the other gaps are 1
+
+
+@pytest.mark.parametrize("offset", [0.0, 3e4, 1e6])
+def test_rotated_boxes_touching_within_rounding(bp, offset):
+    # Each rotated, scaled body gets a unit cube placed against one face of its world box (as
+    # the float64 reference computes it), so that about half the pairs touch to the last bit and
+    # the rest are apart by a rounding error: float32 boxes without padding lose many of them.
+    rng = np.random.default_rng(int(offset) % 97)
+    m = 300
+    lo, hi, r, t = random_bodies(rng, m, linear="scale", spread=0.0)
+    t[:, :3, 3] = offset + 10.0 * np.arange(m)[:, None] * (1, 0.5, 0.25)
+    wlo, whi = world_boxes(lo, hi, r, t)
+    axis = rng.integers(0, 3, m)
+    side = rng.choice([-1.0, 1.0], m)
+    cube = np.tile(np.eye(4), (m, 1, 1))
+    cube[:, :3, 3] = 0.5 * (wlo + whi)
+    face = np.where(side > 0, whi[np.arange(m), axis], wlo[np.arange(m), axis])
+    cube[np.arange(m), axis, 3] = face + 0.5 * side
+    lo2 = np.concatenate([lo, np.full((m, 3), -0.5)])
+    hi2 = np.concatenate([hi, np.full((m, 3), 0.5)])
+    r2 = np.concatenate([r, np.full(m, np.sqrt(3) / 2)])
+    got, ref = check(bp, lo2, hi2, r2, np.concatenate([t, cube]))
+    assert len(ref) > m // 4
+
+
+def test_nested_and_identical_boxes(bp):
+    # Boxes inside one another at one place, and copies of one box at another; apart from those,
+    # a box far away. Every nested or identical pair overlaps.
+    sizes = np.geomspace(0.01, 10, 20)
+    lo = np.concatenate([-sizes[:, None] * np.ones(3), np.full((10, 3), -1.0), [[-1, -1, -1]]])
+    hi = -lo
+    r = np.linalg.norm(hi, axis=1)
+    t = np.tile(np.eye(4), (31, 1, 1))
+    t[20:30, :3, 3] = (100, 0, 0)
+    t[30, :3, 3] = (0, 100, 0)
+    got, ref = check(bp, lo, hi, r, t)
+    i, j = np.triu_indices(30, 1)
+    same_place = (i < 20) == (j < 20)
+    assert np.array_equal(got, np.stack([i[same_place], j[same_place]], 1))
+
+
+def test_within_and_groups(bp):
+    rng = np.random.default_rng(5)
+    lo, hi, r, t = random_bodies(rng, 600, spread=8.0)
+    within = rng.integers(0, 4, 600)
+    groups = rng.integers(0, 3, 600)
+    for w, g in ((within, None), (None, groups), (within, groups)):
+        got, ref = check(bp, lo, hi, r, t, within=w, groups=g)
+        assert len(ref) > 100
+    # Keys far apart (not a small range) keep their meaning.
+    got_wide, _ = check(bp, lo, hi, r, t, within=within * 2**40 - 7, groups=groups - 2**50)
+    assert np.array_equal(got_wide, bp.pairs(lo, hi, r, t, within=within, groups=groups))
+
+
+def test_zero_one_two_bodies(bp):
+    unit = (np.array([[-1.0, -1, -1]]), np.array([[1.0, 1, 1]]), np.array([np.sqrt(3)]))
+    for n in (0, 1):
+        lo, hi, r = (np.repeat(a, n, axis=0) for a in unit)
+        assert bp.pairs(lo, hi, r, np.tile(np.eye(4), (n, 1, 1))).shape == (0, 2)
+    lo, hi, r = (np.repeat(a, 2, axis=0) for a in unit)
+    t = np.tile(np.eye(4), (2, 1, 1))
+    t[1, 0, 3] = 2.0  # touching
+    assert bp.pairs(lo, hi, r, t).tolist() == [[0, 1]]
+    t[1, 0, 3] = 2.1
+    assert bp.pairs(lo, hi, r, t).tolist() == []
+    t[1, 0, 3] = 0.0
+    assert bp.pairs(lo, hi, r, t, groups=np.array([3, 3])).tolist() == []
+    assert bp.pairs(lo, hi, r, t, within=np.array([1, 2])).tolist() == []
+
+
+def test_dense_cluster_grows_the_pair_buffer():
+    fresh = GpuBroadPhase()
+    n = 400  # every box overlaps every other: 79,800 pairs, more than the first buffer holds
+    rng = np.random.default_rng(8)
+    _, _, _, t = random_bodies(rng, n, spread=0.1)
+    lo, hi, r = np.full((n, 3), -1.0), np.full((n, 3), 1.0), np.full(n, np.sqrt(3))
+    got, ref = check(fresh, lo, hi, r, t)
+    i, j = np.triu_indices(n, 1)
+    assert np.array_equal(got, np.stack([i, j], 1))
+    assert fresh.stats.reruns == 1 and fresh.stats.pairs == len(i)
+    # The grown buffer is kept: the next call needs one submission and one map.
+    check(fresh, lo, hi, r, t)
+    assert (fresh.stats.reruns, fresh.stats.submissions, fresh.stats.maps) == (0, 1, 1)
+
+
+def test_buffers_are_reused(bp):
+    rng = np.random.default_rng(11)
+    bodies = random_bodies(rng, 1000)
+    bp.pairs(*bodies)
+    buffers = (bp.bodies, bp.elements, bp.sorted_lo, bp.pairs_buffer)
+    generations = [b.generation for b in buffers]
+    check(bp, *random_bodies(rng, 700))
+    assert [b.generation for b in buffers] == generations
+
+
+def test_100k_small_bodies(bp):
+    rng = np.random.default_rng(12)
+    n = 100_000
+    half = rng.uniform(0.1, 0.5, (n, 3))
+    lo, hi, r = -half, half, np.linalg.norm(half, axis=1)
+    t = np.tile(np.eye(4), (n, 1, 1))
+    t[:, :3, 3] = rng.uniform(0, 150, (n, 3)) + (1e4, 0, -1e4)
+    got, ref = check(bp, lo, hi, r, t)
+    assert len(ref) > 1000
+
+
+@pytest.mark.parametrize("bad, words", [
+    (lambda a: a["t"].__setitem__((3, 0, 3), np.nan), "transforms of body 3 is not finite"),
+    (lambda a: a["r"].__setitem__(2, -1.0), "radius of body 2 is negative"),
+    (lambda a: a.__setitem__("lo", a["lo"][:, :2]), "local_lo must have shape (5, 3)"),
+    (lambda a: a.__setitem__("w", np.zeros(4, int)), "within must be (5,) integers"),
+    (lambda a: a.__setitem__("w", np.zeros(5)), "within must be (5,) integers"),
+])
+def test_bad_input_is_named(bp, bad, words):
+    a = dict(zip(("lo", "hi", "r", "t"), random_bodies(np.random.default_rng(0), 5)), w=None)
+    bad(a)
+    with pytest.raises(ValueError, match=words.replace("(", r"\(").replace(")", r"\)")):
+        bp.pairs(a["lo"], a["hi"], a["r"], a["t"], within=a["w"])
