@@ -62,6 +62,8 @@ BODY_WORDS = 24
 """32-bit words of one ``Body`` (``broadphase.wgsl``)."""
 FIRST_PAIRS = 4096
 """Fewest pairs the pairs buffer holds and the first readback copies."""
+GRID_WORDS = 12
+"""Per axis: widest box, largest and (complemented) smallest centre (``broadphase.wgsl``)."""
 MAX_KEY = 0xFFFFFFFE
 """Largest within key or group rank (0xFFFFFFFF marks the sort's padding)."""
 
@@ -220,6 +222,7 @@ class GpuBroadPhase:
         self.timeout = float(timeout)
         device = gpu.device
         self.world = Stage(gpu, "broadphase", "world_boxes", label="broad phase: world boxes")
+        self.columns = Stage(gpu, "broadphase", "columns", label="broad phase: columns")
         self.sort_local = Stage(gpu, "broadphase", "sort_local", label="broad phase: local sort")
         self.sort_step = Stage(gpu, "broadphase", "sort_step", label="broad phase: sort step")
         self.gather = Stage(gpu, "broadphase", "gather", label="broad phase: gather")
@@ -237,6 +240,8 @@ class GpuBroadPhase:
         self.pairs_buffer = grow("candidate pairs", _U.STORAGE | _U.COPY_SRC)
         self.counter = device.create_buffer(label="pair counter", size=16,
                                             usage=_U.STORAGE | _U.COPY_SRC | _U.COPY_DST)
+        self.grid = device.create_buffer(label="broad phase grid", size=4 * GRID_WORDS,
+                                         usage=_U.STORAGE | _U.COPY_DST)
         self.readback = Readback(device, "broad phase readback")
         self.readback_more = Readback(device, "broad phase pairs")
         self.capacity = FIRST_PAIRS
@@ -324,11 +329,15 @@ class GpuBroadPhase:
 
         encoder = self.gpu.device.create_command_encoder(label="broad phase")
         encoder.clear_buffer(self.counter)
+        encoder.clear_buffer(self.grid)
         cpass = encoder.begin_compute_pass(label="broad phase")
         params = (self.params.buffer, 0, 32)
         self._dispatch(cpass, self.world, self.world.group(
             params=params, bodies=self.bodies, boxes_lo=self.boxes_lo, boxes_hi=self.boxes_hi,
-            elements=self.elements), -(-count // WORKGROUP))
+            grid=self.grid), -(-n // WORKGROUP))
+        self._dispatch(cpass, self.columns, self.columns.group(
+            params=params, boxes_lo=self.boxes_lo, boxes_hi=self.boxes_hi,
+            elements=self.elements, grid=self.grid), -(-count // WORKGROUP))
         for s, (kind, k, j) in enumerate(steps, start=1):
             step = (self.params.buffer, s * PARAM_STRIDE, 16)
             if kind == "local":
@@ -370,7 +379,8 @@ class GpuBroadPhase:
         self._dispatch(cpass, self.sweep, self.sweep.group(
             params=(self.params.buffer, 0, 32), sorted_lo=self.sorted_lo,
             sorted_hi=self.sorted_hi, sorted_body=self.sorted_body, counter=self.counter,
-            pairs=self.pairs_buffer), -(-n // WORKGROUP))
+            pairs=self.pairs_buffer, elements=self.elements),
+            -(-n // WORKGROUP))
 
     @staticmethod
     def _dispatch(cpass: wgpu.GPUComputePassEncoder, stage: Stage, group: wgpu.GPUBindGroup,
