@@ -213,9 +213,33 @@ def test_100k_small_bodies(bp):
     assert len(ref) > 1000
 
 
+def test_dense_drifting_spheres(bp):
+    # The benchmark's scene: many columns across the sweep axis, pairs across their borders.
+    from pycinder.benchmarks.broadphase import drifting_spheres
+
+    lo, hi, r, poses = drifting_spheres(10_000, 2)
+    for t in poses:
+        got, ref = check(bp, lo, hi, r, t)
+        assert len(ref) > 10_000
+
+
+def test_one_large_body_among_small_ones(bp):
+    # A floor 100 across under 2000 small boxes, a few of them resting on it: the grid's cells
+    # are as wide as the floor, and every pair is still found.
+    rng = np.random.default_rng(13)
+    lo, hi, r, t = random_bodies(rng, 2001, scale=0.1, spread=50.0)
+    lo[0], hi[0] = (-50, -50, -1), (50, 50, 0)
+    r[0] = np.linalg.norm(hi[0] - lo[0]) / 2
+    t[0] = np.eye(4)
+    t[1:, 2, 3] = rng.uniform(-0.05, 2, 2000)
+    got, ref = check(bp, lo, hi, r, t)
+    assert (ref[:, 0] == 0).sum() > 50
+
+
 @pytest.mark.parametrize("bad, words", [
     (lambda a: a["t"].__setitem__((3, 0, 3), np.nan), "transforms of body 3 is not finite"),
     (lambda a: a["r"].__setitem__(2, -1.0), "radius of body 2 is negative"),
+    (lambda a: a["lo"].__setitem__((4, 1), 9.0), "local box of body 4 is empty"),
     (lambda a: a.__setitem__("lo", a["lo"][:, :2]), "local_lo must have shape (5, 3)"),
     (lambda a: a.__setitem__("w", np.zeros(4, int)), "within must be (5,) integers"),
     (lambda a: a.__setitem__("w", np.zeros(5)), "within must be (5,) integers"),

@@ -4,14 +4,25 @@ The GPU equivalent of :func:`pycinder.broadphase.world_boxes` followed by
 :func:`pycinder.broadphase.sweep_and_prune` (and the focused strategy's filter to pairs of bodies in
 different groups). Its passes (``shaders/broadphase.wgsl``), all in one command buffer:
 
-    world boxes   one thread per body: the box, in float32, grown to be conservative; the sort key
-    sort          bitonic sort of (within key, start on the sweep axis, body): one workgroup-local
-                  dispatch for blocks of 512, then per merge the steps of 512 and over globally
-                  and the rest locally (45 dispatches for 100k bodies)
+    world boxes   one thread per body: the box, in float32, grown to be conservative; the widest
+                  box and the range of centres along each axis (atomics)
+    columns       one thread per body: its sort element (within key, column, start on the sweep
+                  axis, body); a column is a cell of a 2D grid across the sweep axis, 1/16 wider
+                  than the widest box, holding the box's centre
+    sort          bitonic sort of the elements: one workgroup-local dispatch for blocks of 512,
+                  then per merge the steps of 512 and over globally and the rest locally (45
+                  dispatches for 100k bodies)
     gather        the boxes in sorted order
-    sweep         one thread per sorted box: the boxes after it that start before it ends, with
-                  its within key, are tested on all axes and groups; pairs are appended through
-                  an atomic counter
+    sweep         one thread per sorted box: in its own and the 8 neighbouring columns (a binary
+                  search each), the boxes after it in (start, body) order that start before it
+                  ends and have its within key are tested on all axes and groups; pairs are
+                  appended through an atomic counter
+
+Overlapping boxes have centres at most the widest box apart, so they lie in the same or
+neighbouring columns; of each such pair, the box that starts first finds the other, so every pair
+is found once. A sweep along the whole axis would test, in a dense 3D scene, every box against
+the O(N^(2/3)) boxes beside it along the axis; within columns it tests a few. A scene with one
+box as wide as the scene has one column and is swept along the axis as a whole (correct, slower).
 
 One readback maps the pair count and the first pairs (as many as the last call found, and a
 quarter more). More pairs are read by a second copy; more pairs than the pairs buffer holds make it
@@ -28,12 +39,13 @@ translation less the origin, every bound is moved outward by
     pad[i, k] = 2**-19 * (|t[k]| + sum_j |m[k, j]| * (max(|lo_j|, |hi_j|) + radius))
                 + 2**-40 * max(|origin|)
 
-The first term is about three times the worst rounding error of the float32 evaluation (input
-rounding, the products and sums of a row, WGSL's 2.5 ulp ``sqrt``), all bounded by the row's sum
-of magnitudes; the second covers the float64 reference's own rounding at the origin's magnitude.
-So every pair the float64 reference finds is found. A pair the reference does not find may be
-reported when its boxes are apart by at most ``2 * (pad[a] + pad[b])`` along every axis (the
-padding, and the rounding it covers): a relative 4e-6 of the coordinates' magnitude at most.
+The first term is about twice the worst rounding error of the float32 evaluation (input rounding,
+the products and sums of a row, and WGSL's ``sqrt``, which may be off by several ulps), all
+bounded by the row's sum of magnitudes; the second covers the float64 reference's own rounding at
+the origin's magnitude. So every pair the float64 reference finds is found. A pair the reference
+does not find may be reported when its boxes are apart by at most ``2 * (pad[a] + pad[b])`` along
+every axis (the padding, and the rounding it covers): about 8e-6 of the bodies' coordinates
+measured from the origin.
 """
 
 from __future__ import annotations
@@ -176,6 +188,10 @@ def _checked(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
     negative = r < 0
     if negative.any():
         raise ValueError(f"radius of body {int(np.flatnonzero(negative)[0])} is negative")
+    empty = (lo > hi).any(axis=1)
+    if empty.any():
+        raise ValueError(f"local box of body {int(np.flatnonzero(empty)[0])} is empty "
+                         "(local_lo above local_hi)")
     return lo, hi, r, t
 
 
