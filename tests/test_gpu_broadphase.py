@@ -156,9 +156,10 @@ def test_within_and_groups(bp):
     for w, g in ((within, None), (None, groups), (within, groups)):
         got, ref = check(bp, lo, hi, r, t, within=w, groups=g)
         assert len(ref) > 100
-    # Keys far apart (not a small range) keep their meaning.
-    got_wide, _ = check(bp, lo, hi, r, t, within=within * 2**40 - 7, groups=groups - 2**50)
-    assert np.array_equal(got_wide, bp.pairs(lo, hi, r, t, within=within, groups=groups))
+    # Keys far apart (not a small range) or large (their bits a float's NaN) keep their meaning.
+    plain = bp.pairs(lo, hi, r, t, within=within, groups=groups)
+    for w, g in ((within * 2**40 - 7, groups - 2**50), (within * 0x3FE00000, groups * 0x7FC00000)):
+        assert np.array_equal(check(bp, lo, hi, r, t, within=w, groups=g)[0], plain)
 
 
 def test_zero_one_two_bodies(bp):
@@ -240,6 +241,7 @@ def test_one_large_body_among_small_ones(bp):
     (lambda a: a["t"].__setitem__((3, 0, 3), np.nan), "transforms of body 3 is not finite"),
     (lambda a: a["r"].__setitem__(2, -1.0), "radius of body 2 is negative"),
     (lambda a: a["lo"].__setitem__((4, 1), 9.0), "local box of body 4 is empty"),
+    (lambda a: a["t"].__setitem__((1, 0, 1), 1e20), "transform of body 1 has coordinates beyond"),
     (lambda a: a.__setitem__("lo", a["lo"][:, :2]), "local_lo must have shape (5, 3)"),
     (lambda a: a.__setitem__("w", np.zeros(4, int)), "within must be (5,) integers"),
     (lambda a: a.__setitem__("w", np.zeros(5)), "within must be (5,) integers"),

@@ -76,6 +76,9 @@ FIRST_PAIRS = 4096
 """Fewest pairs the pairs buffer holds and the first readback copies."""
 GRID_WORDS = 12
 """Per axis: widest box, largest and (complemented) smallest centre (``broadphase.wgsl``)."""
+COORDINATE_LIMIT = 1e18
+"""Largest box, radius or transform entry (translations from the scene's centre): their float32
+products stay far from overflow."""
 MAX_KEY = 0xFFFFFFFE
 """Largest within key or group rank (0xFFFFFFFF marks the sort's padding)."""
 
@@ -119,27 +122,6 @@ def reference_pairs(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarr
     if groups is not None:
         pairs = pairs[groups[pairs[:, 0]] != groups[pairs[:, 1]]]
     return pairs
-
-
-def padding(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
-            transforms: np.ndarray) -> np.ndarray:
-    """How far :class:`GpuBroadPhase` grows each world box outward (the module's formula).
-
-    Parameters
-    ----------
-    local_lo, local_hi : (N, 3) float
-    radius : (N,) float
-    transforms : (N, 4, 4) float
-
-    Returns
-    -------
-    (N, 3) float64
-        Padding per body and world axis.
-    """
-    rows, origin = _rows(np.asarray(transforms, dtype=np.float64))
-    reach = np.maximum(np.abs(local_lo), np.abs(local_hi)) + np.asarray(radius)[:, None]
-    s = np.abs(rows[:, :, 3]) + np.einsum("nkj,nj->nk", np.abs(rows[:, :, :3]), reach)
-    return PAD_SCALE * s + ORIGIN_PAD_SCALE * float(np.abs(origin).max(initial=0.0))
 
 
 def _rows(transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -291,7 +273,8 @@ class GpuBroadPhase:
         Raises
         ------
         ValueError
-            Inputs of the wrong shape, not finite, or a negative radius (naming the body).
+            Inputs of the wrong shape, not finite, beyond :data:`COORDINATE_LIMIT`, an empty
+            local box or a negative radius (naming the body).
         GpuMemoryError
             More pairs (or bodies) than one buffer of this device holds.
         GpuTimeoutError
@@ -310,8 +293,11 @@ class GpuBroadPhase:
         words[:, 16:19] = hi
         keys = words[:, 20:22].view(np.uint32)
         keys[:, 0], keys[:, 1] = within_keys, group_keys
-        if not np.isfinite(words).all() or np.abs(words[:, :19]).max() > 1e30:
-            raise ValueError("box or transform coordinates beyond float32's range")
+        if np.abs(words[:, :19]).max() > COORDINATE_LIMIT:
+            worst = int(np.argmax(np.abs(words[:, :19]).max(axis=1)))
+            raise ValueError(f"box or transform of body {worst} has coordinates beyond "
+                             f"{COORDINATE_LIMIT:g} (from the scene's centre): too large for "
+                             "the float32 broad phase")
         axis = int(np.argmax(t[:, :3, 3].var(axis=0)))
         base_pad = ORIGIN_PAD_SCALE * float(np.abs(origin).max())
         with self.gpu.lock:
@@ -442,4 +428,4 @@ class GpuBroadPhase:
         return {"count": count, "pairs": pairs}
 
 
-__all__ = ["BroadPhaseStats", "GpuBroadPhase", "padding", "reference_pairs", "sort_steps"]
+__all__ = ["BroadPhaseStats", "GpuBroadPhase", "reference_pairs", "sort_steps"]
