@@ -124,15 +124,6 @@ def reference_pairs(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarr
     return pairs
 
 
-def _rows(transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(N, 3, 4) world-from-body rows with the translation less the origin, and the origin."""
-    rows = transforms[:, :3, :].copy()
-    t = rows[:, :, 3]
-    origin = 0.5 * (t.min(axis=0) + t.max(axis=0)) if len(t) else np.zeros(3)
-    rows[:, :, 3] -= origin
-    return rows, origin
-
-
 def _ranks(keys: np.ndarray | None, name: str, n: int) -> np.ndarray:
     """Integer keys as uint32 ranks that keep equality (0 where none are given)."""
     if keys is None:
@@ -153,7 +144,7 @@ def _ranks(keys: np.ndarray | None, name: str, n: int) -> np.ndarray:
 def _checked(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
              transforms: np.ndarray) -> tuple[np.ndarray, ...]:
     """The inputs as float64 arrays of agreeing shapes; a clear error naming the first bad body
-    otherwise."""
+    otherwise (values that are not finite are looked for by :func:`_packed`)."""
     lo = np.asarray(local_lo, dtype=np.float64)
     hi = np.asarray(local_hi, dtype=np.float64)
     r = np.asarray(radius, dtype=np.float64)
@@ -164,9 +155,6 @@ def _checked(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
         if n < 0 or a.shape != shape:
             raise ValueError(f"{name} must have shape {shape if n >= 0 else '(N,)'}, got "
                              f"{a.shape}")
-        bad = ~np.isfinite(a).all(axis=tuple(range(1, a.ndim)))
-        if bad.any():
-            raise ValueError(f"{name} of body {int(np.flatnonzero(bad)[0])} is not finite")
     negative = r < 0
     if negative.any():
         raise ValueError(f"radius of body {int(np.flatnonzero(negative)[0])} is negative")
@@ -175,6 +163,44 @@ def _checked(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
         raise ValueError(f"local box of body {int(np.flatnonzero(empty)[0])} is empty "
                          "(local_lo above local_hi)")
     return lo, hi, r, t
+
+
+def _packed(lo: np.ndarray, hi: np.ndarray, r: np.ndarray, t: np.ndarray,
+            within_keys: np.ndarray, group_keys: np.ndarray) -> tuple[np.ndarray, int, np.ndarray]:
+    """The bodies as ``broadphase.wgsl`` reads them, the sweep axis and the origin.
+
+    Returns
+    -------
+    words : (N, BODY_WORDS) float32
+        Transform rows (translation less the origin, subtracted in float64), local box, radius,
+        keys (as uint32 bits).
+    axis : int
+        The axis along which the translations spread most.
+    origin : (3,) float64
+        The midpoint of the translations' range.
+    """
+    n = len(r)
+    translation = t[:, :3, 3].copy()
+    origin = 0.5 * (translation.min(axis=0) + translation.max(axis=0))
+    words = np.zeros((n, BODY_WORDS), dtype=np.float32)
+    words[:, :12] = t[:, :3, :].reshape(n, 12)
+    words[:, 3:12:4] = translation - origin
+    words[:, 12:15], words[:, 15] = lo, r
+    words[:, 16:19] = hi
+    keys = words[:, 20:22].view(np.uint32)
+    keys[:, 0], keys[:, 1] = within_keys, group_keys
+    bad = ~(np.abs(words[:, :19]) <= COORDINATE_LIMIT).all(axis=1)  # NaN too
+    if bad.any():
+        for name, a in (("transforms", t), ("local_lo", lo), ("local_hi", hi), ("radius", r)):
+            finite = np.isfinite(a).reshape(n, -1).all(axis=1)
+            if not finite.all():
+                raise ValueError(f"{name} of body {int(np.flatnonzero(~finite)[0])} is not "
+                                 "finite")
+        raise ValueError(f"box or transform of body {int(np.flatnonzero(bad)[0])} has "
+                         f"coordinates beyond {COORDINATE_LIMIT:g} (from the scene's centre): "
+                         "too large for the float32 broad phase")
+    axis = int(np.argmax(translation.var(axis=0)))
+    return words, axis, origin
 
 
 @dataclass
@@ -286,19 +312,7 @@ class GpuBroadPhase:
         self.stats = BroadPhaseStats()
         if n < 2:
             return np.zeros((0, 2), dtype=np.int64)
-        rows, origin = _rows(t)
-        words = np.zeros((n, BODY_WORDS), dtype=np.float32)
-        words[:, :12] = rows.reshape(n, 12)
-        words[:, 12:15], words[:, 15] = lo, r
-        words[:, 16:19] = hi
-        keys = words[:, 20:22].view(np.uint32)
-        keys[:, 0], keys[:, 1] = within_keys, group_keys
-        if np.abs(words[:, :19]).max() > COORDINATE_LIMIT:
-            worst = int(np.argmax(np.abs(words[:, :19]).max(axis=1)))
-            raise ValueError(f"box or transform of body {worst} has coordinates beyond "
-                             f"{COORDINATE_LIMIT:g} (from the scene's centre): too large for "
-                             "the float32 broad phase")
-        axis = int(np.argmax(t[:, :3, 3].var(axis=0)))
+        words, axis, origin = _packed(lo, hi, r, t, within_keys, group_keys)
         base_pad = ORIGIN_PAD_SCALE * float(np.abs(origin).max())
         with self.gpu.lock:
             found = self._run(words, n, axis, base_pad, groups is not None)

@@ -80,40 +80,50 @@ fn unordered(u: u32) -> f32 {
     return bitcast<f32>(select(~u, u & 0x7FFFFFFFu, (u & 0x80000000u) != 0u));
 }
 
+var<workgroup> local_grid: array<atomic<u32>, 12>;  // this workgroup's share of `grid`
+
 @compute @workgroup_size(WORKGROUP)
 fn world_boxes(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
+    if (lid < 12u) {
+        atomicStore(&local_grid[lid], 0u);
+    }
+    workgroupBarrier();
     let i = thread_index(wg, lid, WORKGROUP);
-    if (i >= params.n) {
-        return;
+    if (i < params.n) {
+        let b = bodies[i];
+        let lo = b.lo.xyz;
+        let hi = b.hi.xyz;
+        let radius = b.lo.w;
+        let centre = 0.5 * (lo + hi);
+        let reach = max(abs(lo), abs(hi));
+        var wlo: vec3f;
+        var whi: vec3f;
+        for (var k = 0u; k < 3u; k++) {
+            let row = b.rows[k];
+            let m = row.xyz;
+            // The transformed box's extent along world axis k (the corners' extremes)...
+            let box_lo = row.w + dot(min(m * lo, m * hi), vec3f(1.0));
+            let box_hi = row.w + dot(max(m * lo, m * hi), vec3f(1.0));
+            // ...and the transformed sphere's (an ellipsoid: radius times the row's norm).
+            let c = row.w + dot(m, centre);
+            let half = radius * length(m);
+            // Grown by the rounding bound of this row's arithmetic (see broadphase.py).
+            let pad = PAD_SCALE * (abs(row.w) + dot(abs(m), reach + vec3f(radius)))
+                + params.base_pad;
+            wlo[k] = max(box_lo, c - half) - pad;
+            whi[k] = min(box_hi, c + half) + pad;
+            atomicMax(&local_grid[k], bitcast<u32>(max(whi[k] - wlo[k], 0.0)));
+            let mid = ordered(0.5 * (wlo[k] + whi[k]));
+            atomicMax(&local_grid[4u + k], mid);
+            atomicMax(&local_grid[8u + k], ~mid);
+        }
+        boxes_lo[i] = vec4f(wlo, bitcast<f32>(b.keys.x));
+        boxes_hi[i] = vec4f(whi, bitcast<f32>(b.keys.y));
     }
-    let b = bodies[i];
-    let lo = b.lo.xyz;
-    let hi = b.hi.xyz;
-    let radius = b.lo.w;
-    let centre = 0.5 * (lo + hi);
-    let reach = max(abs(lo), abs(hi));
-    var wlo: vec3f;
-    var whi: vec3f;
-    for (var k = 0u; k < 3u; k++) {
-        let row = b.rows[k];
-        let m = row.xyz;
-        // The transformed box's extent along world axis k (the corners' extremes)...
-        let box_lo = row.w + dot(min(m * lo, m * hi), vec3f(1.0));
-        let box_hi = row.w + dot(max(m * lo, m * hi), vec3f(1.0));
-        // ...and the transformed sphere's (an ellipsoid: radius times the row's norm).
-        let c = row.w + dot(m, centre);
-        let half = radius * length(m);
-        // Grown by the rounding bound of this row's arithmetic (see broadphase.py).
-        let pad = PAD_SCALE * (abs(row.w) + dot(abs(m), reach + vec3f(radius))) + params.base_pad;
-        wlo[k] = max(box_lo, c - half) - pad;
-        whi[k] = min(box_hi, c + half) + pad;
-        atomicMax(&grid[k], bitcast<u32>(max(whi[k] - wlo[k], 0.0)));
-        let mid = ordered(0.5 * (wlo[k] + whi[k]));
-        atomicMax(&grid[4u + k], mid);
-        atomicMax(&grid[8u + k], ~mid);
+    workgroupBarrier();
+    if (lid < 12u) {
+        atomicMax(&grid[lid], atomicLoad(&local_grid[lid]));
     }
-    boxes_lo[i] = vec4f(wlo, bitcast<f32>(b.keys.x));
-    boxes_hi[i] = vec4f(whi, bitcast<f32>(b.keys.y));
 }
 
 struct Cells {
