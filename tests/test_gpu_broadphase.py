@@ -251,3 +251,29 @@ def test_bad_input_is_named(bp, bad, words):
     bad(a)
     with pytest.raises(ValueError, match=words.replace("(", r"\(").replace(")", r"\)")):
         bp.pairs(a["lo"], a["hi"], a["r"], a["t"], within=a["w"])
+
+
+def test_dispatches_over_several_rows_of_workgroups(monkeypatch):
+    # Large scenes lay workgroups out in rows of ROW; with a row of 3 workgroups, every pass of a
+    # small scene spans several rows, and the last row's extra workgroups must do nothing.
+    from pycinder import layout
+    from pycinder.gpu.device import get_gpu, shader_source
+    from pycinder.passes import bindings
+    from pycinder.passes import broadphase as stage
+
+    key = (id(get_gpu().device), "broadphase")
+
+    def forget() -> None:
+        shader_source.cache_clear()
+        bindings.Stage._modules.pop(key, None)
+
+    monkeypatch.setattr(layout, "ROW", 3)
+    monkeypatch.setattr(stage, "ROW", 3)
+    forget()
+    try:
+        small_rows = stage.GpuBroadPhase()
+        rng = np.random.default_rng(14)
+        check(small_rows, *random_bodies(rng, 5000 - 37))  # 16 sort blocks in 18 workgroups
+    finally:
+        monkeypatch.undo()
+        forget()

@@ -358,7 +358,8 @@ class GpuBroadPhase:
             step = (self.params.buffer, s * PARAM_STRIDE, 16)
             if kind == "local":
                 self._dispatch(cpass, self.sort_local, self.sort_local.group(
-                    f"step {s}", step=step, elements=self.elements), count // SORT_BLOCK)
+                    f"step {s}", params=params, step=step, elements=self.elements),
+                    count // SORT_BLOCK)
             else:
                 self._dispatch(cpass, self.sort_step, self.sort_step.group(
                     f"step {s}", params=params, step=step, elements=self.elements),

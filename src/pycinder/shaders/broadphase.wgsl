@@ -190,6 +190,9 @@ var<workgroup> block: array<vec4u, SORT_BLOCK>;
 @compute @workgroup_size(SORT_THREADS)
 fn sort_local(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
     let base = (wg.y * ROW + wg.x) * SORT_BLOCK;
+    if (base >= params.count) {
+        return;  // past the last block, in the last row of workgroups (uniform per workgroup)
+    }
     block[lid] = elements[base + lid];
     block[lid + SORT_THREADS] = elements[base + lid + SORT_THREADS];
     workgroupBarrier();
