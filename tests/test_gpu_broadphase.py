@@ -277,3 +277,13 @@ def test_dispatches_over_several_rows_of_workgroups(monkeypatch):
     finally:
         monkeypatch.undo()
         forget()
+
+
+def test_benchmark_scene_compares_answers_and_reports():
+    from pycinder.benchmarks.broadphase import markdown, run_broadphase
+
+    r = run_broadphase(counts=(500,), frames=2)
+    (row,) = r["rows"]
+    assert row["missed_pairs"] == 0 and row["pairs"] > 500
+    assert row["submissions_maps_reruns"] == [[1, 1, 0]]
+    assert "| 500 | 2 |" in "\n".join(markdown(r))

@@ -12,6 +12,7 @@ are counted.
 
 from __future__ import annotations
 
+import re
 import statistics
 import time
 from collections.abc import Callable, Sequence
@@ -85,7 +86,8 @@ def run_broadphase(counts: Sequence[int] = COUNTS, frames: int = 5,
                      "ratio": med["numpy"] / med["gpu"], "pairs": int(statistics.median(pairs)),
                      "missed_pairs": int(sum(missed)), "extra_pairs": int(sum(extra)),
                      "submissions_maps_reruns": [list(x) for x in sorted(set(trips))]})
-    return {"description": __doc__.split("\n\n")[1].replace("\n", " "),
+    about = re.sub(r":\w+:`", "`", __doc__.split("\n\n")[1]).replace("``", "`")
+    return {"description": about.replace("\n", " ").strip(),
             "adapter": get_gpu().description, "rows": rows}
 
 
