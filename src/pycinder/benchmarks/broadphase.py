@@ -113,7 +113,7 @@ def markdown(r: dict[str, Any]) -> list[str]:
               "across the axis (a few boxes each; see `pycinder.passes.broadphase`): at 10,000 "
               "and 100,000 bodies most of the ratio is that difference of algorithm."]
     if "CPU" in r["adapter"]:
-        lines += ["", "This adapter runs the GPU's work on the CPU (a software rasterizer), on the "
-                  "same cores as NumPy: the GPU stage's times here say what its passes cost "
-                  "without a GPU, not what a GPU makes of them."]
+        lines += ["", "This adapter implements the GPU API in software: the GPU stage's passes run "
+                  "on the same CPU cores as NumPy, so its times here say what the stage costs "
+                  "without a GPU, not what a GPU makes of it."]
     return lines + [""]
