@@ -74,11 +74,16 @@ BODY_WORDS = 24
 """32-bit words of one ``Body`` (``broadphase.wgsl``)."""
 FIRST_PAIRS = 4096
 """Fewest pairs the pairs buffer holds and the first readback copies."""
-GRID_WORDS = 12
-"""Per axis: widest box, largest and (complemented) smallest centre (``broadphase.wgsl``)."""
+GRID_WORDS = 304
+"""Words of the grid buffer: centre ranges, the grid's set-up, the width histogram
+(``broadphase.wgsl``)."""
+GRID_SETUP = 12
+"""Word of the grid buffer where the set-up starts (cell sizes, wide threshold, wide count)."""
 COORDINATE_LIMIT = 1e18
 """Largest box, radius or transform entry (translations from the scene's centre): their float32
 products stay far from overflow."""
+HOST_CHUNK = 1 << 22
+"""Box tests per NumPy step when the host finishes unfinished sweeps."""
 MAX_KEY = 0xFFFFFFFE
 """Largest within key or group rank (0xFFFFFFFF marks the sort's padding)."""
 
@@ -218,6 +223,12 @@ class BroadPhaseStats:
     bytes_read : int
     axis : int
         The sweep axis.
+    cell_size : tuple of float
+        Size of the grid's cells on the two other axes (the next two after ``axis``).
+    wide_bodies : int
+        Bodies kept out of the grid for their width (each tested against every other).
+    unfinished : int
+        Bodies whose sweep ran out of its budget of steps and was finished on the host.
     """
 
     pairs: int = 0
@@ -226,6 +237,9 @@ class BroadPhaseStats:
     reruns: int = 0
     bytes_read: int = 0
     axis: int = 0
+    cell_size: tuple[float, float] = (0.0, 0.0)
+    wide_bodies: int = 0
+    unfinished: int = 0
 
 
 class GpuBroadPhase:
@@ -246,11 +260,13 @@ class GpuBroadPhase:
         self.timeout = float(timeout)
         device = gpu.device
         self.world = Stage(gpu, "broadphase", "world_boxes", label="broad phase: world boxes")
+        self.grid_setup = Stage(gpu, "broadphase", "grid_setup", label="broad phase: grid")
         self.columns = Stage(gpu, "broadphase", "columns", label="broad phase: columns")
         self.sort_local = Stage(gpu, "broadphase", "sort_local", label="broad phase: local sort")
         self.sort_step = Stage(gpu, "broadphase", "sort_step", label="broad phase: sort step")
         self.gather = Stage(gpu, "broadphase", "gather", label="broad phase: gather")
         self.sweep = Stage(gpu, "broadphase", "sweep", label="broad phase: sweep")
+        self.wide_sweep = Stage(gpu, "broadphase", "wide_sweep", label="broad phase: wide boxes")
 
         def grow(label: str, usage: int = _U.STORAGE) -> GrowableBuffer:
             return GrowableBuffer(device, label, usage)
@@ -259,17 +275,21 @@ class GpuBroadPhase:
         self.bodies = grow("broad phase bodies", _U.STORAGE | _U.COPY_DST)
         self.boxes_lo, self.boxes_hi = grow("world box minima"), grow("world box maxima")
         self.elements = grow("sort elements")
-        self.sorted_lo, self.sorted_hi = grow("sorted minima"), grow("sorted maxima")
-        self.sorted_body = grow("sorted bodies")
+        readable = _U.STORAGE | _U.COPY_SRC
+        self.sorted_lo = grow("sorted minima", readable)
+        self.sorted_hi = grow("sorted maxima", readable)
+        self.sorted_body = grow("sorted bodies", readable)
+        self.unfinished = grow("unfinished sweeps", readable)
         self.pairs_buffer = grow("candidate pairs", _U.STORAGE | _U.COPY_SRC)
         self.counter = device.create_buffer(label="pair counter", size=16,
                                             usage=_U.STORAGE | _U.COPY_SRC | _U.COPY_DST)
         self.grid = device.create_buffer(label="broad phase grid", size=4 * GRID_WORDS,
-                                         usage=_U.STORAGE | _U.COPY_DST)
+                                         usage=_U.STORAGE | _U.COPY_SRC | _U.COPY_DST)
         self.readback = Readback(device, "broad phase readback")
         self.readback_more = Readback(device, "broad phase pairs")
         self.capacity = FIRST_PAIRS
         self.recent = 0
+        self.use_groups = False
         self.stats = BroadPhaseStats()
 
     def pairs(self, local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
@@ -314,12 +334,16 @@ class GpuBroadPhase:
             return np.zeros((0, 2), dtype=np.int64)
         words, axis, origin = _packed(lo, hi, r, t, within_keys, group_keys)
         base_pad = ORIGIN_PAD_SCALE * float(np.abs(origin).max())
+        self.use_groups = groups is not None
         with self.gpu.lock:
-            found = self._run(words, n, axis, base_pad, groups is not None)
+            found = self._run(words, n, axis, base_pad, self.use_groups)
         self.stats.axis = axis
-        self.stats.pairs = len(found)
         key = found[:, 0].astype(np.int64) * n + found[:, 1]
-        key.sort()
+        if self.stats.unfinished:
+            key = np.unique(key)  # the host's pairs of unfinished sweeps repeat some
+        else:
+            key.sort()
+        self.stats.pairs = len(key)
         return np.stack(np.divmod(key, n), axis=1)
 
     # -- GPU work -------------------------------------------------------------------------------
@@ -340,6 +364,7 @@ class GpuBroadPhase:
         for buf in (self.boxes_lo, self.boxes_hi, self.sorted_lo, self.sorted_hi):
             buf.ensure(16 * n)
         self.sorted_body.ensure(4 * n)
+        self.unfinished.ensure(4 * n)
         self.elements.ensure(16 * count)
         self.pairs_buffer.ensure(8 * self.capacity)
 
@@ -351,6 +376,8 @@ class GpuBroadPhase:
         self._dispatch(cpass, self.world, self.world.group(
             params=params, bodies=self.bodies, boxes_lo=self.boxes_lo, boxes_hi=self.boxes_hi,
             grid=self.grid), -(-n // WORKGROUP))
+        self._dispatch(cpass, self.grid_setup, self.grid_setup.group(params=params, grid=self.grid),
+                       1)
         self._dispatch(cpass, self.columns, self.columns.group(
             params=params, boxes_lo=self.boxes_lo, boxes_hi=self.boxes_hi,
             elements=self.elements, grid=self.grid), -(-count // WORKGROUP))
@@ -367,7 +394,8 @@ class GpuBroadPhase:
         self._dispatch(cpass, self.gather, self.gather.group(
             params=params, elements=self.elements, boxes_lo=self.boxes_lo,
             boxes_hi=self.boxes_hi, sorted_lo=self.sorted_lo, sorted_hi=self.sorted_hi,
-            sorted_body=self.sorted_body), -(-n // WORKGROUP))
+            sorted_body=self.sorted_body, counter=self.counter, grid=self.grid),
+            -(-n // WORKGROUP))
         self._encode_sweep(cpass, n)
         cpass.end()
         first = min(max(FIRST_PAIRS, self.recent * 5 // 4), self.capacity)
@@ -393,11 +421,13 @@ class GpuBroadPhase:
         return total["pairs"]
 
     def _encode_sweep(self, cpass: wgpu.GPUComputePassEncoder, n: int) -> None:
+        common = dict(params=(self.params.buffer, 0, 32), sorted_lo=self.sorted_lo,
+                      sorted_hi=self.sorted_hi, sorted_body=self.sorted_body,
+                      counter=self.counter, pairs=self.pairs_buffer, elements=self.elements)
         self._dispatch(cpass, self.sweep, self.sweep.group(
-            params=(self.params.buffer, 0, 32), sorted_lo=self.sorted_lo,
-            sorted_hi=self.sorted_hi, sorted_body=self.sorted_body, counter=self.counter,
-            pairs=self.pairs_buffer, elements=self.elements),
-            -(-n // WORKGROUP))
+            **common, unfinished=self.unfinished), -(-n // WORKGROUP))
+        self._dispatch(cpass, self.wide_sweep, self.wide_sweep.group(**common, grid=self.grid),
+                       -(-n // WORKGROUP))
 
     @staticmethod
     def _dispatch(cpass: wgpu.GPUComputePassEncoder, stage: Stage, group: wgpu.GPUBindGroup,
@@ -411,9 +441,10 @@ class GpuBroadPhase:
         rest (when the buffer held them) with a second copy. Returns the count and the pairs,
         (count, 2) uint32 (None when the buffer did not hold them)."""
         device = self.gpu.device
-        head = 16
+        head = 32
         staging = self.readback.ensure(head + 8 * first)
-        encoder.copy_buffer_to_buffer(self.counter, 0, staging, 0, head)
+        encoder.copy_buffer_to_buffer(self.counter, 0, staging, 0, 16)
+        encoder.copy_buffer_to_buffer(self.grid, 4 * GRID_SETUP, staging, 16, 16)
         if first:
             encoder.copy_buffer_to_buffer(self.pairs_buffer.buffer, 0, staging, head, 8 * first)
         device.queue.submit([encoder.finish()])
@@ -423,10 +454,16 @@ class GpuBroadPhase:
         data = self.readback.read(nbytes, timeout=self.timeout, waiting_for=waiting)
         self.stats.maps += 1
         self.stats.bytes_read += nbytes
-        count = int(data[0])
+        count, unfinished = int(data[0]), int(data[2])
+        if data[3]:
+            raise RuntimeError(f"the broad phase listed {int(data[1])} wide bodies, more than "
+                               f"the {int(data[7])} it counted")
+        self.stats.cell_size = tuple(float(x) for x in data[4:6].view(np.float32))
+        self.stats.wide_bodies = int(data[7])
+        self.stats.unfinished = unfinished
         if count > self.capacity:
             return {"count": count, "pairs": None}  # the caller grows the buffer
-        pairs = data[4:4 + 2 * min(count, first)].reshape(-1, 2)
+        pairs = data[head // 4:head // 4 + 2 * min(count, first)].reshape(-1, 2)
         if count > first:
             rest = count - first
             encoder = device.create_command_encoder(label="broad phase pairs")
@@ -440,7 +477,48 @@ class GpuBroadPhase:
             self.stats.maps += 1
             self.stats.bytes_read += 8 * rest
             pairs = np.concatenate([pairs, more.reshape(-1, 2)])
+        if unfinished:
+            pairs = np.concatenate([pairs, self._finish(unfinished, n, waiting)])
         return {"count": count, "pairs": pairs}
+
+    def _finish(self, unfinished: int, n: int, waiting: str) -> np.ndarray:
+        """The pairs of the boxes whose sweep ran out of its budget, found on the host from the
+        GPU's boxes (all of each box's pairs: duplicates of those the GPU found are removed
+        later). Returns (K, 2) uint32 bodies."""
+        device = self.gpu.device
+        parts = [(self.unfinished, 4 * unfinished), (self.sorted_lo, 16 * n),
+                 (self.sorted_hi, 16 * n), (self.sorted_body, 4 * n)]
+        staging = self.readback_more.ensure(sum(size for _, size in parts))
+        encoder = device.create_command_encoder(label="broad phase boxes")
+        offset = 0
+        for buf, size in parts:
+            encoder.copy_buffer_to_buffer(buf.buffer, 0, staging, offset, size)
+            offset += size
+        device.queue.submit([encoder.finish()])
+        data = self.readback_more.read(offset, timeout=self.timeout,
+                                       waiting_for=f"the boxes of {waiting}")
+        self.stats.submissions += 1
+        self.stats.maps += 1
+        self.stats.bytes_read += offset
+        which = data[:unfinished].astype(np.int64)
+        lo = data[unfinished:unfinished + 4 * n].view(np.float32).reshape(n, 4)
+        hi = data[unfinished + 4 * n:unfinished + 8 * n].view(np.float32).reshape(n, 4)
+        body = data[unfinished + 8 * n:]
+        within, group = lo[:, 3].view(np.uint32), hi[:, 3].view(np.uint32)
+        found = []
+        step = max(1, HOST_CHUNK // n)
+        for start in range(0, unfinished, step):
+            p = which[start:start + step]
+            meet = (lo[None, :, :3] <= hi[p, None, :3]).all(axis=2) \
+                & (lo[p, None, :3] <= hi[None, :, :3]).all(axis=2) \
+                & (within[None, :] == within[p, None])
+            if self.use_groups:
+                meet &= group[None, :] != group[p, None]
+            meet[np.arange(len(p)), p] = False
+            i, j = np.nonzero(meet)
+            a, b = body[p[i]], body[j]
+            found.append(np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1))
+        return np.concatenate(found)
 
 
 __all__ = ["BroadPhaseStats", "GpuBroadPhase", "reference_pairs", "sort_steps"]

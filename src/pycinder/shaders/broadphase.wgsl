@@ -59,11 +59,30 @@ struct SortStep {
 @group(0) @binding(8) var<storage, read_write> sorted_body: array<u32>;
 @group(0) @binding(9) var<storage, read_write> counter: array<atomic<u32>, 4>;
 @group(0) @binding(10) var<storage, read_write> pairs: array<vec2u>;
-// Per axis: the largest box extent (f32 bits), the largest centre (order-preserving bits) and the
-// complement of the smallest (so that every entry starts at 0 and grows by atomicMax).
-@group(0) @binding(11) var<storage, read_write> grid: array<atomic<u32>, 12>;
+// Grid words: per axis k, the largest box centre (order-preserving bits) at G_HIGH + k and the
+// complement of the smallest at G_LOW + k (every word starts at 0 and grows by atomicMax); the
+// histogram of the boxes' widths across the sweep axis (by their float bits >> HIST_SHIFT, from
+// 2^-31 to 2^33 in quarter octaves; narrower and wider ones in the first and last bins); and
+// what grid_setup makes of them at G_SETUP: the cell size on the two column axes, the width from
+// which a box is wide (f32 bits), and how many boxes are wide.
+@group(0) @binding(11) var<storage, read_write> grid: array<atomic<u32>, GRID_WORDS>;
+// Sorted positions of the boxes whose sweep ran out of its budget (counter[2] of them).
+@group(0) @binding(12) var<storage, read_write> unfinished: array<u32>;
 
-const COLUMN_CELLS: f32 = 65000.0;  // most cells along an axis (16 bits of the column)
+const G_HIGH: u32 = 4u;
+const G_LOW: u32 = 8u;
+const G_SETUP: u32 = 12u;
+const G_HIST: u32 = 16u;
+const HIST_BINS: u32 = 256u;
+const HIST_SHIFT: u32 = 21u;        // float bits >> 21: quarter octaves
+const HIST_OFFSET: u32 = 384u;      // the first bin's (2^-31)
+const G_WIDE: u32 = 272u;           // G_HIST + HIST_BINS: sorted positions of the wide boxes
+const GRID_WORDS: u32 = 304u;       // G_WIDE + WIDE_BODIES
+const SWEEP_BUDGET: u32 = 4096u;    // loop steps of one box's sweep (see the sweep)
+const WIDE_BODIES: u32 = 32u;       // most boxes kept out of the grid for their width
+const WIDE: u32 = 0xFFFFFFFFu;      // the column of wide boxes (after every cell's)
+const MAX_CELL: i32 = 65534;        // cells per axis, 0..MAX_CELL (16 bits of the column)
+const COLUMN_CELLS: f32 = 65000.0;  // cells along an axis at most, before clamping
 const COLUMN_MARGIN: f32 = 1.0625;  // cells wider than the widest box, by more than rounding
 
 fn thread_index(wg: vec3u, lid: u32, size: u32) -> u32 {
@@ -80,12 +99,23 @@ fn unordered(u: u32) -> f32 {
     return bitcast<f32>(select(~u, u & 0x7FFFFFFFu, (u & 0x80000000u) != 0u));
 }
 
-var<workgroup> local_grid: array<atomic<u32>, 12>;  // this workgroup's share of `grid`
+// The box's width across the sweep axis (the larger of its widths on the two column axes).
+fn width(lo: vec3f, hi: vec3f) -> f32 {
+    let a = (params.axis + 1u) % 3u;
+    let b = (params.axis + 2u) % 3u;
+    return max(max(hi[a] - lo[a], hi[b] - lo[b]), 0.0);
+}
+
+var<workgroup> local_grid: array<atomic<u32>, G_SETUP>;   // this workgroup's centre extremes
+var<workgroup> local_hist: array<atomic<u32>, HIST_BINS>;  // and widths
 
 @compute @workgroup_size(WORKGROUP)
 fn world_boxes(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
-    if (lid < 12u) {
+    if (lid < G_SETUP) {
         atomicStore(&local_grid[lid], 0u);
+    }
+    for (var h = lid; h < HIST_BINS; h += WORKGROUP) {
+        atomicStore(&local_hist[h], 0u);
     }
     workgroupBarrier();
     let i = thread_index(wg, lid, WORKGROUP);
@@ -112,44 +142,54 @@ fn world_boxes(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index
                 + params.base_pad;
             wlo[k] = max(box_lo, c - half) - pad;
             whi[k] = min(box_hi, c + half) + pad;
-            atomicMax(&local_grid[k], bitcast<u32>(max(whi[k] - wlo[k], 0.0)));
             let mid = ordered(0.5 * (wlo[k] + whi[k]));
-            atomicMax(&local_grid[4u + k], mid);
-            atomicMax(&local_grid[8u + k], ~mid);
+            atomicMax(&local_grid[G_HIGH + k], mid);
+            atomicMax(&local_grid[G_LOW + k], ~mid);
         }
+        let bits = bitcast<u32>(width(wlo, whi)) >> HIST_SHIFT;
+        atomicAdd(&local_hist[min(max(bits, HIST_OFFSET) - HIST_OFFSET, HIST_BINS - 1u)], 1u);
         boxes_lo[i] = vec4f(wlo, bitcast<f32>(b.keys.x));
         boxes_hi[i] = vec4f(whi, bitcast<f32>(b.keys.y));
     }
     workgroupBarrier();
-    if (lid < 12u) {
+    if (lid >= G_HIGH && lid < G_SETUP) {
         atomicMax(&grid[lid], atomicLoad(&local_grid[lid]));
     }
+    for (var h = lid; h < HIST_BINS; h += WORKGROUP) {
+        let count = atomicLoad(&local_hist[h]);
+        if (count != 0u) {
+            atomicAdd(&grid[G_HIST + h], count);
+        }
+    }
 }
 
-struct Cells {
-    start: vec2f,   // smallest centre on the two column axes
-    size: vec2f,    // cell size on them
-};
-
-fn cells() -> Cells {
-    var out: Cells;
+// One thread: the widest boxes (at most WIDE_BODIES, whole histogram bins, unless more than that
+// are wider than the last bin's start) are kept out of the grid, whose cells are then as wide as
+// the widest of the others (the upper edge of its bin). The columns pass decides which boxes are
+// wide by the same threshold, so the cells hold every other box whatever the histogram says.
+@compute @workgroup_size(1)
+fn grid_setup() {
+    var wide = 0u;
+    var threshold = 0.0;  // every box is wide when there are few
+    for (var h = HIST_BINS; h > 0u; h--) {
+        let count = atomicLoad(&grid[G_HIST + h - 1u]);
+        if (wide + count > WIDE_BODIES) {
+            // The bin's upper edge; above the last bin (which holds every wider box), infinity.
+            threshold = select(bitcast<f32>((h + HIST_OFFSET) << HIST_SHIFT),
+                               bitcast<f32>(0x7F800000u), h == HIST_BINS);
+            break;
+        }
+        wide += count;
+    }
     for (var e = 0u; e < 2u; e++) {
         let k = (params.axis + 1u + e) % 3u;
-        let widest = bitcast<f32>(atomicLoad(&grid[k]));
-        let low = unordered(~atomicLoad(&grid[8u + k]));
-        let high = unordered(atomicLoad(&grid[4u + k]));
-        out.start[e] = low;
-        out.size[e] = max(max(widest * COLUMN_MARGIN, (high - low) / COLUMN_CELLS), 1e-30);
+        let low = unordered(~atomicLoad(&grid[G_LOW + k]));
+        let high = unordered(atomicLoad(&grid[G_HIGH + k]));
+        let size = max(max(threshold * COLUMN_MARGIN, (high - low) / COLUMN_CELLS), 1e-30);
+        atomicStore(&grid[G_SETUP + e], bitcast<u32>(size));
     }
-    return out;
-}
-
-fn cell_of(c: Cells, lo: vec4f, hi: vec4f) -> vec2i {
-    let mid = 0.5 * (lo.xyz + hi.xyz);
-    let a = (params.axis + 1u) % 3u;
-    let b = (params.axis + 2u) % 3u;
-    let p = (vec2f(mid[a], mid[b]) - c.start) / c.size;
-    return clamp(vec2i(floor(p)), vec2i(0), vec2i(65535));
+    atomicStore(&grid[G_SETUP + 2u], bitcast<u32>(threshold));
+    atomicStore(&grid[G_SETUP + 3u], wide);
 }
 
 fn column_key(cell: vec2i) -> u32 {
@@ -168,8 +208,19 @@ fn columns(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) li
     }
     let lo = boxes_lo[i];
     let hi = boxes_hi[i];
-    let cell = cell_of(cells(), lo, hi);
-    elements[i] = vec4u(bitcast<u32>(lo.w), column_key(cell), ordered(lo[params.axis]), i);
+    var column = WIDE;
+    if (width(lo.xyz, hi.xyz) < bitcast<f32>(atomicLoad(&grid[G_SETUP + 2u]))) {
+        let a = (params.axis + 1u) % 3u;
+        let b = (params.axis + 2u) % 3u;
+        let start = vec2f(unordered(~atomicLoad(&grid[G_LOW + a])),
+                          unordered(~atomicLoad(&grid[G_LOW + b])));
+        let size = vec2f(bitcast<f32>(atomicLoad(&grid[G_SETUP])),
+                         bitcast<f32>(atomicLoad(&grid[G_SETUP + 1u])));
+        let mid = 0.5 * (lo.xyz + hi.xyz);
+        let cell = (vec2f(mid[a], mid[b]) - start) / size;
+        column = column_key(clamp(vec2i(floor(cell)), vec2i(0), vec2i(MAX_CELL)));
+    }
+    elements[i] = vec4u(bitcast<u32>(lo.w), column, ordered(lo[params.axis]), i);
 }
 
 fn before(a: vec4u, b: vec4u) -> bool {
@@ -236,10 +287,18 @@ fn gather(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid
     if (p >= params.n) {
         return;
     }
-    let body = elements[p].w;
-    sorted_lo[p] = boxes_lo[body];
-    sorted_hi[p] = boxes_hi[body];
-    sorted_body[p] = body;
+    let e = elements[p];
+    sorted_lo[p] = boxes_lo[e.w];
+    sorted_hi[p] = boxes_hi[e.w];
+    sorted_body[p] = e.w;
+    if (e.y == WIDE) {
+        let slot = atomicAdd(&counter[1], 1u);
+        if (slot < WIDE_BODIES) {
+            atomicStore(&grid[G_WIDE + slot], p);
+        } else {
+            atomicAdd(&counter[3], 1u);  // never: grid_setup counted them (the host checks)
+        }
+    }
 }
 
 // The first sorted position whose element comes after `e` (n if none).
@@ -257,21 +316,47 @@ fn first_after(e: vec4u) -> u32 {
     return lo;
 }
 
+// Test sorted boxes p and q; append their pair when they overlap (and are of different groups).
+fn test_pair(p: u32, q: u32, a_lo: vec4f, a_hi: vec4f) {
+    let b_lo = sorted_lo[q];
+    let b_hi = sorted_hi[q];
+    if (any(b_lo.xyz > a_hi.xyz) || any(a_lo.xyz > b_hi.xyz)) {
+        return;
+    }
+    if (params.use_groups != 0u && bitcast<u32>(a_hi.w) == bitcast<u32>(b_hi.w)) {
+        return;
+    }
+    let a = sorted_body[p];
+    let b = sorted_body[q];
+    let slot = atomicAdd(&counter[0], 1u);
+    if (slot < params.capacity) {
+        pairs[slot] = vec2u(min(a, b), max(a, b));
+    }
+}
+
+// One thread per sorted box outside the wide column: in its own and the 8 neighbouring columns,
+// the boxes after it in (start, body) order that start before it ends. On llvmpipe an invocation
+// stops looping after 65535 loop steps in all, silently; so a box whose sweep takes more than
+// SWEEP_BUDGET steps (per column at most: 9 columns of a search and a scan stay far below) stops
+// and is listed, and the host finishes it.
 @compute @workgroup_size(WORKGROUP)
 fn sweep(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
     let p = thread_index(wg, lid, WORKGROUP);
     if (p >= params.n) {
         return;
     }
+    let own = elements[p];
+    if (own.y == WIDE) {
+        return;  // the wide pass tests it against every box
+    }
     let a_lo = sorted_lo[p];
     let a_hi = sorted_hi[p];
-    let a = sorted_body[p];
-    let own = elements[p];
     let end = a_hi[params.axis];
     let cell = vec2i(i32(own.y >> 16u), i32(own.y & 0xFFFFu));  // as the columns pass found it
+    var steps = 0u;
     for (var d = 0u; d < 9u; d++) {
         let other = cell + vec2i(i32(d % 3u) - 1, i32(d / 3u) - 1);
-        if (any(other < vec2i(0)) || any(other > vec2i(65535))) {
+        if (any(other < vec2i(0)) || any(other > vec2i(MAX_CELL))) {
             continue;
         }
         let column = column_key(other);
@@ -280,22 +365,33 @@ fn sweep(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
         // the other, in the other's column.
         for (var q = first_after(vec4u(own.x, column, own.z, own.w)); q < params.n; q++) {
             let e = elements[q];
-            let b_lo = sorted_lo[q];
-            if (e.x != own.x || e.y != column || b_lo[params.axis] > end) {
+            if (e.x != own.x || e.y != column || sorted_lo[q][params.axis] > end) {
                 break;
             }
-            let b_hi = sorted_hi[q];
-            if (any(b_lo.xyz > a_hi.xyz) || any(a_lo.xyz > b_hi.xyz)) {
-                continue;
+            steps++;
+            if (steps > SWEEP_BUDGET) {
+                unfinished[atomicAdd(&counter[2], 1u)] = p;
+                return;
             }
-            if (params.use_groups != 0u && bitcast<u32>(a_hi.w) == bitcast<u32>(b_hi.w)) {
-                continue;
-            }
-            let b = sorted_body[q];
-            let slot = atomicAdd(&counter[0], 1u);
-            if (slot < params.capacity) {
-                pairs[slot] = vec2u(min(a, b), max(a, b));
-            }
+            test_pair(p, q, a_lo, a_hi);
+        }
+    }
+}
+
+// One thread per sorted box: tested against every wide box of its within key (wide pairs once,
+// from the later of the two in sort order).
+@compute @workgroup_size(WORKGROUP)
+fn wide_sweep(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
+    let q = thread_index(wg, lid, WORKGROUP);
+    if (q >= params.n) {
+        return;
+    }
+    let e = elements[q];
+    let wide = min(atomicLoad(&grid[G_SETUP + 3u]), WIDE_BODIES);
+    for (var k = 0u; k < wide; k++) {
+        let p = atomicLoad(&grid[G_WIDE + k]);
+        if (elements[p].x == e.x && (e.y != WIDE || q > p)) {
+            test_pair(p, q, sorted_lo[p], sorted_hi[p]);
         }
     }
 }
