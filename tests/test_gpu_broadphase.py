@@ -203,15 +203,62 @@ def test_buffers_are_reused(bp):
     assert [b.generation for b in buffers] == generations
 
 
-def test_100k_small_bodies(bp):
+def test_100k_small_bodies_and_a_floor(bp):
+    # More boxes than one invocation may loop over on llvmpipe (65535 steps): the floor, kept out
+    # of the grid for its width, is tested against all of them by as many threads.
     rng = np.random.default_rng(12)
     n = 100_000
     half = rng.uniform(0.1, 0.5, (n, 3))
     lo, hi, r = -half, half, np.linalg.norm(half, axis=1)
-    t = np.tile(np.eye(4), (n, 1, 1))
-    t[:, :3, 3] = rng.uniform(0, 150, (n, 3)) + (1e4, 0, -1e4)
+    t = np.tile(np.eye(4), (n + 1, 1, 1))
+    t[:n, :3, 3] = rng.uniform(0, 150, (n, 3)) + (1e4, 0, -1e4)
+    t[n, :3, 3] = (1e4 + 75, 75, -1e4)  # a floor 160 across, 0.4 deep, at the bottom
+    lo = np.concatenate([lo, [[-80, -80, -0.4]]])
+    hi = np.concatenate([hi, [[80, 80, 0.0]]])
+    r = np.concatenate([r, [np.linalg.norm([80, 80, 0.2])]])
     got, ref = check(bp, lo, hi, r, t)
-    assert len(ref) > 1000
+    assert len(ref) > 1000 and (ref[:, 1] == n).sum() > 100
+    assert bp.stats.wide_bodies >= 1 and bp.stats.unfinished == 0
+
+
+def test_wide_bodies_meet_each_other_within_keys_and_groups(bp):
+    # Twenty slabs of different sizes (all kept out of the grid), stacked so that every two meet,
+    # among 3000 small boxes; two within keys and two groups.
+    rng = np.random.default_rng(15)
+    m, k = 20, 3000
+    lo, hi, r, t = random_bodies(rng, m + k, scale=0.05, spread=30.0)
+    size = np.geomspace(10, 100, m)
+    lo[:m] = np.stack([-size, -size, np.full(m, -0.5)], 1)
+    hi[:m] = np.stack([size, size, np.full(m, 0.5)], 1)
+    r[:m] = np.linalg.norm(hi[:m], axis=1)
+    t[:m] = np.eye(4)
+    t[:m, :3, 3] = (15, 15, 15)
+    within = rng.integers(0, 2, m + k)
+    groups = rng.integers(0, 2, m + k)
+    for w, g in ((None, None), (within, None), (None, groups), (within, groups)):
+        got, ref = check(bp, lo, hi, r, t, within=w, groups=g)
+        assert bp.stats.wide_bodies >= m  # and the widest of the small ones, up to 32
+    got, _ = check(bp, lo, hi, r, t)
+    wide_pairs = got[got[:, 1] < m]
+    assert len(wide_pairs) == m * (m - 1) // 2
+
+
+def test_a_sweep_past_its_budget_is_finished_on_the_host():
+    # A rod along the sweep axis through 6000 small boxes in one column of the grid: its sweep
+    # meets more boxes than one invocation may loop over, so the host finishes it.
+    fresh = GpuBroadPhase()
+    rng = np.random.default_rng(16)
+    k = 6000
+    lo, hi = np.full((k + 1, 3), -0.01), np.full((k + 1, 3), 0.01)
+    lo[k, 0], hi[k, 0] = -50, 50
+    r = np.linalg.norm(hi - lo, axis=1) / 2
+    t = np.tile(np.eye(4), (k + 1, 1, 1))
+    t[:k, :3, 3] = rng.uniform(0, 0.02, (k, 3)) * (5000, 1, 1)
+    t[k, :3, 3] = (50, 0.01, 0.01)
+    got, ref = check(fresh, lo, hi, r, t)
+    assert (ref[:, 1] == k).sum() == k  # the rod meets every box
+    assert fresh.stats.unfinished >= 1
+    assert (fresh.stats.submissions, fresh.stats.maps) == (3, 3)  # + the grown pairs buffer
 
 
 def test_dense_drifting_spheres(bp):
@@ -225,8 +272,8 @@ def test_dense_drifting_spheres(bp):
 
 
 def test_one_large_body_among_small_ones(bp):
-    # A floor 100 across under 2000 small boxes, a few of them resting on it: the grid's cells
-    # are as wide as the floor, and every pair is still found.
+    # A floor 100 across under 2000 small boxes, some of them resting on it: the floor is kept
+    # out of the grid (and tested against every box), whose cells stay as small as the boxes.
     rng = np.random.default_rng(13)
     lo, hi, r, t = random_bodies(rng, 2001, scale=0.1, spread=50.0)
     lo[0], hi[0] = (-50, -50, -1), (50, 50, 0)
@@ -235,6 +282,7 @@ def test_one_large_body_among_small_ones(bp):
     t[1:, 2, 3] = rng.uniform(-0.05, 2, 2000)
     got, ref = check(bp, lo, hi, r, t)
     assert (ref[:, 0] == 0).sum() > 50
+    assert bp.stats.wide_bodies >= 1 and max(bp.stats.cell_size) < 1.0
 
 
 @pytest.mark.parametrize("bad, words", [
