@@ -4,25 +4,35 @@ The GPU equivalent of :func:`pycinder.broadphase.world_boxes` followed by
 :func:`pycinder.broadphase.sweep_and_prune` (and the focused strategy's filter to pairs of bodies in
 different groups). Its passes (``shaders/broadphase.wgsl``), all in one command buffer:
 
-    world boxes   one thread per body: the box, in float32, grown to be conservative; the widest
-                  box and the range of centres along each axis (atomics)
+    world boxes   one thread per body: the box, in float32, grown to be conservative; the range
+                  of centres along each axis and a histogram of widths across the sweep axis
+                  (atomics, reduced per workgroup first)
+    grid set-up   one thread: the widest boxes (at most 32) are "wide"; the grid's cells across
+                  the sweep axis are 1/16 wider than the widest of the others
     columns       one thread per body: its sort element (within key, column, start on the sweep
-                  axis, body); a column is a cell of a 2D grid across the sweep axis, 1/16 wider
-                  than the widest box, holding the box's centre
+                  axis, body); the column is the grid cell holding the box's centre, or a column
+                  of its own (last) for wide boxes
     sort          bitonic sort of the elements: one workgroup-local dispatch for blocks of 512,
                   then per merge the steps of 512 and over globally and the rest locally (45
                   dispatches for 100k bodies)
-    gather        the boxes in sorted order
-    sweep         one thread per sorted box: in its own and the 8 neighbouring columns (a binary
-                  search each), the boxes after it in (start, body) order that start before it
-                  ends and have its within key are tested on all axes and groups; pairs are
-                  appended through an atomic counter
+    gather        the boxes in sorted order; the list of wide boxes
+    sweep         one thread per sorted box that is not wide: in its own and the 8 neighbouring
+                  columns (a binary search each), the boxes after it in (start, body) order that
+                  start before it ends and have its within key are tested on all axes and groups;
+                  pairs are appended through an atomic counter
+    wide boxes    one thread per sorted box: tested against every wide box of its within key
 
-Overlapping boxes have centres at most the widest box apart, so they lie in the same or
-neighbouring columns; of each such pair, the box that starts first finds the other, so every pair
-is found once. A sweep along the whole axis would test, in a dense 3D scene, every box against
-the O(N^(2/3)) boxes beside it along the axis; within columns it tests a few. A scene with one
-box as wide as the scene has one column and is swept along the axis as a whole (correct, slower).
+Boxes that are not wide and overlap have centres at most the widest of them apart, so they lie in
+the same or neighbouring columns; of each such pair, the box that starts first finds the other, so
+every pair is found once. A sweep along the whole axis would test, in a dense 3D scene, every box
+against the O(N^(2/3)) boxes beside it along the axis; within columns it tests a few. Keeping the
+widest boxes out of the grid keeps one floor (or a few) from making the cells as wide as the
+scene.
+
+llvmpipe (lavapipe, and Mesa's OpenGL on the CPU) silently stops an invocation's loops after 65535
+steps in all. No pass loops that long: the wide boxes are tested by one thread per box rather
+than one per wide box, and a sweep that meets more than 4096 boxes stops, is listed, and is
+finished on the host from the GPU's boxes (a second round trip).
 
 One readback maps the pair count and the first pairs (as many as the last call found, and a
 quarter more). More pairs are read by a second copy; more pairs than the pairs buffer holds make it

@@ -1,22 +1,25 @@
 // Broad phase on the GPU: world boxes, a bitonic sort into columns along one axis, a sweep.
 //
 //   world_boxes  one thread per body: its world box, grown outward so that it holds the exact box
-//                despite float32 rounding; the largest box extent and the range of box centres
-//                along each axis (atomics, for the grid)
+//                despite float32 rounding; the range of box centres along each axis and the
+//                histogram of widths across the sweep axis (atomics, for the grid)
+//   grid_setup   one thread: the widest boxes (at most WIDE_BODIES) are wide; the cells of the
+//                grid across the sweep axis are wider than every other box
 //   columns      one thread per body (and per padding slot of the sort): its sort element
 //                (within key, column, order-preserving bits of the box's start on the sweep
-//                axis, body). Columns are the cells of a 2D grid across the sweep axis, at least
-//                as wide as the widest box, holding the box's centre: boxes that overlap are in
-//                the same or neighbouring columns
+//                axis, body). The column is the grid cell holding the box's centre (boxes that
+//                overlap are in the same or neighbouring columns), or WIDE
 //   sort_local   one workgroup per block of SORT_BLOCK elements: the whole bitonic network up to
 //                blocks of SORT_BLOCK (step k = 2), or the steps j < SORT_BLOCK of merge k
 //   sort_step    one compare-exchange per thread: step j of merge k, for j >= SORT_BLOCK
-//   gather       the boxes in sorted order, so that the sweep reads them in sequence
-//   sweep        one thread per sorted box: in its own and the 8 neighbouring columns (found by
-//                binary search), the boxes after it in (start, body) order that start before it
-//                ends are tested on all three axes and their groups; each overlapping pair
-//                (i, j), i < j, is appended through an atomic counter, once (by the box that
-//                starts first)
+//   gather       the boxes in sorted order, so that the sweep reads them in sequence; the list
+//                of wide boxes
+//   sweep        one thread per sorted box that is not wide: in its own and the 8 neighbouring
+//                columns (found by binary search), the boxes after it in (start, body) order
+//                that start before it ends are tested on all three axes and their groups; each
+//                overlapping pair (i, j), i < j, is appended through an atomic counter, once (by
+//                the box that starts first)
+//   wide_sweep   one thread per sorted box: tested against every wide box
 //!include layout
 
 const SORT_THREADS: u32 = 256u;
