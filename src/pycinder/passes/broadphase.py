@@ -346,7 +346,7 @@ class GpuBroadPhase:
         base_pad = ORIGIN_PAD_SCALE * float(np.abs(origin).max())
         self.use_groups = groups is not None
         with self.gpu.lock:
-            found = self._run(words, n, axis, base_pad, self.use_groups)
+            found = self._run(words, n, axis, base_pad)
         self.stats.axis = axis
         key = found[:, 0].astype(np.int64) * n + found[:, 1]
         if self.stats.unfinished:
@@ -358,13 +358,14 @@ class GpuBroadPhase:
 
     # -- GPU work -------------------------------------------------------------------------------
 
-    def _run(self, words: np.ndarray, n: int, axis: int, base_pad: float,
-             use_groups: bool) -> np.ndarray:
+    def _run(self, words: np.ndarray, n: int, axis: int, base_pad: float) -> np.ndarray:
+        """Encode every pass, submit, read the pairs (sweeping again while the pairs buffer
+        overflows). Returns (K, 2) uint32 bodies, with repeats where sweeps were unfinished."""
         count = max(SORT_BLOCK, 1 << (n - 1).bit_length())
         steps = sort_steps(count)
         self.params.ensure(PARAM_STRIDE * (1 + len(steps)))
         block = np.zeros((1 + len(steps), PARAM_STRIDE // 4), dtype=np.uint32)
-        block[0, :5] = (n, count, axis, self.capacity, int(use_groups))
+        block[0, :5] = (n, count, axis, self.capacity, int(self.use_groups))
         block[0, 5] = np.float32(base_pad).view(np.uint32)
         for s, (_, k, j) in enumerate(steps, start=1):
             block[s, :2] = (k, j)
