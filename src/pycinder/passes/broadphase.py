@@ -339,21 +339,21 @@ class GpuBroadPhase:
         lo, hi, r, t = _checked(local_lo, local_hi, radius, transforms)
         n = len(r)
         within_keys, group_keys = _ranks(within, "within", n), _ranks(groups, "groups", n)
-        self.stats = BroadPhaseStats()
         if n < 2:
+            self.stats = BroadPhaseStats()
             return np.zeros((0, 2), dtype=np.int64)
         words, axis, origin = _packed(lo, hi, r, t, within_keys, group_keys)
         base_pad = ORIGIN_PAD_SCALE * float(np.abs(origin).max())
-        self.use_groups = groups is not None
-        with self.gpu.lock:
+        with self.gpu.lock:  # the device, and this object's buffers and stats
+            self.stats = BroadPhaseStats(axis=axis)
+            self.use_groups = groups is not None
             found = self._run(words, n, axis, base_pad)
-        self.stats.axis = axis
-        key = found[:, 0].astype(np.int64) * n + found[:, 1]
-        if self.stats.unfinished:
-            key = np.unique(key)  # the host's pairs of unfinished sweeps repeat some
-        else:
-            key.sort()
-        self.stats.pairs = len(key)
+            key = found[:, 0].astype(np.int64) * n + found[:, 1]
+            if self.stats.unfinished:
+                key = np.unique(key)  # the host's pairs of unfinished sweeps repeat some
+            else:
+                key.sort()
+            self.stats.pairs = len(key)
         return np.stack(np.divmod(key, n), axis=1)
 
     # -- GPU work -------------------------------------------------------------------------------
