@@ -371,7 +371,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenes", nargs="*", metavar="SCENE",
                    help="floor, stairs, many, deforming, narrow, sweep-extent, sweep-bodies, "
                         "sweep-triangles, sweep-tolerance, manager, contacts, contract, modes, "
-                        "batch, soak "
+                        "batch, broadphase, soak "
                         "(default: all; the soak alone takes several minutes)")
     p.add_argument("--repeat", type=int, default=5, help="frames timed per scene")
     p.add_argument("--peers", nargs="*", default=["python-fcl", "coal", "trimesh", "warp"],

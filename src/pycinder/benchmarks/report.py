@@ -211,6 +211,10 @@ def markdown(results: dict[str, Any]) -> str:
         from .batch import markdown as batch_markdown
 
         lines += batch_markdown(results["batch"])
+    if results.get("broadphase"):
+        from .broadphase import markdown as broadphase_markdown
+
+        lines += broadphase_markdown(results["broadphase"])
     loops = {"soak": "three small bodies passed as fresh (vertices, faces) arrays every frame",
              "soak-deforming": "a ball whose vertices change every frame, touching a box"}
     for key, what in loops.items():

@@ -28,7 +28,7 @@ from .scenes import SCENES, Scene, SphereField, Stairs
 
 DEFAULT_SCENES = ["floor", "stairs", "many", "deforming", "narrow", "sweep-extent", "sweep-bodies",
                   "sweep-triangles", "sweep-tolerance", "manager", "contacts", "contract", "modes",
-                  "batch", "soak"]
+                  "batch", "broadphase", "soak"]
 DEFAULT_PEERS = ["python-fcl", "coal", "trimesh", "warp"]
 TOLERANCE_SWEEP = (0.001, 0.0028, 0.005, 0.01)
 """World tolerances of the Stairs tolerance sweep (the spheres are 0.16 across; pycinder's
@@ -399,7 +399,7 @@ def run_contact_accuracy() -> list[dict[str, Any]]:
 def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAULT_PEERS,
         soak_frames: int = 100_000, progress: Progress | None = None) -> dict[str, Any]:
     """Run the named scenes, ``repeat`` frames each."""
-    extra = ("floor", "modes", "soak", "manager", "contacts", "batch", "contract")
+    extra = ("floor", "modes", "soak", "manager", "contacts", "batch", "contract", "broadphase")
     unknown = [n for n in scenes if n not in SCENES and n not in extra]
     if unknown:
         raise ValueError(f"unknown scene {unknown[0]!r}; choose from "
@@ -436,6 +436,11 @@ def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAUL
             from .batch import run_batch
 
             results["batch"] = run_batch(progress=say)
+            continue
+        if name == "broadphase":
+            from .broadphase import run_broadphase
+
+            results["broadphase"] = run_broadphase(frames=repeat, progress=say)
             continue
         if name == "sweep-tolerance":
             results["sweeps"][name] = run_tolerance_sweep(repeat, make_peers(["python-fcl"]))
