@@ -335,3 +335,39 @@ def test_benchmark_scene_compares_answers_and_reports():
     assert row["missed_pairs"] == 0 and row["pairs"] > 500
     assert row["submissions_maps_reruns"] == [[1, 1, 0]]
     assert "| 500 | 2 |" in "\n".join(markdown(r))
+
+
+def test_queries_find_their_candidates_on_the_gpu_when_asked(monkeypatch):
+    """``broad_phase`` only moves where the candidate pairs are found: a scene's pairs are those
+    of exact geometry whichever finds them, and "auto" goes to the GPU from the documented body
+    count (lowered here), at the price of one more submission."""
+    import pycinder
+    import pycinder.request
+    from pycinder.testing import ground_truth, random_scene
+
+    from conftest import assert_matches_truth
+    from test_frame import _Count
+
+    meshes, transforms = random_scene(40, 12)
+    truth = ground_truth(meshes, transforms)
+    groups = np.arange(40) % 3
+    answers = {}
+    for mode in ("numpy", "gpu"):
+        det = pycinder.Detector(broad_phase=mode)
+        result = det.find_collisions(meshes, transforms)
+        assert_matches_truth(result.pairs, truth, context=mode)
+        grouped = det.find_collisions(meshes, transforms, groups=groups)
+        assert (groups[grouped.pairs[:, 0]] != groups[grouped.pairs[:, 1]]).all()
+        answers[mode] = (result.pairs.tolist(), grouped.pairs.tolist())
+        assert (det.strategy._broad is not None) == (mode == "gpu")
+    assert answers["numpy"] == answers["gpu"]
+    monkeypatch.setattr(pycinder.request, "GPU_BROAD_PHASE_BODIES", 40)
+    det = pycinder.Detector(records="none")
+    det.find_collisions(meshes, transforms)
+    count = _Count(monkeypatch)
+    assert det.find_collisions(meshes, transforms).pairs.tolist() == answers["numpy"][0]
+    assert det.strategy._broad is not None and (count.submits, count.maps) == (2, 2)
+    with pytest.raises(ValueError, match="broad_phase must be one of"):
+        pycinder.Detector(broad_phase="cuda")
+    with pytest.raises(ValueError, match="broad_phase applies to strategy='focused'"):
+        pycinder.Detector(strategy="scene", broad_phase="gpu")

@@ -1,6 +1,7 @@
 """The focused strategy: broad phase, a tile per candidate pair, the focused passes, the result.
 
-    scene -> world boxes -> sweep and prune -> tolerance per pair -> tiles and atlas
+    scene -> world boxes -> sweep and prune (NumPy; on the GPU for large scenes)
+          -> tolerance per pair -> tiles and atlas
           -> passes F0-F5 (one submission) -> per-tile counts and records -> pairs and records
 
 A pair collides when any of its tiles found a sample inside the other body. A tile whose samples
@@ -16,6 +17,7 @@ boxes is planned by the host.
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -33,6 +35,9 @@ from .scene import Scene
 from .scene.pack import ShapePack, pack_shapes, shape_layout
 from .tiles import (MAX_TILE, TilePlan, concat_plans, plan_tiles, repack,
                     split_depth)
+
+if TYPE_CHECKING:
+    from .passes.broadphase import GpuBroadPhase
 
 RETRIES = 5
 """Times undecided tiles are run again: first with longer lists, then with thinner boxes."""
@@ -59,6 +64,7 @@ class FocusedStrategy:
                                      gpu.max_binding // (ENTRY_BYTES * LIST_CAPACITY),
                                      gpu.max_resolution * 2048))
         self._pack: ShapePack | None = None
+        self._broad: GpuBroadPhase | None = None  # made on first use
         self.recently_retried = False
         """Whether the last query ran tiles again (their samples were left undecided)."""
 
@@ -132,9 +138,7 @@ class FocusedStrategy:
         if len(scene) < 2:
             return PendingFocused(self, CollisionResult.empty(stats))
         lo, hi = scene.world_boxes()
-        pairs = sweep_and_prune(lo, hi, within)
-        if groups is not None:
-            pairs = pairs[groups[pairs[:, 0]] != groups[pairs[:, 1]]]
+        pairs = self._candidates(scene, lo, hi, within, groups)
         stats.candidates = len(pairs)
         t1 = time.perf_counter()
         stats.add_ms("broad phase", (t1 - t0) * 1e3)
@@ -158,6 +162,23 @@ class FocusedStrategy:
         stats.add_ms("upload", (t3 - t2) * 1e3)
         stats.submitted_ms = (t3 - t0) * 1e3
         return PendingFocused(self, None, (scene, stats, mode, pairs, plan, pack, first, t3))
+
+    def _candidates(self, scene: Scene, lo: np.ndarray, hi: np.ndarray,
+                    within: np.ndarray | None, groups: np.ndarray | None) -> np.ndarray:
+        """(K, 2) candidate pairs: bodies whose world boxes (``lo``, ``hi``) overlap, with equal
+        ``within`` keys and different ``groups`` when given; found on the GPU or by NumPy as the
+        request says (see :attr:`~pycinder.request.CollisionRequest.broad_phase`)."""
+        if not self.request.gpu_broad_phase(len(scene)):
+            pairs = sweep_and_prune(lo, hi, within)
+            if groups is not None:
+                pairs = pairs[groups[pairs[:, 0]] != groups[pairs[:, 1]]]
+            return pairs
+        if self._broad is None:
+            from .passes.broadphase import GpuBroadPhase
+
+            self._broad = GpuBroadPhase(self.gpu, timeout=self.request.timeout)
+        return self._broad.pairs(scene.local_lo, scene.local_hi, scene.radius, scene.transforms,
+                                 within=within, groups=groups)
 
     def _retry_on_gpu(self, plan: TilePlan, records: RecordMode) -> bool:
         """Whether ``plan``'s frame ends with its own retry rounds (see the module's docstring):
