@@ -1,5 +1,7 @@
 """Bad input gets a clear error naming the body and the problem; warnings point at the caller."""
 
+import warnings
+
 import numpy as np
 import pytest
 import trimesh
@@ -110,6 +112,30 @@ def test_open_mesh_warns_and_strict_raises():
         pycinder.Detector().find_collisions([box, open_box], names=["box", "lid"])
     with pytest.raises(ValueError, match=r"body 1 \('lid'\).*not a closed"):
         pycinder.Detector(strict=True).find_collisions([box, open_box], names=["box", "lid"])
+
+
+def test_the_same_faces_from_trimesh_and_from_arrays_warn_once():
+    """One topology per face content, whether it comes as trimesh's tracked array or as a plain
+    copy: an open mesh given both ways is reported once; faces that differ only away from the
+    rows the cache samples get a topology of their own."""
+    box = trimesh.creation.box((1, 1, 1))
+    open_box = trimesh.Trimesh(box.vertices, box.faces[:-2], process=False)
+    det = pycinder.Detector()
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        det.find_collisions([box, open_box])
+        det.find_collisions([box, (np.array(open_box.vertices), np.array(open_box.faces))])
+        det.find_collisions([box, open_box])
+    assert sum(issubclass(w.category, pycinder.OpenMeshWarning) for w in seen) == 1
+    cache = det.shapes.topologies
+    big = trimesh.creation.icosphere(subdivisions=4)          # 5120 faces: rows are sampled
+    other = np.array(big.faces)
+    other[1] = other[1][[1, 2, 0]]                            # same face, another first corner
+    assert cache.get(big.faces, len(big.vertices), "a")[1]
+    assert not cache.get(np.array(big.faces), len(big.vertices), "b")[1]
+    topo, built = cache.get(other, len(big.vertices), "c")
+    assert built and np.array_equal(topo.faces, other)
+    assert cache.get(big.faces, len(big.vertices), "a")[0].faces[1].tolist() == big.faces[1].tolist()
 
 
 def test_inconsistent_winding_is_reported():

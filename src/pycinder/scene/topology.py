@@ -233,15 +233,17 @@ class TopologyCache:
         """The current query (see :meth:`ShapeCache.begin_query`): topologies used by it or the
         one before are never evicted, whatever their size."""
         self._used: dict[tuple, int] = {}
+        self._tracked: dict[tuple, tuple[tuple, Topology]] = {}
+        """trimesh's content hash of a TrackedArray's faces -> the key of their topology and the
+        topology (so that a trimesh mesh and plain arrays of the same faces share one)."""
 
     def __len__(self) -> int:
         return len(self._entries)
 
-    def _key(self, faces: np.ndarray, n_vertices: int) -> tuple[tuple, bool]:
-        """The cache key and whether it is a full content hash (no comparison needed)."""
-        if type(faces).__name__ == "TrackedArray":
-            return ("tracked", hash(faces), faces.shape, n_vertices), True
-        return ("array", _fingerprint(faces), faces.shape, n_vertices), False
+    @staticmethod
+    def _key(faces: np.ndarray, n_vertices: int) -> tuple:
+        """The cache key (a sampled fingerprint: a hit is confirmed by comparing the faces)."""
+        return ("array", _fingerprint(faces), faces.shape, n_vertices)
 
     def get(self, faces: np.ndarray, n_vertices: int, label: str) -> tuple[Topology, bool]:
         """The topology of ``faces``; the flag says whether it was built just now.
@@ -257,13 +259,22 @@ class TopologyCache:
         faces_arr = faces if isinstance(faces, np.ndarray) else np.asarray(faces)
         if faces_arr.ndim != 2:
             return build_topology(faces_arr, n_vertices, label), True
-        key, exact = self._key(faces_arr, n_vertices)
+        tracked = ("tracked", hash(faces_arr), faces_arr.shape, n_vertices) \
+            if type(faces_arr).__name__ == "TrackedArray" else None
+        alias = self._tracked.get(tracked) if tracked is not None else None
+        # trimesh's hash of the content names its topology, while that is still cached
+        exact = alias is not None and self._entries.get(alias[0]) is alias[1]
+        key = alias[0] if exact else self._key(faces_arr, n_vertices)
         topo = self._entries.get(key)
         if topo is not None and (exact or self._same(topo, faces_arr)):
             self._entries.move_to_end(key)
             self._used[key] = self.query
+            if tracked is not None:
+                self._tracked[tracked] = (key, topo)
             return topo, False
         topo = build_topology(faces_arr, n_vertices, label)
+        if tracked is not None:
+            self._tracked[tracked] = (key, topo)
         self.builds += 1
         if key in self._entries:
             self.nbytes -= self._entries.pop(key).nbytes
@@ -291,6 +302,9 @@ class TopologyCache:
                 continue  # needed by the current or the previous query
             self.nbytes -= self._entries.pop(key).nbytes
             self._used.pop(key, None)
+        if len(self._tracked) > 2 * len(self._entries):
+            self._tracked = {t: (k, topo) for t, (k, topo) in self._tracked.items()
+                             if self._entries.get(k) is topo}
 
     def account(self, topo: Topology, added: int) -> None:
         """Count bytes a topology grew by after it was cached (its clusters)."""
