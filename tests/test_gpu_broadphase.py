@@ -360,6 +360,7 @@ def test_queries_find_their_candidates_on_the_gpu_when_asked(monkeypatch):
         assert (groups[grouped.pairs[:, 0]] != groups[grouped.pairs[:, 1]]).all()
         answers[mode] = (result.pairs.tolist(), grouped.pairs.tolist())
         assert (det.strategy._broad is not None) == (mode == "gpu")
+        assert result.stats.broad_phase == mode
     assert answers["numpy"] == answers["gpu"]
     monkeypatch.setattr(pycinder.request, "GPU_BROAD_PHASE_BODIES", 40)
     det = pycinder.Detector(records="none")

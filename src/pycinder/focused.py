@@ -140,6 +140,7 @@ class FocusedStrategy:
         lo, hi = scene.world_boxes()
         pairs = self._candidates(scene, lo, hi, within, groups)
         stats.candidates = len(pairs)
+        stats.broad_phase = "gpu" if self.request.gpu_broad_phase(len(scene)) else "numpy"
         t1 = time.perf_counter()
         stats.add_ms("broad phase", (t1 - t0) * 1e3)
         if len(pairs) == 0:

@@ -27,6 +27,8 @@ class FocusedStats:
     """Smallest and largest tolerance over the candidate pairs (they differ when it is relative)."""
     candidates: int = 0
     """Pairs whose world boxes overlap (the broad phase's answer)."""
+    broad_phase: str = ""
+    """Where the candidates were found: "numpy" or "gpu" (see the request's ``broad_phase``)."""
     separated: int = 0
     """Candidates dropped because their oriented boxes are apart along some axis."""
     tiles: int = 0
