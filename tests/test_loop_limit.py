@@ -131,3 +131,31 @@ def test_crossing_test_that_never_fits_its_budget_warns(monkeypatch):
     assert result.stats.possibly_lost == 1 and lost
     found, lost = _crossing_test([plate, plate], [np.eye(4), tilt], default, monkeypatch)
     assert found.pairs.tolist() == [[0, 1]] and not lost
+
+
+@pytest.mark.filterwarnings("ignore::pycinder.OpenMeshWarning")
+def test_every_crossing_of_a_coarse_sheet_with_a_dense_one_is_recorded():
+    """A sheet of two triangles through a wavy sheet of 180,000: the coarse sheet's one cluster
+    meets about 2,800 clusters of the dense one, far more loop steps than llvmpipe allows one
+    workgroup of pass F6 (before the budget, lavapipe recorded 4 of these 11 crossings). Every
+    crossing of the coarse sheet's edges with the dense sheet is recorded, counted exactly by
+    ray-triangle tests."""
+    from trimesh.ray.ray_triangle import RayMeshIntersector
+
+    coarse = grid_plate(2.0, 1)
+    coarse.apply_transform(trimesh.transformations.rotation_matrix(0.3, (0, 0, 1)))
+    dense = grid_plate(1.9, 300)
+    v = dense.vertices.copy()
+    v[:, 2] = 0.02 * np.sin(9 * v[:, 0] + 0.1) * np.cos(7 * v[:, 1] + 0.2)
+    dense = trimesh.Trimesh(v, dense.faces, process=False)
+    p0, p1 = coarse.vertices[coarse.edges_unique].transpose(1, 0, 2)
+    hits, ray, _ = RayMeshIntersector(dense).intersects_location(p0, p1 - p0, multiple_hits=True)
+    d = (p1 - p0)[ray]
+    along = np.einsum("ij,ij->i", hits - p0[ray], d) / np.einsum("ij,ij->i", d, d)
+    crossings = int(((along >= 0) & (along <= 1)).sum())
+    assert crossings > 8
+    result = pycinder.Detector(tolerance=0.005, records="all").find_collisions([coarse, dense])
+    rec = result.records
+    assert result.pairs.tolist() == [[0, 1]]
+    assert int(((rec["penetrating"] == 0) & (rec["edge"] >= 0)).sum()) == crossings
+    assert result.stats.incomplete_records == 0
