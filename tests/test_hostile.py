@@ -16,6 +16,7 @@ import trimesh
 import pycinder
 from pycinder.errors import GpuMemoryError, GpuTimeoutError, PrecisionWarning
 from pycinder.gpu import buffers as gpu_buffers
+from pycinder.passes.focused import EDGE_ENTRY_BYTES
 
 
 def move(x=0.0, y=0.0, z=0.0) -> np.ndarray:
@@ -106,12 +107,12 @@ def test_rounds_shrink_when_the_device_holds_fewer_edges_to_sample(monkeypatch):
     det = pycinder.Detector(tolerance=0.01, records="all")   # every edge of every tile listed
     wide = det.find_collisions(*scene)
     # The frame lists about 7,000 edges in its one round, and at most about 1,000 per atlas band.
-    monkeypatch.setattr(det.strategy.passes.edge_list, "limit", 8 * 4000)
+    monkeypatch.setattr(det.strategy.passes.edge_list, "limit", EDGE_ENTRY_BYTES * 4000)
     narrow = det.find_collisions(*scene)
     assert narrow.pairs.tolist() == wide.pairs.tolist() == [[k, k + 1] for k in range(29)]
     assert narrow.stats.rounds > wide.stats.rounds
     assert len(narrow.records) == len(wide.records)
-    monkeypatch.setattr(det.strategy.passes.edge_list, "limit", 8 * 4)
+    monkeypatch.setattr(det.strategy.passes.edge_list, "limit", EDGE_ENTRY_BYTES * 4)
     with pytest.raises(GpuMemoryError, match="edges to sample, more than this device's"):
         det.find_collisions(*scene)
 

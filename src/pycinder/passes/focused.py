@@ -46,6 +46,11 @@ SPECULATIVE_RECORDS = 4096
 """Fewest records copied into the frame's one readback; a frame copies a quarter more than the
 last frame found (frames of an animation are alike), so that most frames need one round trip."""
 
+CROSSING_BUDGET = 49152
+"""Loop steps a thread of pass F6 may take before it stops and counts its tile undecided: well
+below the 65,535 after which llvmpipe (lavapipe, OpenGL without a GPU) silently ends a thread's
+loops (see ``crossingtest.wgsl``)."""
+
 PARAM_STRIDE = 256
 """Bytes between parameter blocks (the uniform offset alignment)."""
 ROUND_STRIDE = 2 * PARAM_STRIDE
@@ -54,6 +59,8 @@ PIXEL_BYTES = 12
 """Per atlas pixel: crossings listed, winding outside the box, tile."""
 ENTRY_BYTES = 8
 """Per listed crossing: depth and flags, face."""
+EDGE_ENTRY_BYTES = 16
+"""Per listed edge segment of pass F4: tile and side, edge, segment, steps."""
 P_FINALIZE, P_CLIP, P_ATLAS, P_EDGES, P_BOUNDS, P_CROSS, P_RETRY, P_ATLAS_RETRY, P_EDGES_RETRY = \
     range(9)
 """Blocks of the frame parameter buffer (the last two: P_ATLAS and P_EDGES of the retry round)."""
@@ -428,7 +435,8 @@ class FocusedPasses:
             max_records = self.records.limit // 16
             for cap, counter, limit, what in (
                     ("tris", C_MAX_TRIS, self.tris.limit // 48, "clipped triangles"),
-                    ("edges", C_MAX_EDGES, self.edge_list.limit // 8, "edges to sample")):
+                    ("edges", C_MAX_EDGES, self.edge_list.limit // EDGE_ENTRY_BYTES,
+                     "edges to sample")):
                 if c[counter] > self.caps[cap]:
                     self.in_flight[sub.slot] = None
                     if c[counter] > limit:
@@ -507,8 +515,8 @@ class FocusedPasses:
         self.tris.ensure(48 * self.caps["tris"])
         self.tri_face.ensure(4 * self.caps["tris"])
         self.cuts.ensure(8 * self.caps["tris"])
-        self.caps["edges"] = min(self.caps["edges"], self.edge_list.limit // 8)
-        self.edge_list.ensure(8 * self.caps["edges"])
+        self.caps["edges"] = min(self.caps["edges"], self.edge_list.limit // EDGE_ENTRY_BYTES)
+        self.edge_list.ensure(EDGE_ENTRY_BYTES * self.caps["edges"])
         self._records(sub.slot).ensure(16 * self.caps["records"])
         self._frame(sub, plan, bounds, round_threads, items, opts["records"].read)
 
@@ -553,7 +561,8 @@ class FocusedPasses:
         early_out = 0 if self.record_mode.every_tile else 1
         frame[P_FINALIZE, :4] = (items, items, caps["tris"], caps["edges"])
         frame[P_CLIP, :4] = (caps["tris"], items, 0, 0)
-        frame[P_CROSS, :5] = (record_cap, items, pairs_at, early_out, pair_records)
+        frame[P_CROSS, :6] = (record_cap, items, pairs_at, early_out, pair_records,
+                              CROSSING_BUDGET)
         frame[P_BOUNDS, 0] = 0 if self._bound_pending is None else len(self._bound_pending)
         frame[P_RETRY, :4] = (t, pairs_at, retry_at, int(self.record_mode.every_tile))
         for at, edges, retry in ((P_ATLAS, P_EDGES, False), (P_ATLAS_RETRY, P_EDGES_RETRY, True)):

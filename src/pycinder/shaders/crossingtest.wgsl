@@ -13,6 +13,12 @@
 // vertex, so the two faces sharing an edge see the same value with opposite signs and a line
 // through their shared edge passes through exactly one of them (a zero counts for the face that
 // walks the edge from its lower index).
+//
+// llvmpipe (the CPU driver of lavapipe and of OpenGL without a GPU) silently ends a thread's loops
+// after 65,535 steps in all. A workgroup counts the steps its threads take (the most any thread
+// takes, the same for all of them) and, before a cluster whose faces would take it past
+// `params.budget`, stops: the tile is counted undecided, so that the host runs it again with its
+// box cut thinner (fewer clusters meet a thinner box), and warns when even that is not enough.
 //!include tiles.wgsl
 //!include records.wgsl
 
@@ -22,7 +28,7 @@ struct Params {
     pair_offset: u32,   // where the per-pair hit flags start in tile_counts
     early_out: u32,     // 1: skip tiles whose pair is already found
     pair_records: u32,  // records kept per pair
-    _p0: u32,
+    budget: u32,        // loop steps a thread may take (well below llvmpipe's 65,535)
     _p1: u32,
     _p2: u32,
 };
@@ -43,7 +49,9 @@ struct Params {
 @group(0) @binding(10) var<storage, read_write> counters: array<atomic<u32>>;
 @group(0) @binding(11) var<uniform> params: Params;
 
-var<workgroup> wanted: array<u32, WORKGROUP>;        // clusters of this chunk to test (1) or not
+var<workgroup> wanted: array<u32, WORKGROUP>;        // clusters of this chunk to test
+var<workgroup> n_wanted: atomic<u32>;                 // how many
+var<workgroup> wanted_count: u32;                     // the same, read uniformly
 var<workgroup> face_pos: array<vec3f, 192>;          // 3 vertices per face, tile coordinates
 var<workgroup> face_ids: array<vec3u, WORKGROUP>;    // their vertex indices
 var<workgroup> stop: u32;
@@ -117,21 +125,41 @@ fn crossing_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_ind
     let first = entries[e_other].y;
     let count = entries[e_other + 1u].x - entries[e_other].x;
     var found = 0u;
+    // Loop steps taken so far: the chunk loop and cluster_box's, then per wanted cluster the
+    // cluster loop's, the edge loop's and the face loop's of the thread with the most edges.
+    var spent = 3u;
+    var unfinished = false;
+    let edge_rounds = (info.edge_count + WORKGROUP - 1u) / WORKGROUP;
     for (var chunk = 0u; chunk < count; chunk += WORKGROUP) {
+        if (spent + 4u > params.budget) {
+            unfinished = true;
+            break;
+        }
+        spent += 4u;
+        if (lid == 0u) {
+            atomicStore(&n_wanted, 0u);
+        }
+        workgroupBarrier();
         let k = chunk + lid;
-        var hit = 0u;
         if (k < count && all(lo <= hi)) {
             let box = cluster_box(t, other, first + k);
-            hit = select(0u, 1u, all(box[0] <= hi) && all(lo <= box[1]));
-        }
-        wanted[lid] = hit;
-        workgroupBarrier();
-        let in_chunk = min(WORKGROUP, count - chunk);
-        for (var j = 0u; j < in_chunk; j++) {
-            if (workgroupUniformLoad(&wanted[j]) == 0u) {
-                continue;
+            if (all(box[0] <= hi) && all(lo <= box[1])) {
+                wanted[atomicAdd(&n_wanted, 1u)] = first + k;
             }
-            let other_info = clusters[first + chunk + j];
+        }
+        workgroupBarrier();
+        if (lid == 0u) {
+            wanted_count = atomicLoad(&n_wanted);
+        }
+        let n = workgroupUniformLoad(&wanted_count);
+        for (var j = 0u; j < n; j++) {
+            let other_info = clusters[workgroupUniformLoad(&wanted[j])];
+            let cost = 1u + edge_rounds * (1u + other_info.face_count);
+            if (spent + cost > params.budget) {
+                unfinished = true;
+                break;
+            }
+            spent += cost;
             if (lid < other_info.face_count) {
                 let f = other_info.face_start + lid;
                 let ids = vec3u(faces[3u * f], faces[3u * f + 1u], faces[3u * f + 2u]);
@@ -166,6 +194,13 @@ fn crossing_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_ind
             }
             workgroupBarrier();
         }
+        if (unfinished) {
+            break;
+        }
+    }
+    if (unfinished && lid == 0u) {
+        atomicAdd(&tile_counts[2u * tile_index + 1u], 1u);
+        atomicAdd(&counters[C_UNDECIDED], 1u);
     }
     if (found > 0u) {
         atomicAdd(&tile_counts[2u * tile_index], found);

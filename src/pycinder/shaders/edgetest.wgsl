@@ -10,8 +10,15 @@
 //
 // Two entry points: `list_edges` (one workgroup per kept cluster, its threads striding over the
 // cluster's edges) lists the edges that reach into the box; `edge_test` (one thread per listed
-// edge) samples and tests them. Most of a cluster's edges miss a small box: sampling in threads
-// of its own runs side by side with other sampling, not masked beside edges that return at once.
+// edge segment) samples and tests them. Most of a cluster's edges miss a small box: sampling in
+// threads of its own runs side by side with other sampling, not masked beside edges that return at
+// once.
+//
+// A long part (a fine tolerance makes a box thousands of pixels deep) is listed as segments of at
+// most SEGMENT_SAMPLES samples, each tested by a thread of its own: llvmpipe (the CPU driver of
+// lavapipe and of OpenGL without a GPU) silently ends a thread's loops after 65,535 steps in all,
+// and a segment's samples times the steps of `winding_at` (one per listed crossing, at most the
+// retry round's 32) stay well below that.
 //!include tiles.wgsl
 //!include lists.wgsl
 //!include records.wgsl
@@ -40,8 +47,12 @@ struct Params {
 @group(0) @binding(8) var<storage, read_write> records: array<vec4u>;
 @group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>>;
 @group(0) @binding(10) var<uniform> params: Params;
-// Edges reaching into their tile's box: tile << 1 | side, packed edge (counter C_EDGES).
-@group(0) @binding(11) var<storage, read_write> edge_list: array<vec2u>;
+// Segments of the edges reaching into their tile's box: tile << 1 | side, packed edge, segment,
+// steps of the edge's part in the box (counter C_EDGES counts segments).
+@group(0) @binding(11) var<storage, read_write> edge_list: array<vec4u>;
+
+// Most samples one thread tests (see above).
+const SEGMENT_SAMPLES: u32 = 1024u;
 
 fn position(v: u32) -> vec3f {
     return vec3f(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);
@@ -87,16 +98,22 @@ fn edge_in_box(t: Tile, side: u32, e: u32) -> EdgeInBox {
     return out;
 }
 
-// Sample the part of edge `e` (of side `side` of tile `tile_index`) inside the box and test its
-// samples.
-fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32) {
+// Steps between the samples of an edge's part: at most a pixel along u, v and z each.
+fn part_steps(span: vec3f) -> u32 {
+    return u32(ceil(max(max(abs(span.x), abs(span.y)), abs(span.z))));
+}
+
+// Sample segment `segment` of the part of edge `e` (of side `side` of tile `tile_index`) inside
+// the box, whose samples are `steps + 1` points from its start to its end, and test the samples.
+fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32, segment: u32, steps: u32) {
     let part = edge_in_box(t, side, e);
     if (!part.inside) {
         return;
     }
     let p = part.start;
     let span = part.span;
-    let steps = u32(ceil(max(max(abs(span.x), abs(span.y)), abs(span.z))));
+    let first = segment * SEGMENT_SAMPLES;
+    let last = min(first + SEGMENT_SAMPLES - 1u, steps);
     let other = 1u - side;
     let back = (t.info.z & FLAG_COUNT_BACK) != 0u;
     let cap = params.capacity;
@@ -104,7 +121,7 @@ fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32) {
     let h = t.window.w;
     var found = 0u;
     var undecided = 0u;
-    for (var i = 0u; i <= steps; i++) {
+    for (var i = first; i <= last; i++) {
         let s = p + span * (f32(i) / f32(max(steps, 1u)));
         let x = min(u32(max(s.x, 0.0)), w - 1u);
         let y = min(u32(max(s.y, 0.0)), h - 1u);
@@ -121,7 +138,7 @@ fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32) {
                                    e | (RECORD_EDGE << RECORD_KIND_SHIFT) | (side << RECORD_SIDE_BIT)));
         }
     }
-    atomicAdd(&counters[C_SAMPLES], steps + 1u);
+    atomicAdd(&counters[C_SAMPLES], last + 1u - first);
     if (found > 0u) {
         atomicAdd(&tile_counts[2u * tile_index], found);
         mark_found(t);
@@ -157,10 +174,13 @@ fn list_edges(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index)
     // A cluster owns up to about twice as many edges as faces: the workgroup strides over them.
     for (var k = lid; k < info.edge_count; k += WORKGROUP) {
         let e = info.edge_start + k;
-        if (edge_in_box(t, side, e).inside) {
-            let slot = atomicAdd(&counters[C_EDGES], 1u);
-            if (slot < params.list_cap) {
-                edge_list[slot] = vec2u((tile_index << 1u) | side, e);
+        let part = edge_in_box(t, side, e);
+        if (part.inside) {
+            let steps = part_steps(part.span);
+            let segments = steps / SEGMENT_SAMPLES + 1u;  // steps + 1 samples
+            let slot = atomicAdd(&counters[C_EDGES], segments);
+            for (var s = 0u; s < segments && slot + s < params.list_cap; s++) {
+                edge_list[slot + s] = vec4u((tile_index << 1u) | side, e, s, steps);
             }
         }
     }
@@ -178,5 +198,5 @@ fn edge_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) 
     if (pair_found(t)) {
         return;  // a sample of another edge already found this pair
     }
-    test_edge(t, tile_index, listed.x & 1u, listed.y);
+    test_edge(t, tile_index, listed.x & 1u, listed.y, listed.z, listed.w);
 }
