@@ -298,22 +298,23 @@ class FocusedStrategy:
         not found elsewhere may be lost; pairs found elsewhere may lack records."""
         known = _member(bodies, decided)
         thinner = 2 ** (RETRIES - LARGER_LISTS)
+        why = (f"more than {capacity} surface crossings per pixel, or (with an open body) more "
+               f"face tests than one GPU thread may run, even in boxes cut {thinner} times "
+               "thinner")
         if (~known).any():
             lost = unique_pairs(bodies[~known, 0], bodies[~known, 1])
             stats.possibly_lost = len(lost)
             warn_at_caller(
-                f"{len(lost)} candidate pairs could not be decided: their tiles hold more than "
-                f"{capacity} surface crossings per pixel even in boxes cut {thinner} times "
-                f"thinner (first pair: bodies {lost[0].tolist()}); see stats.possibly_lost",
+                f"{len(lost)} candidate pairs could not be decided: their tiles hold {why} "
+                f"(first pair: bodies {lost[0].tolist()}); see stats.possibly_lost",
                 LossWarning)
         if known.any():
             short = unique_pairs(bodies[known, 0], bodies[known, 1])
             stats.incomplete_records = len(short)
             warn_at_caller(
                 f"records of {len(short)} colliding pairs may be incomplete: some of their tiles "
-                f"hold more than {capacity} surface crossings per pixel even in boxes cut "
-                f"{thinner} times thinner (first pair: bodies {short[0].tolist()}); the pairs "
-                "are reported; see stats.incomplete_records", LossWarning)
+                f"hold {why} (first pair: bodies {short[0].tolist()}); the pairs are reported; "
+                "see stats.incomplete_records", LossWarning)
 
     def _count(self, stats: Stats, plan: TilePlan, out: FocusedOutput) -> None:
         stats.tiles += len(plan)
