@@ -2,6 +2,7 @@
 frame neither rebuild topologies nor grow memory."""
 
 import numpy as np
+import pytest
 import trimesh
 
 import pycinder
@@ -87,3 +88,46 @@ def test_a_mesh_larger_than_the_cache_is_kept_while_it_is_used():
         det.find_collisions([(np.array(big.vertices), np.array(big.faces)), box], poses)
     assert det.shapes.topologies.builds == 2
     assert det.shapes.topologies.nbytes > det.shapes.topologies.max_bytes
+
+
+def test_bodies_are_measured_on_threads_and_in_a_forked_child():
+    """Large bodies are hashed and measured on a thread pool; the answer is the one-thread
+    answer, an edited body is seen, and a process forked after a query still answers (its pool
+    is made anew)."""
+    import multiprocessing
+
+    from pycinder.scene import bodies
+
+    ball = trimesh.creation.icosphere(subdivisions=5)          # 10,242 vertices, 240 kB
+    verts = [np.array(ball.vertices) * (1 + 0.01 * k) for k in range(8)]
+    faces = np.array(ball.faces)
+    poses = np.stack([np.eye(4)] * 8)
+    poses[:, 0, 3] = 1.9 * np.arange(8)
+    bodies_in = [(v, faces) for v in verts]
+    threaded = pycinder.Detector().find_collisions(bodies_in, poses)
+    assert bodies._pool is not None                          # the threads were used
+    one = pycinder.Detector()
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(bodies, "PARALLEL_BYTES", 1 << 60)
+        alone = one.find_collisions(bodies_in, poses)
+    assert threaded.pairs.tolist() == alone.pairs.tolist()
+    # radii 1.0 to 1.07 at 1.9 apart: neighbours overlap by 0.1 to 0.24, more than twice the
+    # default tolerance (1% of a ball's box diagonal, 0.035); the others are 1.6 or more apart
+    radius = 1 + 0.01 * np.arange(8)
+    want = [[i, i + 1] for i in range(7)]
+    assert threaded.pairs.tolist() == want
+    # A forked child (as multiprocessing makes on Linux) validates bodies on a pool of its own
+    # (the parent's threads are not in it): without one, it would wait for ever.
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(1) as pool:
+        radii = pool.apply_async(_radii_in_child, (bodies_in, poses)).get(timeout=60)
+    assert np.allclose(radii, radius, rtol=1e-3)
+
+
+def _radii_in_child(bodies_in, poses):
+    from pycinder.scene import bodies, prepare_scene
+
+    assert bodies._pool is None
+    scene = prepare_scene(bodies_in, poses)
+    assert bodies._pool is not None
+    return scene.radius.tolist()

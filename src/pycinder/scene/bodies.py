@@ -19,7 +19,9 @@ supported; every computation on the host that squares a length runs in double pr
 from __future__ import annotations
 
 import hashlib
+import os
 from collections import OrderedDict
+from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -28,6 +30,33 @@ import numpy as np
 
 from .normals import face_normals, signed_volume, vertex_and_edge_normals
 from .topology import DEFAULT_CACHE_BYTES, Topology, TopologyCache, report_problems
+
+PARALLEL_BYTES = 1 << 20
+"""Vertex bytes of a query's bodies from which they are hashed and measured on several threads
+(NumPy and hashlib release the GIL on arrays this large)."""
+_pool: ThreadPoolExecutor | None = None
+
+
+def _forget_pool() -> None:
+    """In a forked child the pool's threads are gone: make a new pool when one is needed."""
+    global _pool
+    _pool = None
+
+
+os.register_at_fork(after_in_child=_forget_pool)
+
+
+def _map(fn: Any, items: list, nbytes: int) -> list:
+    """``[fn(*item) for item in items]``, on a thread pool when the items hold at least
+    :data:`PARALLEL_BYTES` vertex bytes; the first exception (in item order) is raised."""
+    global _pool
+    if len(items) < 2 or nbytes < PARALLEL_BYTES or (os.cpu_count() or 1) < 2:
+        return [fn(*item) for item in items]
+    if _pool is None:
+        _pool = ThreadPoolExecutor(max_workers=min(8, os.cpu_count() or 1),
+                                   thread_name_prefix="pycinder-bodies")
+    return [f.result() for f in [_pool.submit(fn, *item) for item in items]]
+
 
 MAX_EXTENT = 1e30
 """Largest body extent and distance from its own origin, in its own units: single precision (the
@@ -156,6 +185,18 @@ def check_vertices(vertices: Any, label: str) -> tuple[np.ndarray, np.ndarray, n
     return v32, offset, lo, hi
 
 
+def _measure(vertices: Any, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                 float]:
+    """:func:`check_vertices`, and the radius of the vertices' bounding sphere about their box's
+    centre."""
+    v32, offset, lo, hi = check_vertices(vertices, label)
+    centre = 0.5 * (lo + hi)
+    d2 = sum((v32[:, k].astype(np.float64) - centre[k]) ** 2 for k in range(3))
+    # single-precision rounding of the vertices is far below the box's own size; pad by it
+    radius = float(np.sqrt(d2.max())) * (1 + 1e-6)
+    return v32, offset, lo, hi, radius
+
+
 def check_transforms(transforms: Any, n: int, names: Sequence[str | None]) -> np.ndarray:
     """World-from-body matrices, checked.
 
@@ -254,23 +295,48 @@ class ShapeCache:
 
     def get(self, vertices: Any, faces: Any, label: str, strict: bool) -> Shape:
         """The shape of a mesh, checked and measured once per distinct content."""
-        given = vertices if type(vertices).__name__ == "TrackedArray" else np.asarray(vertices)
-        if given.ndim != 2 or given.shape[1] != 3 or len(given) == 0 \
-                or not np.issubdtype(given.dtype, np.number) \
-                or np.issubdtype(given.dtype, np.complexfloating):
-            check_vertices(given, label)  # raises with the message for the shape or dtype
-        topo, built = self.topologies.get(faces, len(given), label)
-        key = (id(topo), _vertex_key(given))
-        shape = self._entries.get(key)
-        if shape is not None and shape.topology is topo:
-            self._entries.move_to_end(key)
-            self._used[key] = self.query
-            return shape
-        v32, offset, lo, hi = check_vertices(given, label)
-        centre = 0.5 * (lo + hi)
-        d2 = sum((v32[:, k].astype(np.float64) - centre[k]) ** 2 for k in range(3))
-        # single-precision rounding of the vertices is far below the box's own size; pad by it
-        radius = float(np.sqrt(d2.max())) * (1 + 1e-6)
+        return self.get_many([(vertices, faces, label)], strict)[0]
+
+    def get_many(self, meshes: list[tuple[Any, Any, str]], strict: bool) -> list[Shape]:
+        """The shapes of meshes ``(vertices, faces, label)``, in order (see :meth:`get`). Their
+        vertices are hashed, checked and measured on several threads when they are large."""
+        given, topos = [], []
+        for vertices, faces, label in meshes:
+            v = vertices if type(vertices).__name__ == "TrackedArray" else np.asarray(vertices)
+            if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0 \
+                    or not np.issubdtype(v.dtype, np.number) \
+                    or np.issubdtype(v.dtype, np.complexfloating):
+                check_vertices(v, label)  # raises with the message for the shape or dtype
+            given.append(v)
+            topos.append(self.topologies.get(faces, len(v), label))
+        nbytes = sum(v.nbytes for v in given)
+        keys = _map(_vertex_key, [(v,) for v in given], nbytes)
+        out: list[Shape | None] = [None] * len(meshes)
+        missing: dict[tuple, list[int]] = {}  # new content: the meshes that have it
+        for i, ((topo, _), key) in enumerate(zip(topos, keys)):
+            key = (id(topo), key)
+            shape = self._entries.get(key)
+            if shape is not None and shape.topology is topo:
+                self._entries.move_to_end(key)
+                self._used[key] = self.query
+                out[i] = shape
+            else:
+                missing.setdefault(key, []).append(i)
+        first = [where[0] for where in missing.values()]
+        measured = _map(_measure, [(given[i], meshes[i][2]) for i in first],
+                        sum(given[i].nbytes for i in first))
+        for (key, where), measure in zip(missing.items(), measured):
+            topo, built = topos[where[0]]
+            shape = self._made(key, topo, built, measure, meshes[where[0]][2], strict)
+            for i in where:
+                out[i] = shape
+        return out  # type: ignore[return-value]
+
+    def _made(self, key: tuple, topo: Topology, built: bool, measure: tuple, label: str,
+              strict: bool) -> Shape:
+        """A new shape of ``topo`` from its measured vertices, reported on (when its topology is
+        new) and cached under ``key``."""
+        v32, offset, lo, hi, radius = measure
         if built:
             _, areas = face_normals(v32, topo.faces)
             inverted = topo.closed and signed_volume(v32, topo.faces) < 0
@@ -400,23 +466,25 @@ def _shapes_of(bodies: Sequence[Any], names: list[str | None], cache: ShapeCache
                ) -> tuple[list[Shape], np.ndarray]:
     """The distinct shapes of ``bodies`` and each body's index among them."""
     n = len(bodies)
-    shapes: list[Shape] = []
-    index: dict[int, int] = {}
+    meshes: list[tuple[Any, Any, str]] = []  # distinct arrays (kept here, so ids stay valid)
     seen: dict[tuple[int, int], int] = {}
-    keep_alive: list[Any] = []  # ids below stay valid while the arrays are referenced here
-    body_shape = np.empty(n, dtype=np.int64)
+    which = np.empty(n, dtype=np.int64)
     for i, body in enumerate(bodies):
         label = body_label(i, names[i])
         vertices, faces = mesh_arrays(body, label)
         key = (id(vertices), id(faces))
-        k = seen.get(key)
+        m = seen.get(key)
+        if m is None:
+            m = seen[key] = len(meshes)
+            meshes.append((vertices, faces, label))
+        which[i] = m
+    shapes: list[Shape] = []
+    index: dict[int, int] = {}
+    mesh_shape = np.empty(len(meshes), dtype=np.int64)
+    for m, shape in enumerate(cache.get_many(meshes, strict)):
+        k = index.get(id(shape))
         if k is None:
-            keep_alive.append((vertices, faces))
-            shape = cache.get(vertices, faces, label, strict)
-            k = index.get(id(shape))
-            if k is None:
-                k = index[id(shape)] = len(shapes)
-                shapes.append(shape)
-            seen[key] = k
-        body_shape[i] = k
-    return shapes, body_shape
+            k = index[id(shape)] = len(shapes)
+            shapes.append(shape)
+        mesh_shape[m] = k
+    return shapes, mesh_shape[which]
