@@ -72,11 +72,13 @@ ENCODINGS = ("edge", "normal")
 RECORD_MODES = ("found", "all", "none")
 BROAD_PHASES = ("auto", "gpu", "numpy")
 
-GPU_BROAD_PHASE_BODIES = 1000
+GPU_BROAD_PHASE_BODIES = 2000
 """Bodies from which ``broad_phase="auto"`` finds the candidate pairs on the GPU. Measured on
-lavapipe (``pycinder bench broadphase``): at 1,000 drifting bodies the GPU stage, its own
-submission and map included, took 3.1 ms against NumPy's 6.0; at 10,000, 22.5 ms against 231.
-Below, NumPy's sweep costs about a millisecond and a second round trip would not repay it."""
+lavapipe, the query's broad-phase stage on drifting bodies (the ``many`` scene at other counts;
+the GPU's own submission and map included; the world boxes the tile planner needs are computed
+on the host either way): 5.5-5.7 ms with NumPy against 5.1-7.6 on the GPU at 1,000 bodies,
+15-19 against 9-10 at 2,000, 52-59 against 17-18 at 4,000; ``pycinder bench broadphase``: 231
+against 22.5 ms at 10,000. Below 2,000 the GPU saves nothing and costs a second round trip."""
 
 FOUND_RECORDS_PER_PAIR = 16
 """Records kept per pair with ``records="found"`` (the first samples found)."""
