@@ -9,7 +9,7 @@ from pycinder import broadphase
 from pycinder.broadphase import sweep_and_prune
 from pycinder.scene import prepare_scene
 from pycinder.testing import random_rotation, random_scene
-from pycinder.tiles import FLAG_SKIP_IF_HIT, MAX_TILE, PROBE, PROBE_PLAN, plan_tiles
+from pycinder.tiles import FLAG_SKIP_IF_HIT, MAX_TILE, PROBE, PROBE_FACES, PROBE_PLAN, plan_tiles
 
 
 def brute(lo, hi):
@@ -113,22 +113,28 @@ def test_apart_oriented_boxes_need_no_tile():
 
 def test_only_large_windows_of_large_plans_are_probed():
     """A probe costs a second round of passes: a box resting on a ball is tested in one round;
-    the same pair overlapping deeply at a fine tolerance gets its probe first."""
+    the same pair overlapping deeply at a fine tolerance gets its probe first, and so does a
+    small window of dense meshes (the probe spares the rest of the window's faces)."""
     box = trimesh.creation.box((1, 1, 1))
     ball = trimesh.creation.icosphere(subdivisions=2, radius=0.4)
 
-    def plan_for(gap: float, tolerance: float):
+    def plan_for(gap: float, tolerance: float, faces=(12, 320)):
         poses = np.stack([np.eye(4)] * 2)
         poses[1, 2, 3] = 0.9 + gap
         scene = prepare_scene([box, ball], poses)
+        assert scene.face_counts.tolist() == [12, 320]
         lo, hi = scene.world_boxes()
         pairs = sweep_and_prune(lo, hi)
         return plan_tiles(pairs, np.full(len(pairs), tolerance), scene.local_lo,
-                          scene.local_hi, lo, hi, scene.transforms, budget_pixels=2**22)
+                          scene.local_hi, lo, hi, scene.transforms, budget_pixels=2**22,
+                          faces=np.array(faces))
 
     touching = plan_for(0.0, 0.01)
     assert touching.pixels < PROBE_PLAN and len(touching.round_rows) == 1
     assert not (touching.flags & FLAG_SKIP_IF_HIT).any()
+    assert (touching.window[:, 2] > PROBE[0]).any()          # a window a probe could have cut
+    dense = plan_for(0.0, 0.01, faces=(PROBE_FACES, PROBE_FACES))
+    assert len(dense.round_rows) == 2 and (dense.flags & FLAG_SKIP_IF_HIT).any()
     deep = plan_for(-0.4, 0.002)
     assert deep.pixels > PROBE_PLAN and len(deep.round_rows) == 2
     first = deep.round == 0

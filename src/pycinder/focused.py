@@ -149,7 +149,8 @@ class FocusedStrategy:
         stats.tolerance = (float(tol.min()), float(tol.max()))
         plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
                           budget_pixels=self.budget_pixels, probe=mode.probe,
-                          open_bodies=scene.open, max_pixels=self.request.max_pixels)
+                          open_bodies=scene.open, max_pixels=self.request.max_pixels,
+                          faces=scene.face_counts)
         stats.separated = plan.separated
         t2 = time.perf_counter()
         stats.add_ms("tiles", (t2 - t1) * 1e3)

@@ -50,10 +50,14 @@ PROBE = (24, 24)
 """Largest probe tile: windows larger than this are probed at their centre first. Deep overlaps,
 where most pixels go, are then decided by the probe alone."""
 PROBE_PLAN = 2**16
-"""Fewest pixels of a plan whose windows are probed: probes cost the frame a second round of
-passes, which a small plan does not repay (measured on lavapipe: Stairs, 300,000 pixels, runs
-about 15% faster with its probes; a box touching a ball, 234 pixels, in 4.0 ms without a probe
-against 5.0 ms with one)."""
+"""Fewest pixels of a plan whose windows are all probed: probes cost the frame a second round of
+passes, which a small plan of small bodies does not repay (measured on lavapipe: Stairs, 300,000
+pixels, runs about 15% faster with its probes; a box touching a ball, 234 pixels, in 4.0 ms
+without a probe against 5.0 ms with one)."""
+PROBE_FACES = 4096
+"""Fewest faces of a pair (both bodies) whose large window is probed in a plan of any size: a
+probe spares the rest of the window's faces, which dense meshes make worth a round (two bunnies
+of 56k faces in one 3,825-pixel window: 19.6 ms with a probe, 24.0 ms without)."""
 
 
 @dataclass
@@ -167,7 +171,7 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
                local_hi: np.ndarray, world_lo: np.ndarray, world_hi: np.ndarray,
                transforms: np.ndarray, *, budget_pixels: int, probe: bool = True,
                open_bodies: np.ndarray | None = None, max_pixels: float = float("inf"),
-               chunk: int = 16384) -> TilePlan:
+               faces: np.ndarray | None = None, chunk: int = 16384) -> TilePlan:
     """Tiles for candidate pairs.
 
     Parameters
@@ -192,6 +196,9 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     max_pixels : float
         Most pixels the windows may hold together; a plan over it raises
         :class:`~pycinder.errors.GpuMemoryError` before any tile is made.
+    faces : (N,) int, optional
+        Faces of each body (dense pairs are probed in plans of any size; see
+        :data:`PROBE_FACES`). Default: every pair counts as dense.
     chunk : int
         Pairs planned at once (bounds temporary memory).
 
@@ -220,7 +227,10 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     _check_pixels(cat, pairs, tolerance, max_pixels)
     cat["w"] = cat["w"].astype(np.int64)
     cat["h"] = cat["h"].astype(np.int64)
-    plans = [_pack(p, budget_pixels, separated) for p in _phases(cat, probe) if len(p["w"])]
+    dense = np.ones(len(cat["w"]), dtype=bool) if faces is None else \
+        faces[cat["bodies"][:, 0]] + faces[cat["bodies"][:, 1]] >= PROBE_FACES
+    plans = [_pack(p, budget_pixels, separated) for p in _phases(cat, probe, dense)
+             if len(p["w"])]
     return concat_plans(plans)
 
 
@@ -369,14 +379,17 @@ def _pieces(t: dict, which: np.ndarray, extra_flags: int = 0) -> dict:
                         np.minimum(h[rep] - v0, MAX_TILE[1]), extra_flags)
 
 
-def _phases(t: dict, probe: bool) -> list[dict]:
+def _phases(t: dict, probe: bool, dense: np.ndarray) -> list[dict]:
     """The tiles of each phase. Without probes, one phase of every window's pieces. With probes,
     windows larger than :data:`PROBE` first get a probe at their centre (phase 0, with the small
-    windows), and their pieces come in phase 1, skipped on the GPU once the pair has a hit. A plan
-    of fewer than :data:`PROBE_PLAN` pixels is not probed."""
+    windows), and their pieces come in phase 1, skipped on the GPU once the pair has a hit. In a
+    plan of fewer than :data:`PROBE_PLAN` pixels only the windows of ``dense`` pairs (T,) are
+    probed."""
     everything = np.arange(len(t["w"]))
     big = (t["w"] > PROBE[0]) | (t["h"] > PROBE[1])
-    if not probe or (t["w"] * t["h"]).sum() < PROBE_PLAN or not big.any():
+    if (t["w"] * t["h"]).sum() < PROBE_PLAN:
+        big &= dense
+    if not probe or not big.any():
         return [_pieces(t, everything)]
     small = np.flatnonzero(~big)
     large = np.flatnonzero(big)

@@ -397,6 +397,11 @@ class Scene:
         return self._per_shape([s.hi for s in self.shapes])
 
     @property
+    def face_counts(self) -> np.ndarray:
+        """(N,) faces of every body (as tested: faces repeating a vertex left out)."""
+        return self._per_shape([len(s.topology.faces) for s in self.shapes])
+
+    @property
     def open(self) -> np.ndarray:
         """(N,) whether each body is not a solid (tested as a surface, see
         :attr:`~pycinder.scene.Topology.solid`)."""
