@@ -14,8 +14,8 @@ Each pass is a :class:`~pycinder.passes.bindings.Stage` (a pipeline, its binding
 is encoded by :meth:`FocusedPasses._encode_round`. F1 to F6 run once per round of the atlas (one
 round unless the memory budget is exceeded), F0 before them when vertices changed, and then,
 when asked, a retry round per round for the tiles left undecided, with longer lists: all in one
-submission; one readback brings back the counters, the per-tile hit counts, the first records and
-the timestamps. Pipelines and buffers are created once and grown when a frame needs more; a frame
+submission; one readback brings back the counters, a hit flag per candidate pair, the first
+records and the timestamps (the per-tile counts only when a tile must be run again by the host). Pipelines and buffers are created once and grown when a frame needs more; a frame
 whose counts outgrow a buffer is run again with the buffer grown, so nothing is dropped.
 """
 
@@ -398,7 +398,7 @@ class FocusedPasses:
             The shapes uploaded for this frame: uploaded again should the frame have to run
             again after a later frame replaced them.
         records : RecordMode
-            Whether records are read back (otherwise only the per-tile counts), whether every
+            Whether records are read back (otherwise only the per-pair flags), whether every
             tile is tested (otherwise tiles of pairs already found are skipped) and how many
             records a pair keeps.
         list_capacity : int, optional
@@ -446,7 +446,7 @@ class FocusedPasses:
             if c[C_RECORDS] > self.caps["records"] and sub.options["records"].read \
                     and self.caps["records"] < max_records:
                 # More records than one buffer holds are dropped (and counted): pairs come
-                # from the per-tile counts, which are complete.
+                # from the per-pair flags, which are complete.
                 self.caps["records"] = min(int(c[C_RECORDS] * 1.5) + 1024, max_records)
                 grown = True
             if grown:
