@@ -226,3 +226,22 @@ def test_valid_input_still_works_after_errors(det):
     a, b = box_arrays(), box_arrays()
     t = [np.eye(4), trimesh.transformations.translation_matrix((0.5, 0.1, 0.2))]
     assert det.find_collisions([a, b], t).pairs.tolist() == [[0, 1]]
+
+
+def test_faces_that_differ_only_in_a_dropped_face_get_their_own_topology():
+    """A face repeating a vertex is dropped; a mesh whose only difference is that face, valid,
+    is another mesh: a closed ball, where the first is open (the cache samples rows, so this
+    difference is past its fingerprint)."""
+    ball = trimesh.creation.icosphere(subdivisions=4)
+    broken = np.array(ball.faces)
+    broken[1] = [broken[1][0], broken[1][0], broken[1][1]]
+    inner = trimesh.creation.icosphere(subdivisions=1, radius=0.3)
+    det = pycinder.Detector()
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        det.find_collisions([(ball.vertices, broken), inner])
+    assert any(issubclass(w.category, pycinder.OpenMeshWarning) for w in seen)
+    whole = det.find_collisions([ball, inner])          # trimesh's tracked faces
+    assert whole.pairs.tolist() == [[0, 1]]             # the small ball is inside the solid
+    assert det.find_collisions([(ball.vertices, np.array(ball.faces)), inner]).pairs.tolist() \
+        == [[0, 1]]

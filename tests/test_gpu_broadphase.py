@@ -372,3 +372,30 @@ def test_queries_find_their_candidates_on_the_gpu_when_asked(monkeypatch):
         pycinder.Detector(broad_phase="cuda")
     with pytest.raises(ValueError, match="broad_phase applies to strategy='focused'"):
         pycinder.Detector(strategy="scene", broad_phase="gpu")
+
+
+def test_a_query_on_the_gpu_answers_as_with_numpy_at_the_edges():
+    """The GPU broad phase changes nothing a query answers or refuses: its padded near misses
+    never reach the tolerance check (a 1e-6 box 0.01 beyond a 1e6 box at tolerance 1e-8), and
+    bodies too large for its float32 boxes (1e19 units) go to NumPy under "auto"."""
+    import trimesh
+
+    import pycinder
+    import pycinder.request
+
+    big, small = trimesh.creation.box((1e6,) * 3), trimesh.creation.box((1e-6,) * 3)
+    poses = np.stack([np.eye(4)] * 2)
+    poses[1, 0, 3] = 5e5 + 0.01
+    for mode in ("numpy", "gpu"):
+        result = pycinder.Detector(broad_phase=mode, tolerance=1e-8).find_collisions(
+            [big, small], poses)
+        assert result.pairs.tolist() == [] and result.stats.candidates == 0
+    huge = trimesh.creation.box((1e19,) * 3)
+    far = np.stack([np.eye(4)] * 2)
+    far[1, 0, 3] = 0.9e19
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(pycinder.request, "GPU_BROAD_PHASE_BODIES", 2)
+        result = pycinder.Detector().find_collisions([huge, huge], far)
+    assert result.pairs.tolist() == [[0, 1]] and result.stats.broad_phase == "numpy"
+    with pytest.raises(ValueError, match="too large for the float32 broad phase"):
+        pycinder.Detector(broad_phase="gpu").find_collisions([huge, huge], far)

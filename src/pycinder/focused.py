@@ -17,7 +17,6 @@ boxes is planned by the host.
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -26,6 +25,7 @@ from .errors import GpuMemoryError, LossWarning, PrecisionWarning, warn_at_calle
 from .gpu.device import Gpu
 from .layout import (C_SAMPLES, C_TOTAL_TRIS, RECORD_ID_MASK, RECORD_KIND_SHIFT, RECORD_SIDE_BIT,
                      RECORD_SURFACE)
+from .passes.broadphase import GpuBroadPhase, in_range
 from .passes.focused import (ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS,
                              FocusedOutput, FocusedPasses, RoundTooLarge, Submitted)
 from .records import RECORD_DTYPE, empty_records, pair_keys, unique_pairs
@@ -35,9 +35,6 @@ from .scene import Scene
 from .scene.pack import ShapePack, pack_shapes, shape_layout
 from .tiles import (MAX_TILE, TilePlan, concat_plans, plan_tiles, repack,
                     split_depth)
-
-if TYPE_CHECKING:
-    from .passes.broadphase import GpuBroadPhase
 
 RETRIES = 5
 """Times undecided tiles are run again: first with longer lists, then with thinner boxes."""
@@ -138,9 +135,8 @@ class FocusedStrategy:
         if len(scene) < 2:
             return PendingFocused(self, CollisionResult.empty(stats))
         lo, hi = scene.world_boxes()
-        pairs = self._candidates(scene, lo, hi, within, groups)
+        pairs, stats.broad_phase = self._candidates(scene, lo, hi, within, groups)
         stats.candidates = len(pairs)
-        stats.broad_phase = "gpu" if self.request.gpu_broad_phase(len(scene)) else "numpy"
         t1 = time.perf_counter()
         stats.add_ms("broad phase", (t1 - t0) * 1e3)
         if len(pairs) == 0:
@@ -166,21 +162,27 @@ class FocusedStrategy:
         return PendingFocused(self, None, (scene, stats, mode, pairs, plan, pack, first, t3))
 
     def _candidates(self, scene: Scene, lo: np.ndarray, hi: np.ndarray,
-                    within: np.ndarray | None, groups: np.ndarray | None) -> np.ndarray:
+                    within: np.ndarray | None, groups: np.ndarray | None
+                    ) -> tuple[np.ndarray, str]:
         """(K, 2) candidate pairs: bodies whose world boxes (``lo``, ``hi``) overlap, with equal
         ``within`` keys and different ``groups`` when given; found on the GPU or by NumPy as the
-        request says (see :attr:`~pycinder.request.CollisionRequest.broad_phase`)."""
-        if not self.request.gpu_broad_phase(len(scene)):
+        request says (see :attr:`~pycinder.request.CollisionRequest.broad_phase`), and which of
+        the two found them. The GPU's pairs are exactly NumPy's: those its padded boxes add are
+        dropped against ``lo`` and ``hi``."""
+        body = (scene.local_lo, scene.local_hi, scene.radius, scene.transforms)
+        gpu = self.request.gpu_broad_phase(len(scene)) and (
+            self.request.broad_phase == "gpu" or in_range(*body))
+        if not gpu:
             pairs = sweep_and_prune(lo, hi, within)
             if groups is not None:
                 pairs = pairs[groups[pairs[:, 0]] != groups[pairs[:, 1]]]
-            return pairs
+            return pairs, "numpy"
         if self._broad is None:
-            from .passes.broadphase import GpuBroadPhase
-
             self._broad = GpuBroadPhase(self.gpu, timeout=self.request.timeout)
-        return self._broad.pairs(scene.local_lo, scene.local_hi, scene.radius, scene.transforms,
-                                 within=within, groups=groups)
+        pairs = self._broad.pairs(*body, within=within, groups=groups)
+        a, b = pairs[:, 0], pairs[:, 1]
+        meet = ((lo[a] <= hi[b]) & (lo[b] <= hi[a])).all(axis=1)
+        return pairs[meet], "gpu"
 
     def _retry_on_gpu(self, plan: TilePlan, records: RecordMode) -> bool:
         """Whether ``plan``'s frame ends with its own retry rounds (see the module's docstring):

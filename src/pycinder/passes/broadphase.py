@@ -139,6 +139,20 @@ def reference_pairs(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarr
     return pairs
 
 
+def in_range(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
+             transforms: np.ndarray) -> bool:
+    """Whether :meth:`GpuBroadPhase.pairs` takes these bodies: every box, radius and transform
+    entry (translations from the scene's centre) within :data:`COORDINATE_LIMIT`. (The rest of
+    pycinder takes bodies up to 1e30 units; the NumPy broad phase serves those.)"""
+    translation = transforms[:, :3, 3]
+    origin = 0.5 * (translation.min(axis=0) + translation.max(axis=0))
+    largest = max(float(np.abs(transforms[:, :3, :3]).max(initial=0.0)),
+                  float(np.abs(translation - origin).max(initial=0.0)),
+                  float(np.abs(local_lo).max(initial=0.0)), float(np.abs(local_hi).max(initial=0.0)),
+                  float(np.abs(radius).max(initial=0.0)))
+    return largest <= COORDINATE_LIMIT
+
+
 def _ranks(keys: np.ndarray | None, name: str, n: int) -> np.ndarray:
     """Integer keys as uint32 ranks that keep equality (0 where none are given)."""
     if keys is None:

@@ -44,6 +44,9 @@ class Topology:
     kept : (F,) int64 or None
         Where faces were dropped: the index of each face of ``faces`` in the face array as given
         (records and contacts name faces by that index).
+    dropped : (D, 3) int or None
+        Where faces were dropped: those faces, as given (so that the cache can tell the face
+        array given from one that differs only there).
     """
 
     faces: np.ndarray
@@ -56,6 +59,7 @@ class Topology:
     unbalanced_edges: int = 0
     dropped_faces: int = 0
     kept: np.ndarray | None = field(default=None, repr=False)
+    dropped: np.ndarray | None = field(default=None, repr=False)
     _clusters: Clusters | None = field(default=None, repr=False)
 
     @property
@@ -137,9 +141,10 @@ def build_topology(faces: np.ndarray, n_vertices: int, label: str) -> Topology:
     # dropping it changes neither the surface nor its balance.
     repeated = (faces[:, 0] == faces[:, 1]) | (faces[:, 1] == faces[:, 2]) | (faces[:, 2] == faces[:, 0])
     dropped = int(np.count_nonzero(repeated))
-    kept = None
+    kept = dropped_rows = None
     if dropped:
         kept = np.flatnonzero(~repeated)
+        dropped_rows = faces[repeated].copy()
         faces = faces[kept]
         if len(faces) == 0:
             raise ValueError(f"{label}: every face repeats a vertex index: the mesh has no area")
@@ -166,6 +171,7 @@ def build_topology(faces: np.ndarray, n_vertices: int, label: str) -> Topology:
         unbalanced_edges=int(np.count_nonzero(2 * forward_per_edge != counts)),
         dropped_faces=dropped,
         kept=kept,
+        dropped=dropped_rows,
     )
 
 
@@ -289,8 +295,12 @@ class TopologyCache:
         """Whether ``faces`` (as given) are the faces ``topo`` was built from."""
         if topo.kept is None:
             return np.array_equal(topo.faces, faces)
-        return len(faces) == len(topo.kept) + topo.dropped_faces \
-            and np.array_equal(topo.faces, faces[topo.kept])
+        if len(faces) != len(topo.kept) + topo.dropped_faces:
+            return False
+        given = np.ones(len(faces), dtype=bool)
+        given[topo.kept] = False
+        return np.array_equal(topo.faces, faces[topo.kept]) \
+            and np.array_equal(topo.dropped, faces[given])
 
     def evict(self) -> None:
         """Drop the least recently used topologies until the cache fits its byte bound, never

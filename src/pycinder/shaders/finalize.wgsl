@@ -35,8 +35,9 @@ fn after_cull() {
     rows(min(edges, params.edge_cap), 3u);
 }
 
-// After the face clip: cut the faces it listed (one thread each). A cut face yields at least
-// one triangle, and the cut list is as long as the triangle buffer: growing that grows both.
+// After the face clip: cut the faces it listed (one thread each). The cut list is as long as the
+// triangle buffer, and the largest count of either sizes both: growing one grows the other. (A
+// cut face nearly always yields a triangle, so this seldom grows the buffers more than needed.)
 @compute @workgroup_size(1)
 fn after_clip_faces() {
     let cuts = counters[C_CUTS];
