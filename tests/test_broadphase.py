@@ -27,6 +27,9 @@ def test_sweep_and_prune_matches_brute_force(seed):
     lo[20:40] = hi[:20]  # exactly touching boxes count
     hi[20:40] = lo[20:40] + 0.5
     assert [tuple(p) for p in sweep_and_prune(lo, hi).tolist()] == brute(lo, hi)
+    groups = rng.integers(0, 3, 300)
+    assert [tuple(p) for p in sweep_and_prune(lo, hi, groups=groups).tolist()] == \
+        [p for p in brute(lo, hi) if groups[p[0]] != groups[p[1]]]
 
 
 def test_sweep_in_chunks(monkeypatch):

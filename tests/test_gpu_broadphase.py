@@ -20,10 +20,7 @@ def bp() -> GpuBroadPhase:
 
 def reference(lo, hi, r, t, within=None, groups=None):
     wlo, whi = world_boxes(lo, hi, r, t)
-    pairs = sweep_and_prune(wlo, whi, within)
-    if groups is not None:
-        pairs = pairs[groups[pairs[:, 0]] != groups[pairs[:, 1]]]
-    return pairs, wlo, whi
+    return sweep_and_prune(wlo, whi, within, groups), wlo, whi
 
 
 def documented_padding(lo, hi, r, t):

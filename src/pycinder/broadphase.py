@@ -87,8 +87,8 @@ def side_by_side(lo: np.ndarray, hi: np.ndarray, keys: np.ndarray
     return lo, hi
 
 
-def sweep_and_prune(lo: np.ndarray, hi: np.ndarray, within: np.ndarray | None = None
-                    ) -> np.ndarray:
+def sweep_and_prune(lo: np.ndarray, hi: np.ndarray, within: np.ndarray | None = None,
+                    groups: np.ndarray | None = None) -> np.ndarray:
     """All pairs of boxes that overlap (touching counts as overlapping).
 
     Parameters
@@ -97,6 +97,8 @@ def sweep_and_prune(lo: np.ndarray, hi: np.ndarray, within: np.ndarray | None = 
         Box corners.
     within : (N,) int, optional
         Only pairs of boxes with the same key (the scenes of a batch).
+    groups : (N,) int, optional
+        Only pairs of boxes in different groups.
 
     Returns
     -------
@@ -139,4 +141,6 @@ def sweep_and_prune(lo: np.ndarray, hi: np.ndarray, within: np.ndarray | None = 
     if not out:
         return np.zeros((0, 2), dtype=np.int64)
     pairs = np.concatenate(out).astype(np.int64)
+    if groups is not None:
+        pairs = pairs[groups[pairs[:, 0]] != groups[pairs[:, 1]]]
     return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]

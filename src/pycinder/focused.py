@@ -173,10 +173,7 @@ class FocusedStrategy:
         gpu = self.request.gpu_broad_phase(len(scene)) and (
             self.request.broad_phase == "gpu" or in_range(*body))
         if not gpu:
-            pairs = sweep_and_prune(lo, hi, within)
-            if groups is not None:
-                pairs = pairs[groups[pairs[:, 0]] != groups[pairs[:, 1]]]
-            return pairs, "numpy"
+            return sweep_and_prune(lo, hi, within, groups), "numpy"
         if self._broad is None:
             self._broad = GpuBroadPhase(self.gpu, timeout=self.request.timeout)
         pairs = self._broad.pairs(*body, within=within, groups=groups)

@@ -133,10 +133,7 @@ def reference_pairs(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarr
         Sorted pairs ``(i, j)``, ``i < j``.
     """
     lo, hi = world_boxes(local_lo, local_hi, radius, transforms)
-    pairs = sweep_and_prune(lo, hi, within)
-    if groups is not None:
-        pairs = pairs[groups[pairs[:, 0]] != groups[pairs[:, 1]]]
-    return pairs
+    return sweep_and_prune(lo, hi, within, groups)
 
 
 def in_range(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
