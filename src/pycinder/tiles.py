@@ -208,17 +208,11 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     """
     if len(pairs) == 0:
         return _empty_plan()
-    # Every bound as a box: centre + M @ [-1, 1]^3 (columns of M: the box's half axes).
-    t3 = transforms[:, :3, :3]
-    half_local = 0.5 * (local_hi - local_lo)
-    obb = (np.einsum("nij,nj->ni", t3, 0.5 * (local_lo + local_hi)) + transforms[:, :3, 3],
-           t3 * half_local[:, None, :])
-    aabb = (0.5 * (world_lo + world_hi), 0.5 * (world_hi - world_lo))
-    frames = _frames(transforms)
+    bounds = _body_bounds(local_lo, local_hi, world_lo, world_hi, transforms)
     if open_bodies is None:
         open_bodies = np.zeros(len(transforms), dtype=bool)
-    parts = [_plan_chunk(pairs[s:s + chunk], tolerance[s:s + chunk], obb, aabb, frames,
-                         transforms, open_bodies, s) for s in range(0, len(pairs), chunk)]
+    parts = [_plan_chunk(pairs[s:s + chunk], tolerance[s:s + chunk], bounds, open_bodies, s)
+             for s in range(0, len(pairs), chunk)]
     keep = [p for p in parts if p is not None]
     separated = len(pairs) - sum(len(np.unique(p["pair"])) for p in keep)
     if not keep:
@@ -254,23 +248,84 @@ def _support(rows: np.ndarray, centre: np.ndarray, axes: np.ndarray
     return (rows @ centre[..., None])[..., 0], np.abs(rows @ axes).sum(axis=-1)
 
 
-def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, obb: tuple, aabb: tuple,
-                frames: np.ndarray, transforms: np.ndarray, open_bodies: np.ndarray,
-                first: int) -> dict | None:
+@dataclass
+class _BodyBounds:
+    """Every body's two bounding boxes, and their intervals along the axes of the world and of
+    the body's own frame (what a pair's planning needs of each body alone).
+
+    obb_centre : (N, 3)
+        World centre of the oriented box (the transformed body-space box).
+    obb_axes : (N, 3, 3)
+        Its half axes, as columns.
+    aabb_centre, aabb_half : (N, 3)
+        The world box's centre and half extents.
+    frames : (N, 3, 3)
+        Orthonormal body frames, rows = axes.
+    world : (N, 2, 2, 3)
+        Per body, box (oriented, world) and (centre, half width) along the world's axes.
+    own : (N, 2, 2, 3)
+        The same along the body's own frame's axes.
+    mirrored : (N,) bool
+        Whether the transform mirrors the body.
+    """
+
+    obb_centre: np.ndarray
+    obb_axes: np.ndarray
+    aabb_centre: np.ndarray
+    aabb_half: np.ndarray
+    frames: np.ndarray
+    world: np.ndarray
+    own: np.ndarray
+    mirrored: np.ndarray
+
+
+def _body_bounds(local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarray,
+                 world_hi: np.ndarray, transforms: np.ndarray) -> _BodyBounds:
+    # Both boxes as centre + M @ [-1, 1]^3 (columns of M: the box's half axes).
+    t3 = transforms[:, :3, :3]
+    obb_c = np.einsum("nij,nj->ni", t3, 0.5 * (local_lo + local_hi)) + transforms[:, :3, 3]
+    obb_m = t3 * (0.5 * (local_hi - local_lo))[:, None, :]
+    aabb_c, aabb_h = 0.5 * (world_lo + world_hi), 0.5 * (world_hi - world_lo)
+    frames = _frames(transforms)
+    world = np.stack([np.stack([obb_c, np.abs(obb_m).sum(axis=2)], axis=1),
+                      np.stack([aabb_c, aabb_h], axis=1)], axis=1)
+    own = np.stack([np.stack(_support(frames, obb_c, obb_m), axis=1),
+                    np.stack(_support_box(frames, aabb_c, aabb_h), axis=1)], axis=1)
+    return _BodyBounds(obb_c, obb_m, aabb_c, aabb_h, frames, world, own,
+                       np.linalg.det(t3) < 0)
+
+
+def _support_box(rows: np.ndarray, centre: np.ndarray, half: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_support` of world boxes (``half`` (..., 3) along the world's axes)."""
+    return (rows @ centre[..., None])[..., 0], (np.abs(rows) @ half[..., None])[..., 0]
+
+
+def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: _BodyBounds,
+                open_bodies: np.ndarray, first: int) -> dict | None:
     a, b = pairs[:, 0], pairs[:, 1]
     k = len(pairs)
     # Three candidate frames per pair: world, body a's, body b's.
     cand = np.empty((k, 3, 3, 3))
     cand[:, 0] = np.eye(3)
-    cand[:, 1] = frames[a]
-    cand[:, 2] = frames[b]
-    # Four bounds per pair (both oriented boxes, both world boxes), in every candidate frame.
-    centres = np.stack([obb[0][a], obb[0][b], aabb[0][a], aabb[0][b]], axis=1)        # (k, 4, 3)
-    half_aabb = aabb[1][:, :, None] * np.eye(3)
-    axes4 = np.stack([obb[1][a], obb[1][b], half_aabb[a], half_aabb[b]], axis=1)      # (k, 4, 3, 3)
-    c, h = _support(cand[:, :, None], centres[:, None], axes4[:, None])              # (k, 3, 4, 3)
-    lo = (c - h).max(axis=2)                                                          # (k, 3, 3)
-    hi = (c + h).min(axis=2)
+    cand[:, 1] = bounds.frames[a]
+    cand[:, 2] = bounds.frames[b]
+    # Four bounds per pair (both oriented boxes, both world boxes), in every candidate frame:
+    # those of a body in the world's frame and in its own are the body's; only the other body's
+    # boxes in a body's frame are the pair's own work.
+    iv = np.empty((4, 2, k, 3, 3))                          # bound, (centre, half), frame, axis
+    iv[0:2, :, :, 0] = bounds.world[a].transpose(1, 2, 0, 3)
+    iv[2:4, :, :, 0] = bounds.world[b].transpose(1, 2, 0, 3)
+    for f, (me, other) in enumerate(((a, b), (b, a)), start=1):
+        rows = bounds.frames[me]
+        iv[0:2, :, :, f] = bounds.own[me].transpose(1, 2, 0, 3)
+        iv[2, 0, :, f], iv[2, 1, :, f] = _support(rows, bounds.obb_centre[other],
+                                                 bounds.obb_axes[other])
+        iv[3, 0, :, f], iv[3, 1, :, f] = _support_box(rows, bounds.aabb_centre[other],
+                                                     bounds.aabb_half[other])
+    below, above = iv[:, 0] - iv[:, 1], iv[:, 0] + iv[:, 1]                        # (4, k, 3, 3)
+    lo = np.maximum(np.maximum(below[0], below[1]), np.maximum(below[2], below[3]))  # (k, 3, 3)
+    hi = np.minimum(np.minimum(above[0], above[1]), np.minimum(above[2], above[3]))
     apart = (hi < lo).any(axis=(1, 2))
     lo = np.minimum(lo, hi)
     extent = hi - lo
@@ -298,8 +353,8 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, obb: tuple, aabb: tuple,
     y_axis[flip] *= -1
     axes = np.stack([x_axis, y_axis, d_axis], axis=1)                                   # (m, 3, 3)
     # The overlap box (axis-aligned in the frame) in view coordinates.
-    vc, vh = _support(axes @ np.transpose(frame, (0, 2, 1)), 0.5 * (lo_f + hi_f),
-                      0.5 * (hi_f - lo_f)[:, None, :] * np.eye(3))
+    vc, vh = _support_box(axes @ np.transpose(frame, (0, 2, 1)), 0.5 * (lo_f + hi_f),
+                          0.5 * (hi_f - lo_f))
     vlo, vhi = vc - vh, vc + vh
     # Put the window's long side along screen x.
     swap = (vhi[:, 1] - vlo[:, 1]) > (vhi[:, 0] - vlo[:, 0])
@@ -319,14 +374,14 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, obb: tuple, aabb: tuple,
     z0 = (vlo[:, 2] - zmid) / px
     z1 = (vhi[:, 2] - zmid) / px
     # Count towards the side of the slab with less of the pair's depth extent behind it.
-    dc, dh = _support(axes[:, None, 2:3], np.stack([obb[0][a[idx]], obb[0][b[idx]]], axis=1),
-                      np.stack([obb[1][a[idx]], obb[1][b[idx]]], axis=1))                # (m, 2, 1)
+    dc, dh = _support(axes[:, None, 2:3],
+                      np.stack([bounds.obb_centre[a[idx]], bounds.obb_centre[b[idx]]], axis=1),
+                      np.stack([bounds.obb_axes[a[idx]], bounds.obb_axes[b[idx]]], axis=1))  # (m, 2, 1)
     front_len = vlo[:, 2] - (dc - dh).min(axis=(1, 2))
     back_len = (dc + dh).max(axis=(1, 2)) - vhi[:, 2]
     flags = np.where(back_len < front_len, FLAG_COUNT_BACK, 0)
-    det = np.linalg.det(transforms[:, :3, :3])
-    flags |= np.where(det[a[idx]] < 0, FLAG_MIRROR[0], 0)
-    flags |= np.where(det[b[idx]] < 0, FLAG_MIRROR[1], 0)
+    flags |= np.where(bounds.mirrored[a[idx]], FLAG_MIRROR[0], 0)
+    flags |= np.where(bounds.mirrored[b[idx]], FLAG_MIRROR[1], 0)
     flags |= np.where(open_bodies[a[idx]], FLAG_OPEN[0], 0)
     flags |= np.where(open_bodies[b[idx]], FLAG_OPEN[1], 0)
     return {

@@ -32,8 +32,13 @@ from .normals import face_normals, signed_volume, vertex_and_edge_normals
 from .topology import DEFAULT_CACHE_BYTES, Topology, TopologyCache, report_problems
 
 PARALLEL_BYTES = 1 << 20
-"""Vertex bytes of a query's bodies from which they are hashed and measured on several threads
-(NumPy and hashlib release the GIL on arrays this large)."""
+"""Vertex bytes of a query's large bodies (see :data:`PARALLEL_ITEM_BYTES`) from which they are
+hashed and measured on several threads (NumPy and hashlib release the GIL on arrays this
+large)."""
+PARALLEL_ITEM_BYTES = 1 << 16
+"""Vertex bytes from which a body is large enough to be hashed and measured on another thread:
+a small body's cost is Python's own, which threads do not share (1,000 bodies of 642 vertices
+validated in 21.7 ms on a pool of two threads, 12.0 ms on one)."""
 _pool: ThreadPoolExecutor | None = None
 
 
@@ -46,16 +51,44 @@ def _forget_pool() -> None:
 os.register_at_fork(after_in_child=_forget_pool)
 
 
-def _map(fn: Any, items: list, nbytes: int) -> list:
-    """``[fn(*item) for item in items]``, on a thread pool when the items hold at least
-    :data:`PARALLEL_BYTES` vertex bytes; the first exception (in item order) is raised."""
+def _map(fn: Any, items: list, sizes: list[int]) -> list:
+    """``[fn(*item) for item in items]``. Items of at least :data:`PARALLEL_ITEM_BYTES` (their
+    ``sizes``, in vertex bytes) holding :data:`PARALLEL_BYTES` or more together run on a thread
+    pool, in one contiguous chunk of about equal bytes per thread, while this thread runs the
+    small ones (whose cost is Python's, under the GIL: a task each would cost more than their
+    work). The first exception, in item order, is raised."""
     global _pool
-    if len(items) < 2 or nbytes < PARALLEL_BYTES or (os.cpu_count() or 1) < 2:
+    workers = min(8, os.cpu_count() or 1)
+    big = [i for i, size in enumerate(sizes) if size >= PARALLEL_ITEM_BYTES]
+    big_bytes = sum(sizes[i] for i in big)
+    if len(big) < 2 or big_bytes < PARALLEL_BYTES or workers < 2:
         return [fn(*item) for item in items]
     if _pool is None:
-        _pool = ThreadPoolExecutor(max_workers=min(8, os.cpu_count() or 1),
-                                   thread_name_prefix="pycinder-bodies")
-    return [f.result() for f in [_pool.submit(fn, *item) for item in items]]
+        _pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pycinder-bodies")
+    # Cut the large items where their running byte count passes each worker's share.
+    ends = np.searchsorted(np.cumsum([sizes[i] for i in big]),
+                           big_bytes * np.arange(1, workers) / workers, "right")
+    bounds = [0, *sorted({int(e) for e in ends if 0 < e < len(big)}), len(big)]
+
+    def run(which: list[int]) -> list[tuple[bool, Any]]:
+        out = []
+        for i in which:
+            try:
+                out.append((True, fn(*items[i])))
+            except Exception as exc:  # raised below, in item order
+                out.append((False, exc))
+        return out
+
+    futures = [_pool.submit(run, big[lo:hi]) for lo, hi in zip(bounds[:-1], bounds[1:])]
+    small = sorted(set(range(len(items))) - set(big))
+    done = dict(zip(small, run(small)))
+    for f, lo, hi in zip(futures, bounds[:-1], bounds[1:]):
+        done.update(zip(big[lo:hi], f.result()))
+    for i in range(len(items)):
+        ok, value = done[i]
+        if not ok:
+            raise value
+    return [done[i][1] for i in range(len(items))]
 
 
 MAX_EXTENT = 1e30
@@ -309,8 +342,8 @@ class ShapeCache:
                 check_vertices(v, label)  # raises with the message for the shape or dtype
             given.append(v)
             topos.append(self.topologies.get(faces, len(v), label))
-        nbytes = sum(v.nbytes for v in given)
-        keys = _map(_vertex_key, [(v,) for v in given], nbytes)
+        sizes = [v.nbytes for v in given]
+        keys = _map(_vertex_key, [(v,) for v in given], sizes)
         out: list[Shape | None] = [None] * len(meshes)
         missing: dict[tuple, list[int]] = {}  # new content: the meshes that have it
         for i, ((topo, _), key) in enumerate(zip(topos, keys)):
@@ -324,7 +357,7 @@ class ShapeCache:
                 missing.setdefault(key, []).append(i)
         first = [where[0] for where in missing.values()]
         measured = _map(_measure, [(given[i], meshes[i][2]) for i in first],
-                        sum(given[i].nbytes for i in first))
+                        [sizes[i] for i in first])
         for (key, where), measure in zip(missing.items(), measured):
             topo, built = topos[where[0]]
             shape = self._made(key, topo, built, measure, meshes[where[0]][2], strict)
