@@ -120,6 +120,32 @@ def test_crossing_test_past_its_budget_runs_the_tile_again_with_thinner_boxes(mo
 
 
 @pytest.mark.filterwarnings("ignore::pycinder.OpenMeshWarning")
+def test_a_tile_past_the_crossing_budget_goes_straight_to_thinner_boxes(monkeypatch):
+    """Longer lists cannot help a tile that pass F6 left unfinished: every retry cuts its box,
+    and the next frames get no retry rounds of longer lists on the GPU."""
+    import pycinder.focused as focused
+
+    plate = grid_plate(1.0, 40)
+    meshes = [_wavy(plate, 0.0), _wavy(plate, 0.021)]
+    monkeypatch.setattr(focused_passes, "CROSSING_BUDGET", 4000)
+    cuts = []
+
+    def split_depth(*args, cut=True, **kwargs):
+        cuts.append(cut)
+        return real(*args, cut=cut, **kwargs)
+
+    real = focused.split_depth
+    monkeypatch.setattr(focused, "split_depth", split_depth)
+    detector = pycinder.Detector(tolerance=0.01)
+    for _ in range(2):
+        result = detector.find_collisions(meshes)
+        assert result.pairs.tolist() == [] and result.stats.retries > 0
+        assert result.stats.possibly_lost == 0
+        assert not detector.strategy.recently_retried
+    assert cuts and all(cuts)
+
+
+@pytest.mark.filterwarnings("ignore::pycinder.OpenMeshWarning")
 def test_crossing_test_that_never_fits_its_budget_warns(monkeypatch):
     """Two crossing sheets with a budget no cluster fits: the pair is not found, and says so."""
     default = focused_passes.CROSSING_BUDGET

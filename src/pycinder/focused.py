@@ -24,7 +24,7 @@ from .broadphase import sweep_and_prune
 from .errors import GpuMemoryError, LossWarning, PrecisionWarning, warn_at_caller
 from .gpu.device import Gpu
 from .layout import (C_SAMPLES, C_TOTAL_TRIS, RECORD_ID_MASK, RECORD_KIND_SHIFT, RECORD_SIDE_BIT,
-                     RECORD_SURFACE)
+                     RECORD_SURFACE, UNDECIDED_BUDGET_BIT)
 from .passes.broadphase import GpuBroadPhase, in_range
 from .passes.focused import (ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS,
                              FocusedOutput, FocusedPasses, RoundTooLarge, Submitted)
@@ -201,12 +201,14 @@ class FocusedStrategy:
         rows, plans = [], []
         current, capacity = plan, self.passes.capacity
         retries = 0
+        lists_overflowed = False
         for attempt in range(RETRIES + 1):
             current, out = self._run_plan(current, scene, pack, len(pairs), records, capacity,
                                           first if attempt == 0 else None)
             self._count(stats, current, out)
             if out.retried_tiles:
                 # The frame ran its undecided tiles again itself, with longer lists.
+                lists_overflowed = True
                 retries += 1
                 stats.retries += 1
                 capacity = out.capacity
@@ -219,6 +221,7 @@ class FocusedStrategy:
             # An undecided tile of a pair found elsewhere changes no answer, but with
             # records="all" its records are wanted too.
             undecided = out.tile_counts[:, 1] > 0
+            budget = (out.tile_counts[:, 1] & UNDECIDED_BUDGET_BIT) != 0
             again = undecided if records.every_tile else undecided & ~found[current.pair]
             if not again.any():
                 break
@@ -228,18 +231,22 @@ class FocusedStrategy:
             retries += 1
             stats.retries += 1
             # First with longer lists (few tiles overflow, so memory is no concern), then with
-            # the boxes cut in two along the view.
+            # the boxes cut in two along the view; at once with both when pass F6 ran out of
+            # loop steps in a tile (longer lists do not help that).
             which = np.flatnonzero(again)
+            lists_overflowed |= bool((again & ~budget).any())
             # The retry covers these tiles' whole boxes again: their records from this attempt
             # would come twice.
             done, kept = rows[-1]
             rows[-1] = (done, kept[~np.isin(kept[:, 0], which)])
             if capacity == self.passes.capacity:
                 capacity *= RETRY_LISTS
-                current = split_depth(current, which, self._budget(capacity), cut=False)
+                current = split_depth(current, which, self._budget(capacity),
+                                      cut=bool(budget[which].any()))
             else:
                 current = split_depth(current, which, self._budget(capacity))
-        self.recently_retried = stats.retries > 0
+        # Retry rounds in the next frames pay only when lists overflowed.
+        self.recently_retried = lists_overflowed
         t4 = time.perf_counter()
         stats.add_ms("gpu", (t4 - t3) * 1e3)
         result_pairs = unique_pairs(pairs[found, 0], pairs[found, 1])

@@ -67,6 +67,11 @@ RECORD_EDGE, RECORD_SURFACE, RECORD_CROSSING = 0, 1, 2
 (id: packed face), an edge crossing a face of the other body (id: packed edge)."""
 RECORD_SIDE_BIT = 31
 
+# Per-tile counts: (found, undecided); the undecided word's top bit says that pass F6 stopped at
+# its loop budget (longer lists cannot help such a tile; thinner boxes can).
+UNDECIDED_BUDGET_BIT = 1 << 31
+UNDECIDED_COUNT_MASK = UNDECIDED_BUDGET_BIT - 1
+
 
 def wgsl_prelude() -> str:
     """WGSL ``const`` declarations of this module's values."""
@@ -93,6 +98,7 @@ def wgsl_prelude() -> str:
     const("RECORD_SURFACE", RECORD_SURFACE)
     const("RECORD_CROSSING", RECORD_CROSSING)
     const("RECORD_SIDE_BIT", RECORD_SIDE_BIT)
+    const("UNDECIDED_BUDGET_BIT", UNDECIDED_BUDGET_BIT)
     return "\n".join(lines) + "\n"
 
 

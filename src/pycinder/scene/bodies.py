@@ -336,9 +336,7 @@ class ShapeCache:
         given, topos = [], []
         for vertices, faces, label in meshes:
             v = vertices if type(vertices).__name__ == "TrackedArray" else np.asarray(vertices)
-            if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0 \
-                    or not np.issubdtype(v.dtype, np.number) \
-                    or np.issubdtype(v.dtype, np.complexfloating):
+            if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0 or v.dtype.kind not in "iuf":
                 check_vertices(v, label)  # raises with the message for the shape or dtype
             given.append(v)
             topos.append(self.topologies.get(faces, len(v), label))

@@ -17,8 +17,9 @@
 // llvmpipe (the CPU driver of lavapipe and of OpenGL without a GPU) silently ends a thread's loops
 // after 65,535 steps in all. A workgroup counts the steps its threads take (the most any thread
 // takes, the same for all of them) and, before a cluster whose faces would take it past
-// `params.budget`, stops: the tile is counted undecided, so that the host runs it again with its
-// box cut thinner (fewer clusters meet a thinner box), and warns when even that is not enough.
+// `params.budget`, stops: the tile is counted undecided, marked with UNDECIDED_BUDGET_BIT, so that
+// the host runs it again with its box cut thinner (fewer clusters meet a thinner box; longer lists
+// would not help), and warns when even that is not enough.
 //!include tiles.wgsl
 //!include records.wgsl
 
@@ -200,6 +201,7 @@ fn crossing_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_ind
     }
     if (unfinished && lid == 0u) {
         atomicAdd(&tile_counts[2u * tile_index + 1u], 1u);
+        atomicOr(&tile_counts[2u * tile_index + 1u], UNDECIDED_BUDGET_BIT);
         atomicAdd(&counters[C_UNDECIDED], 1u);
     }
     if (found > 0u) {

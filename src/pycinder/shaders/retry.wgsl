@@ -4,7 +4,8 @@
 //
 // A tile is run again, with lists four times longer, when some of its samples were undecided (a
 // pixel listed more crossings than its list holds) and no tile of its pair found the pair: only
-// then can its answer change. Its undecided count is cleared (the retry counts its own; counter
+// then can its answer change. A tile that pass F6 left unfinished at its loop budget is not: longer
+// lists cannot help it, and it stays undecided for the host, which cuts its box. Its undecided count is cleared (the retry counts its own; counter
 // C_UNDECIDED keeps every round's); its flag after the per-pair flags tells pass F1 to cull it
 // again. Tiles of pairs already found are never retried, so no record comes twice.
 //!include tiles.wgsl
@@ -40,7 +41,8 @@ fn select_retry(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
         return;
     }
     let undecided = tile_counts[2u * i + 1u];
-    let again = undecided > 0u && tile_counts[params.pair_offset + tiles[i].info.w] == 0u;
+    let again = undecided > 0u && (undecided & UNDECIDED_BUDGET_BIT) == 0u
+        && tile_counts[params.pair_offset + tiles[i].info.w] == 0u;
     tile_counts[params.retry_offset + i] = select(0u, 1u, again);
     if (again) {
         tile_counts[2u * i + 1u] = 0u;
