@@ -96,6 +96,7 @@ def test_bodies_are_measured_on_threads_and_in_a_forked_child():
     is made anew)."""
     import multiprocessing
 
+    from pycinder import threads
     from pycinder.scene import bodies
 
     ball = trimesh.creation.icosphere(subdivisions=5)          # 10,242 vertices, 240 kB
@@ -105,7 +106,7 @@ def test_bodies_are_measured_on_threads_and_in_a_forked_child():
     poses[:, 0, 3] = 1.9 * np.arange(8)
     bodies_in = [(v, faces) for v in verts]
     threaded = pycinder.Detector().find_collisions(bodies_in, poses)
-    assert bodies._pool is not None                          # the threads were used
+    assert threads._pool is not None                         # the threads were used
     one = pycinder.Detector()
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(bodies, "PARALLEL_BYTES", 1 << 60)
@@ -125,9 +126,10 @@ def test_bodies_are_measured_on_threads_and_in_a_forked_child():
 
 
 def _radii_in_child(bodies_in, poses):
-    from pycinder.scene import bodies, prepare_scene
+    from pycinder import threads
+    from pycinder.scene import prepare_scene
 
-    assert bodies._pool is None
+    assert threads._pool is None
     scene = prepare_scene(bodies_in, poses)
-    assert bodies._pool is not None
+    assert threads._pool is not None
     return scene.radius.tolist()

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import threads
 from .errors import GpuMemoryError
 from .layout import FLAG_COUNT_BACK, FLAG_MIRROR, FLAG_OPEN, FLAG_SKIP_IF_HIT
 
@@ -58,6 +59,11 @@ PROBE_FACES = 4096
 """Fewest faces of a pair (both bodies) whose large window is probed in a plan of any size: a
 probe spares the rest of the window's faces, which dense meshes make worth a round (two bunnies
 of 56k faces in one 3,825-pixel window: 19.6 ms with a probe, 24.0 ms without)."""
+
+
+PARALLEL_PAIRS = 1024
+"""Fewest candidate pairs per thread when planning is shared among threads (measured on two cores:
+the 19,276 pairs of 4,000 bodies planned in 60 ms on one thread, 40 ms on two)."""
 
 
 @dataclass
@@ -200,7 +206,7 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
         Faces of each body (dense pairs are probed in plans of any size; see
         :data:`PROBE_FACES`). Default: every pair counts as dense.
     chunk : int
-        Pairs planned at once (bounds temporary memory).
+        Most pairs planned at once by one thread (bounds temporary memory).
 
     Returns
     -------
@@ -211,8 +217,19 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     bounds = _body_bounds(local_lo, local_hi, world_lo, world_hi, transforms)
     if open_bodies is None:
         open_bodies = np.zeros(len(transforms), dtype=bool)
-    parts = [_plan_chunk(pairs[s:s + chunk], tolerance[s:s + chunk], bounds, open_bodies, s)
-             for s in range(0, len(pairs), chunk)]
+    # Chunks of at most ``chunk`` pairs, at least one per worker thread when there are enough
+    # pairs to share (NumPy releases the GIL on arrays of this size).
+    workers = threads.pool()
+    parts_wanted = min(threads.WORKERS, len(pairs) // PARALLEL_PAIRS) if workers else 1
+    size = max(-(-len(pairs) // max(parts_wanted, 1)), 1)
+    size = min(size, chunk)
+    starts = range(0, len(pairs), size)
+
+    def plan(s: int) -> dict | None:
+        return _plan_chunk(pairs[s:s + size], tolerance[s:s + size], bounds, open_bodies, s)
+
+    parts = list(workers.map(plan, starts)) if workers and len(starts) > 1 else \
+        [plan(s) for s in starts]
     keep = [p for p in parts if p is not None]
     separated = len(pairs) - sum(len(np.unique(p["pair"])) for p in keep)
     if not keep:

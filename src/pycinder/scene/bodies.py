@@ -19,15 +19,14 @@ supported; every computation on the host that squares a length runs in double pr
 from __future__ import annotations
 
 import hashlib
-import os
 from collections import OrderedDict
-from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from .. import threads
 from .normals import face_normals, signed_volume, vertex_and_edge_normals
 from .topology import DEFAULT_CACHE_BYTES, Topology, TopologyCache, report_problems
 
@@ -39,16 +38,6 @@ PARALLEL_ITEM_BYTES = 1 << 16
 """Vertex bytes from which a body is large enough to be hashed and measured on another thread:
 a small body's cost is Python's own, which threads do not share (1,000 bodies of 642 vertices
 validated in 21.7 ms on a pool of two threads, 12.0 ms on one)."""
-_pool: ThreadPoolExecutor | None = None
-
-
-def _forget_pool() -> None:
-    """In a forked child the pool's threads are gone: make a new pool when one is needed."""
-    global _pool
-    _pool = None
-
-
-os.register_at_fork(after_in_child=_forget_pool)
 
 
 def _map(fn: Any, items: list, sizes: list[int]) -> list:
@@ -57,17 +46,14 @@ def _map(fn: Any, items: list, sizes: list[int]) -> list:
     pool, in one contiguous chunk of about equal bytes per thread, while this thread runs the
     small ones (whose cost is Python's, under the GIL: a task each would cost more than their
     work). The first exception, in item order, is raised."""
-    global _pool
-    workers = min(8, os.cpu_count() or 1)
+    workers = threads.pool()
     big = [i for i, size in enumerate(sizes) if size >= PARALLEL_ITEM_BYTES]
     big_bytes = sum(sizes[i] for i in big)
-    if len(big) < 2 or big_bytes < PARALLEL_BYTES or workers < 2:
+    if len(big) < 2 or big_bytes < PARALLEL_BYTES or workers is None:
         return [fn(*item) for item in items]
-    if _pool is None:
-        _pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pycinder-bodies")
     # Cut the large items where their running byte count passes each worker's share.
-    ends = np.searchsorted(np.cumsum([sizes[i] for i in big]),
-                           big_bytes * np.arange(1, workers) / workers, "right")
+    share = big_bytes * np.arange(1, threads.WORKERS) / threads.WORKERS
+    ends = np.searchsorted(np.cumsum([sizes[i] for i in big]), share, "right")
     bounds = [0, *sorted({int(e) for e in ends if 0 < e < len(big)}), len(big)]
 
     def run(which: list[int]) -> list[tuple[bool, Any]]:
@@ -79,7 +65,7 @@ def _map(fn: Any, items: list, sizes: list[int]) -> list:
                 out.append((False, exc))
         return out
 
-    futures = [_pool.submit(run, big[lo:hi]) for lo, hi in zip(bounds[:-1], bounds[1:])]
+    futures = [workers.submit(run, big[lo:hi]) for lo, hi in zip(bounds[:-1], bounds[1:])]
     small = sorted(set(range(len(items))) - set(big))
     done = dict(zip(small, run(small)))
     for f, lo, hi in zip(futures, bounds[:-1], bounds[1:]):
