@@ -55,7 +55,7 @@ def test_every_edge_of_a_body_inside_another_yields_a_record(name, mesh):
 def test_clusters_own_more_edges_than_a_workgroup_has_threads():
     """The case above is the one that matters: clusters of CLUSTER_FACES faces own more edges
     than WORKGROUP threads."""
-    from pycinder.scene.bodies import prepare_scene
+    from pycinder.scene import prepare_scene
 
     mesh = trimesh.creation.icosphere(subdivisions=4)
     topo = prepare_scene([mesh]).shapes[0].topology

@@ -16,6 +16,7 @@ from .manager import CollisionManager, ContactData, DistanceData, scene_to_colli
 from .records import RECORD_DTYPE
 from .request import DEFAULT_RELATIVE_TOLERANCE, MAX_BODIES, CollisionRequest
 from .result import CollisionResult, FocusedStats, SceneStats, Stats
+from .scene import PreparedBodies
 from .quiet import quiet_native_probes
 from .view import View
 
@@ -27,7 +28,7 @@ __all__ = [
     "DEFAULT_RELATIVE_TOLERANCE", "MAX_BODIES", "RECORD_DTYPE", "ClippedBodyWarning",
     "CollisionManager", "CollisionRequest", "CollisionResult", "ContactData", "Contacts",
     "DegenerateFaceWarning", "DistanceData",
-    "Detector", "FocusedStats", "LossWarning", "NoAdapterError", "OpenMeshWarning", "SceneStats",
-    "Stats", "View",
+    "Detector", "FocusedStats", "LossWarning", "NoAdapterError", "OpenMeshWarning",
+    "PreparedBodies", "SceneStats", "Stats", "View",
     "find_collisions", "scene_to_collision", "share_default_device",
 ]

@@ -22,7 +22,7 @@ from .focused import FocusedStrategy
 from .gpu.device import get_gpu
 from .request import CollisionRequest, record_mode
 from .result import CollisionResult, Stats, remember_query
-from .scene import ShapeCache, prepare_scene
+from .scene import PreparedBodies, ShapeCache, prepare_scene
 from .view import View
 from .wholescene import SceneStrategy
 
@@ -43,6 +43,12 @@ class Detector:
     >>> det = pycinder.Detector(tolerance=1e-3)
     >>> for frame in frames:
     ...     result = det.find_collisions(meshes, transforms)   # transforms: (N, 4, 4)
+
+    Meshes that only move can be checked once (:meth:`prepare`):
+
+    >>> bodies = det.prepare(meshes)
+    >>> for frame in frames:
+    ...     result = det.find_collisions(bodies, transforms)
     """
 
     def __init__(self, request: CollisionRequest | None = None, /, **options: Any) -> None:
@@ -77,6 +83,32 @@ class Detector:
         kind = type(exc) if isinstance(exc, GpuError) else GpuError
         return kind(f"{exc} (the detector was reset and can be used again)")
 
+    def prepare(self, bodies: Sequence[Any], names: Sequence[str | None] | None = None
+                ) -> PreparedBodies:
+        """Check and measure meshes once, for queries that change only their transforms.
+
+        Parameters
+        ----------
+        bodies : sequence of trimesh.Trimesh or (vertices (V, 3), faces (F, 3)) pairs
+        names : sequence of str, optional
+            Body names for error messages and results.
+
+        Returns
+        -------
+        PreparedBodies
+            Pass it to :meth:`find_collisions` or :meth:`submit` in place of the bodies: a query
+            then checks only the transforms. The meshes are taken as they are now; tell
+            vertices that change with :meth:`PreparedBodies.update`.
+
+        Raises
+        ------
+        ValueError
+            Bad bodies, as :meth:`find_collisions` raises them.
+        """
+        with self._lock:
+            return PreparedBodies(bodies, names, cache=self.shapes, strict=self.request.strict,
+                                  max_bodies=self.request.max_bodies)
+
     def find_collisions(self, bodies: Sequence[Any], transforms: Any = None, *,
                         names: Sequence[str | None] | None = None,
                         groups: Any = None,
@@ -86,12 +118,13 @@ class Detector:
 
         Parameters
         ----------
-        bodies : sequence of trimesh.Trimesh or (vertices (V, 3), faces (F, 3)) pairs
-            Closed meshes in body coordinates.
+        bodies : sequence of trimesh.Trimesh or (vertices (V, 3), faces (F, 3)) pairs, or PreparedBodies
+            Meshes in body coordinates (closed ones are solids), or meshes checked once by
+            :meth:`prepare`.
         transforms : (N, 4, 4) float, optional
             World-from-body matrices (default: identity).
         names : sequence of str, optional
-            Body names for error messages.
+            Body names for error messages (prepared bodies have theirs).
         groups : (N,) int, optional
             Only pairs of bodies in different groups are tested (one probe against many
             bodies, or two sets against each other); default: every pair.
@@ -134,6 +167,9 @@ class Detector:
         """
         if not isinstance(bodies, Sequence):
             bodies = list(bodies)  # kept on the result, to run it again for contacts
+        if isinstance(bodies, PreparedBodies) and names is not None:
+            raise ValueError("prepared bodies have their names (given to Detector.prepare); "
+                             "pass names=None")
         with self._lock:  # one query at a time: the GPU buffers are the detector's own
             t0 = time.perf_counter()
             try:
@@ -179,8 +215,15 @@ class Detector:
             if self.request.strategy != "focused":
                 raise ValueError("records per call applies to strategy='focused'")
             record_mode(records)  # a ValueError naming the modes for any other value
-        scene = prepare_scene(bodies, transforms, names=names, strict=self.request.strict,
-                              cache=self.shapes, max_bodies=self.request.max_bodies)
+        if isinstance(bodies, PreparedBodies):
+            if len(bodies) > self.request.max_bodies:
+                raise ValueError(f"{len(bodies)} bodies is more than the "
+                                 f"{self.request.max_bodies} one query can hold; split the scene "
+                                 "into several queries")
+            scene = bodies.scene(transforms)
+        else:
+            scene = prepare_scene(bodies, transforms, names=names, strict=self.request.strict,
+                                  cache=self.shapes, max_bodies=self.request.max_bodies)
         stats = Stats(strategy=self.request.strategy, adapter=self.gpu.description,
                       bodies=len(scene))
         if groups is not None:

@@ -1,7 +1,8 @@
 """The systems compared, each answering "which pairs collide in this frame?".
 
 * pycinder: one :class:`~pycinder.Detector` kept across frames, asked for pairs only
-  (``records="none"``) like the others; ``pycinder-scene`` is the paper's whole-scene strategy.
+  (``records="none"``) like the others, the meshes of rigid scenes checked once
+  (``Detector.prepare``); ``pycinder-scene`` is the paper's whole-scene strategy.
 * python-fcl: ``BVHModel`` objects in a ``DynamicAABBTreeCollisionManager``; python-fcl cannot
   refit, so deforming meshes are rebuilt every frame.
 * coal: ``BVHModelOBBRSS`` refitted through ``beginReplaceModel``/``replaceSubModel``. Its Python
@@ -25,6 +26,7 @@ import numpy as np
 from ..broadphase import sweep_and_prune
 from .. import optional
 from ..detector import Detector
+from ..scene import PreparedBodies
 from .scenes import Scene
 
 
@@ -64,17 +66,28 @@ class System:
 
 
 class Pycinder(System):
-    """pycinder with a request's options (default: the focused strategy, pairs only)."""
+    """pycinder with a request's options (default: the focused strategy, pairs only). The
+    meshes of rigid scenes are checked once (:meth:`~pycinder.Detector.prepare`), as the other
+    systems build their BVHs once; those of deforming scenes are passed every frame."""
 
     def __init__(self, name: str = "pycinder", **options: Any) -> None:
         options.setdefault("records", "none")
         self.detector = Detector(**options)
         self.name = name
         self.last = None
+        self.prepared: PreparedBodies | None = None
+
+    def prepare(self, scene: Scene) -> None:
+        self.prepared = None if scene.deforming else self.detector.prepare(scene.bodies(0)[0])
+
+    def bodies(self, scene: Scene, k: int) -> tuple[Any, np.ndarray]:
+        """What a query of frame k is given: the bodies (prepared ones for a rigid scene) and
+        the transforms."""
+        bodies, transforms = scene.bodies(k)
+        return (bodies if self.prepared is None else self.prepared), transforms
 
     def step(self, scene: Scene, k: int) -> np.ndarray:
-        bodies, transforms = scene.bodies(k)
-        self.last = self.detector.find_collisions(bodies, transforms)
+        self.last = self.detector.find_collisions(*self.bodies(scene, k))
         return self.last.pairs
 
 

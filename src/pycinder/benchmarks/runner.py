@@ -138,7 +138,7 @@ def _stats_of(py: Pycinder, scene: Scene) -> dict[str, Any]:
     from ..detector import Detector
 
     profiled = Detector(py.detector.request.replace(profile=True))
-    bodies, transforms = scene.bodies(0)
+    bodies, transforms = py.bodies(scene, 0)
     profiled.find_collisions(bodies, transforms)
     st = profiled.find_collisions(bodies, transforms).stats
     keys = ("candidates", "separated", "tiles", "pixels", "triangles", "samples", "rounds",

@@ -6,13 +6,14 @@ culling units of the focused passes, and :mod:`.pack` lays a scene out for the w
 """
 
 from ..errors import DegenerateFaceWarning, OpenMeshWarning
-from .bodies import Scene, Shape, ShapeCache, body_label, check_transforms, check_vertices, prepare_scene
+from .bodies import Scene, Shape, ShapeCache, body_label, check_transforms, check_vertices
+from .prepared import PreparedBodies, prepare_scene
 from .clusters import CLUSTER_FACES, Clusters
 from .pack import PackedScene, pack, repack
 from .topology import Topology, TopologyCache, build_topology
 
 __all__ = [
     "CLUSTER_FACES", "Clusters", "DegenerateFaceWarning", "OpenMeshWarning", "PackedScene",
-    "Scene", "Shape", "ShapeCache", "Topology", "TopologyCache", "body_label", "build_topology",
-    "check_transforms", "check_vertices", "pack", "prepare_scene", "repack",
+    "PreparedBodies", "Scene", "Shape", "ShapeCache", "Topology", "TopologyCache", "body_label",
+    "build_topology", "check_transforms", "check_vertices", "pack", "prepare_scene", "repack",
 ]

@@ -437,53 +437,6 @@ class Scene:
         return world_boxes(self.local_lo, self.local_hi, self.radius, self.transforms)
 
 
-def prepare_scene(bodies: Sequence[Any], transforms: Any = None, *,
-                  names: Sequence[str | None] | None = None, strict: bool = False,
-                  cache: ShapeCache | None = None, max_bodies: int | None = None) -> Scene:
-    """Validate bodies and transforms.
-
-    Parameters
-    ----------
-    bodies : sequence of trimesh.Trimesh or (vertices (V, 3), faces (F, 3)) pairs
-    transforms : None or (N, 4, 4) float
-        World-from-body matrices.
-    names : sequence of str or None, optional
-        Names for messages.
-    strict : bool
-        Raise instead of warning for open, inside-out and zero-area meshes.
-    cache : ShapeCache, optional
-        Shapes seen before (a detector keeps one).
-    max_bodies : int, optional
-        Most bodies the caller can handle.
-
-    Returns
-    -------
-    Scene
-    """
-    if isinstance(bodies, (str, bytes)) or not isinstance(bodies, Sequence):
-        bodies = list(bodies)
-    n = len(bodies)
-    if max_bodies is not None and n > max_bodies:
-        raise ValueError(
-            f"{n} bodies is more than the {max_bodies} one query can hold; split the scene into "
-            "several queries"
-        )
-    names = list(names) if names is not None else [None] * n
-    if len(names) != n:
-        raise ValueError(f"names must give one name per body: {len(names)} names, {n} bodies")
-    cache = cache if cache is not None else ShapeCache()
-    t = check_transforms(transforms, n, names)
-    cache.begin_query()
-    try:
-        shapes, body_shape = _shapes_of(bodies, names, cache, strict)
-    finally:
-        cache.end_query()
-    # The stored vertices are relative to each shape's offset: fold it into the transforms.
-    offsets = np.array([s.offset for s in shapes]).reshape(-1, 3)[body_shape]
-    t[:, :3, 3] += np.einsum("nij,nj->ni", t[:, :3, :3], offsets)
-    return Scene(shapes, body_shape, t, names)
-
-
 def _shapes_of(bodies: Sequence[Any], names: list[str | None], cache: ShapeCache, strict: bool
                ) -> tuple[list[Shape], np.ndarray]:
     """The distinct shapes of ``bodies`` and each body's index among them."""

@@ -1,0 +1,113 @@
+"""Bodies checked once (Detector.prepare): queries that change only transforms, and vertices told
+with update(); answers scored against exact geometry."""
+
+import numpy as np
+import pytest
+import trimesh
+
+import pycinder
+from pycinder.testing import ground_truth, random_rotation, random_scene
+
+
+def _check(result, truth):
+    found = {tuple(p) for p in result.pairs.tolist()}
+    assert {tuple(p) for p in truth.overlap.tolist()} <= found
+    assert not found & {tuple(p) for p in truth.separate.tolist()}
+
+
+def test_prepared_bodies_answer_every_frame_of_a_moving_scene(detector):
+    meshes, transforms = random_scene(30, 11, density=0.3)
+    names = [f"part{i}" for i in range(30)]
+    bodies = detector.prepare(meshes, names=names)
+    assert len(bodies) == 30 and bodies[3] is meshes[3]
+    rng = np.random.default_rng(5)
+    poses = np.array(transforms)
+    for frame in range(3):
+        result = detector.find_collisions(bodies, poses)
+        truth = ground_truth(meshes, poses)
+        assert len(truth.overlap) > 3
+        _check(result, truth)
+        assert result.names == names
+        # the same scene given as a list answers the same
+        assert result.pairs.tolist() == detector.find_collisions(meshes, poses).pairs.tolist()
+        poses[:, :3, 3] += rng.normal(scale=0.15, size=(30, 3))
+        poses[:, :3, :3] = poses[:, :3, :3] @ random_rotation(rng)[:3, :3]
+
+
+def test_updated_vertices_are_seen_and_other_bodies_keep_theirs(detector):
+    """Three copies of one ball share a mesh; growing one of them makes it reach its neighbour,
+    the others stay as they were."""
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.5)
+    poses = np.stack([np.eye(4)] * 3)
+    poses[:, 0, 3] = [0.0, 1.2, 2.4]
+    bodies = detector.prepare([ball, ball, ball])
+    assert detector.find_collisions(bodies, poses).pairs.tolist() == []
+    grown = np.asarray(ball.vertices) * 1.5            # radius 0.75: 0.05 into body 1
+    bodies.update(0, grown)
+    meshes = [(grown, ball.faces), ball, ball]
+    truth = ground_truth(meshes, poses, tolerance=0.005)
+    assert truth.overlap.tolist() == [[0, 1]]
+    result = pycinder.Detector(tolerance=0.005).find_collisions(bodies, poses)
+    assert result.pairs.tolist() == [[0, 1]]
+    np.testing.assert_array_equal(bodies[0][0], grown)
+    # several bodies at once; vertices of any real dtype
+    bodies.update([1, 2], [np.asarray(ball.vertices, np.float32) * 0.5] * 2)
+    assert detector.find_collisions(bodies, poses).pairs.tolist() == []
+
+
+def test_a_vertex_array_edited_in_place_is_seen_only_once_updated(detector):
+    """Like trimesh's manager (its BVHs are built when objects are added), prepared bodies are
+    the meshes as they were: an edit counts from update()."""
+    box = trimesh.creation.box((1, 1, 1))
+    vertices = np.array(box.vertices)
+    bodies = detector.prepare([(vertices, box.faces), box])
+    poses = np.stack([np.eye(4), trimesh.transformations.translation_matrix((1.2, 0, 0))])
+    assert detector.find_collisions(bodies, poses).pairs.tolist() == []
+    vertices[:, 0] *= 1.6                               # now 0.1 into the other box
+    assert detector.find_collisions(bodies, poses).pairs.tolist() == []
+    bodies.update(0, vertices)
+    assert detector.find_collisions(bodies, poses).pairs.tolist() == [[0, 1]]
+    # the list form sees the edit at once
+    assert detector.find_collisions([(vertices, box.faces), box], poses).pairs.tolist() \
+        == [[0, 1]]
+
+
+def test_contacts_and_submit_work_on_prepared_bodies(detector):
+    a = trimesh.creation.box((1, 1, 1))
+    b = trimesh.creation.icosphere(subdivisions=2, radius=0.4)
+    bodies = detector.prepare([a, b], names=["box", "ball"])
+    poses = np.stack([np.eye(4), trimesh.transformations.translation_matrix((0.7, 0, 0))])
+    pending = detector.submit(bodies, poses)
+    result = pending.result()
+    assert result.pairs.tolist() == [[0, 1]]
+    contacts = result.contacts()
+    assert len(contacts) == 1
+    # the ball's centre is 0.7 from the box's, 0.2 inside its face at x = 0.5: depth 0.2
+    assert contacts.depth[0] == pytest.approx(0.2, abs=0.02)
+
+
+def test_bad_input_to_prepared_bodies_names_the_body(detector, monkeypatch):
+    box = trimesh.creation.box((1, 1, 1))
+    bad = np.array(box.vertices)
+    bad[2, 1] = np.nan
+    with pytest.raises(ValueError, match=r"body 1 \('lid'\).*NaN"):
+        detector.prepare([box, (bad, box.faces)], names=["base", "lid"])
+    bodies = detector.prepare([box, box], names=["base", "lid"])
+    with pytest.raises(ValueError, match=r"body 1 \('lid'\).*NaN"):
+        bodies.update(1, bad)
+    assert bodies[1] is box                             # left as it was
+    with pytest.raises(IndexError, match="body 2"):
+        bodies.update(2, box.vertices)
+    with pytest.raises(ValueError, match="2 vertex arrays for 1 bodies"):
+        bodies.update([0], [box.vertices, box.vertices])
+    with pytest.raises(ValueError, match=r"shape \(2, 4, 4\)"):
+        detector.find_collisions(bodies, np.eye(4)[None])
+    with pytest.raises(ValueError, match=r"body 0 \('base'\).*NaN"):
+        detector.find_collisions(bodies, np.full((2, 4, 4), np.nan))
+    with pytest.raises(ValueError, match="prepared bodies have their names"):
+        detector.find_collisions(bodies, names=["x", "y"])
+    monkeypatch.setitem(pycinder.request.MAX_BODIES, "focused", 1)
+    with pytest.raises(ValueError, match="more than the 1 one query can hold"):
+        detector.find_collisions(bodies)
+    with pytest.raises(ValueError, match="more than the 1 one query can hold"):
+        detector.prepare([box, box])
