@@ -50,9 +50,40 @@ def test_updated_vertices_are_seen_and_other_bodies_keep_theirs(detector):
     result = pycinder.Detector(tolerance=0.005).find_collisions(bodies, poses)
     assert result.pairs.tolist() == [[0, 1]]
     np.testing.assert_array_equal(bodies[0][0], grown)
-    # several bodies at once; vertices of any real dtype
+    # several bodies at once; vertices of any real dtype; one shape for equal vertices
     bodies.update([1, 2], [np.asarray(ball.vertices, np.float32) * 0.5] * 2)
     assert detector.find_collisions(bodies, poses).pairs.tolist() == []
+    b = bodies.body_shape
+    assert len(bodies.shapes) == 2 and b[1] == b[2] != b[0]
+
+
+def test_an_update_uploads_only_the_vertices_it_changed_and_ages_no_cached_shape(monkeypatch):
+    """A body with a shape of its own keeps its slot (the GPU's index buffers stay, only its
+    vertices are written), and updates between list queries do not push the list's shapes out
+    of the cache (they are not measured again)."""
+    from pycinder.scene import bodies as scene_bodies
+
+    detector = pycinder.Detector()
+    meshes = [trimesh.creation.icosphere(subdivisions=2, radius=0.4),
+              trimesh.creation.box((1, 1, 1)), trimesh.creation.cylinder(0.3, 1.0)]
+    poses = np.stack([np.eye(4)] * 3)
+    poses[:, 0, 3] = [0.0, 0.8, 1.7]                   # neighbours near: candidate pairs
+    listed = [(np.array(m.vertices), np.array(m.faces)) for m in meshes]
+    detector.find_collisions(listed, poses)
+    bodies = detector.prepare(meshes)
+    detector.find_collisions(bodies, poses)
+    measured = []
+    real = scene_bodies._measure
+    monkeypatch.setattr(scene_bodies, "_measure",
+                        lambda *a: measured.append(len(a[0])) or real(*a))
+    for k in range(3):
+        moved = np.asarray(meshes[0].vertices) * (1.0 + 0.01 * (k + 1))
+        bodies.update(0, moved)
+        result = detector.find_collisions(bodies, poses)
+        assert result.stats.uploaded_vertex_bytes == moved.size * 4   # float32, this body only
+    assert measured == [len(meshes[0].vertices)] * 3
+    detector.find_collisions(listed, poses)
+    assert measured == [len(meshes[0].vertices)] * 3                   # nothing measured again
 
 
 def test_a_vertex_array_edited_in_place_is_seen_only_once_updated(detector):

@@ -107,7 +107,7 @@ class Detector:
         """
         with self._lock:
             return PreparedBodies(bodies, names, cache=self.shapes, strict=self.request.strict,
-                                  max_bodies=self.request.max_bodies)
+                                  max_bodies=self.request.max_bodies, lock=self._lock)
 
     def find_collisions(self, bodies: Sequence[Any], transforms: Any = None, *,
                         names: Sequence[str | None] | None = None,

@@ -306,8 +306,8 @@ class FocusedStrategy:
         known = _member(bodies, decided)
         thinner = 2 ** (RETRIES - LARGER_LISTS)
         why = (f"more than {capacity} surface crossings per pixel, or (with an open body) more "
-               f"face tests than one GPU thread may run, even in boxes cut {thinner} times "
-               "thinner")
+               f"face tests than one GPU thread may run, even in boxes cut {thinner} or more "
+               "times thinner")
         if (~known).any():
             lost = unique_pairs(bodies[~known, 0], bodies[~known, 1])
             stats.possibly_lost = len(lost)

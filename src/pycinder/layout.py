@@ -70,7 +70,6 @@ RECORD_SIDE_BIT = 31
 # Per-tile counts: (found, undecided); the undecided word's top bit says that pass F6 stopped at
 # its loop budget (longer lists cannot help such a tile; thinner boxes can).
 UNDECIDED_BUDGET_BIT = 1 << 31
-UNDECIDED_COUNT_MASK = UNDECIDED_BUDGET_BIT - 1
 
 
 def wgsl_prelude() -> str:

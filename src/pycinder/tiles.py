@@ -206,7 +206,8 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
         Faces of each body (dense pairs are probed in plans of any size; see
         :data:`PROBE_FACES`). Default: every pair counts as dense.
     chunk : int
-        Most pairs planned at once by one thread (bounds temporary memory).
+        Most pairs one thread plans at once (temporary memory grows with it, times the
+        threads of :mod:`pycinder.threads`).
 
     Returns
     -------
@@ -391,9 +392,9 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: _BodyBounds,
     z0 = (vlo[:, 2] - zmid) / px
     z1 = (vhi[:, 2] - zmid) / px
     # Count towards the side of the slab with less of the pair's depth extent behind it.
-    dc, dh = _support(axes[:, None, 2:3],
+    dc, dh = _support(axes[:, None, 2:3],                                             # (m, 2, 1)
                       np.stack([bounds.obb_centre[a[idx]], bounds.obb_centre[b[idx]]], axis=1),
-                      np.stack([bounds.obb_axes[a[idx]], bounds.obb_axes[b[idx]]], axis=1))  # (m, 2, 1)
+                      np.stack([bounds.obb_axes[a[idx]], bounds.obb_axes[b[idx]]], axis=1))
     front_len = vlo[:, 2] - (dc - dh).min(axis=(1, 2))
     back_len = (dc + dh).max(axis=(1, 2)) - vhi[:, 2]
     flags = np.where(back_len < front_len, FLAG_COUNT_BACK, 0)

@@ -112,7 +112,8 @@ class FocusedOutput:
         crossing). Decided on the GPU, where the tiles of a pair meet.
     tile_counts : (T, 2) int64 or None
         Per tile: samples found inside the other body (or crossings), samples undecided (list
-        overflow). Read only when some tile is left undecided and its answer could still change
+        overflow; :data:`~pycinder.layout.UNDECIDED_BUDGET_BIT` set where pass F6 ran out of
+        its loop budget). Read only when some tile is left undecided and its answer could still change
         (the host then runs it again); None otherwise.
     records : (R, 4) uint32
         tile, u | v << 16, f32 bits of z, id | kind | side (see :mod:`pycinder.layout`); sorted.

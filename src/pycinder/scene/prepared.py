@@ -13,6 +13,7 @@ it is passed to :meth:`~PreparedBodies.update`.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
 from typing import Any
 
@@ -23,7 +24,8 @@ from .bodies import (Scene, Shape, ShapeCache, _shapes_of, body_label, check_tra
 
 
 class PreparedBodies(Sequence):
-    """Meshes checked once (see the module's docstring); a sequence of the meshes as given.
+    """Meshes checked once (see the module's docstring); a sequence of the bodies: the meshes as
+    given, and ``(vertices, faces)`` for a body given new vertices by :meth:`update`.
 
     Parameters
     ----------
@@ -36,29 +38,37 @@ class PreparedBodies(Sequence):
         Raise instead of warning for open, inside-out and zero-area meshes.
     max_bodies : int, optional
         Most bodies one query can hold.
+    lock : threading.RLock, optional
+        Held while the bodies change and while a query reads them (the detector's: its queries
+        and the cache are serialised by it).
     """
 
     def __init__(self, bodies: Sequence[Any], names: Sequence[str | None] | None = None, *,
-                 cache: ShapeCache, strict: bool = False, max_bodies: int | None = None
-                 ) -> None:
+                 cache: ShapeCache, strict: bool = False, max_bodies: int | None = None,
+                 lock: threading.RLock | None = None) -> None:
         if isinstance(bodies, (str, bytes)) or not isinstance(bodies, Sequence):
             bodies = list(bodies)
         self.names = _checked_names(len(bodies), names, max_bodies)
         self._bodies = list(bodies)
         self._cache, self._strict = cache, strict
-        cache.begin_query()
-        try:
-            shapes, body_shape = _shapes_of(self._bodies, self.names, cache, strict)
-        finally:
-            cache.end_query()
-        self._set(shapes, body_shape)
+        self._lock = lock if lock is not None else threading.RLock()
+        with self._lock:
+            cache.begin_query()
+            try:
+                shapes, body_shape = _shapes_of(self._bodies, self.names, cache, strict)
+            finally:
+                cache.end_query()
+        self._state = _state(shapes, body_shape)
 
-    def _set(self, shapes: list[Shape], body_shape: np.ndarray) -> None:
-        """Keep the shapes some body uses, and each body's offset (see :class:`Scene`)."""
-        used, body_shape = np.unique(body_shape, return_inverse=True)
-        self.shapes = [shapes[k] for k in used]
-        self.body_shape = body_shape.astype(np.int64)
-        self._offsets = np.array([s.offset for s in self.shapes]).reshape(-1, 3)[self.body_shape]
+    @property
+    def shapes(self) -> list[Shape]:
+        """The distinct shapes, each once."""
+        return self._state[0]
+
+    @property
+    def body_shape(self) -> np.ndarray:
+        """(N,) int64: each body's shape."""
+        return self._state[1]
 
     def __len__(self) -> int:
         return len(self._bodies)
@@ -67,13 +77,21 @@ class PreparedBodies(Sequence):
         return self._bodies[index]
 
     def __repr__(self) -> str:
-        return (f"PreparedBodies({len(self)} bodies, {len(self.shapes)} distinct meshes, "
-                f"{sum(len(s.topology.faces) for s in self.shapes):,} triangles)")
+        shapes = self.shapes
+        return (f"PreparedBodies({len(self)} bodies, {len(shapes)} distinct meshes, "
+                f"{sum(len(s.topology.faces) for s in shapes):,} triangles)")
 
     def update(self, index: int | Sequence[int], vertices: Any) -> None:
-        """New vertices for bodies that moved: ``index`` one body or several, ``vertices`` its
-        (V, 3) array or one array per body. Each keeps its faces; the vertices are checked now
-        (they may differ in count only as far as the faces allow).
+        """New vertices for bodies that deformed; each keeps its faces.
+
+        Parameters
+        ----------
+        index : int or sequence of int
+            One body, or several.
+        vertices : (V, 3) real, or a sequence of them
+            Its vertices, or one array per body (V may change as far as the faces allow). They
+            are checked now, and used as given: editing an array later is seen by a result's
+            :meth:`~pycinder.CollisionResult.contacts` only if it calls :meth:`update` again.
 
         Raises
         ------
@@ -82,7 +100,7 @@ class PreparedBodies(Sequence):
         IndexError
             A body that is not among these.
         """
-        many = not np.isscalar(index)
+        many = np.ndim(index) > 0
         which = [int(i) for i in (index if many else [index])]
         arrays = list(vertices) if many else [vertices]
         if len(arrays) != len(which):
@@ -95,17 +113,20 @@ class PreparedBodies(Sequence):
         for i, v in zip(which, arrays):
             label = body_label(i, self.names[i])
             meshes.append((v, mesh_arrays(self._bodies[i], label)[1], label))
-        self._cache.begin_query()
-        try:
+        with self._lock:
+            # Shapes made now count for the cache's current query (an update is not a query:
+            # it must not age the shapes of the caller's other queries).
             new = self._cache.get_many(meshes, self._strict)
-        finally:
-            self._cache.end_query()
-        shapes, body_shape = list(self.shapes), self.body_shape.copy()
-        for (v, faces, _), i, shape in zip(meshes, which, new):
-            body_shape[i] = len(shapes)
-            shapes.append(shape)
-            self._bodies[i] = (v, faces)
-        self._set(shapes, body_shape)
+            shapes, body_shape = list(self.shapes), self.body_shape.copy()
+            for (v, faces, _), i, shape in zip(meshes, which, new):
+                old = body_shape[i]
+                if np.count_nonzero(body_shape == old) == 1:
+                    shapes[old] = shape  # its own shape: the same slot keeps the GPU's layout
+                else:
+                    body_shape[i] = len(shapes)
+                    shapes.append(shape)
+                self._bodies[i] = (v, faces)
+            self._state = _state(shapes, body_shape)
 
     def scene(self, transforms: Any = None) -> Scene:
         """The validated scene of a query at ``transforms`` (N, 4, 4) (None: identities),
@@ -113,10 +134,31 @@ class PreparedBodies(Sequence):
         return self._scene(check_transforms(transforms, len(self), self.names))
 
     def _scene(self, checked: np.ndarray) -> Scene:
+        with self._lock:
+            shapes, body_shape, offsets = self._state
         # The stored vertices are relative to each shape's offset: fold it into the transforms
         # (a copy of the caller's, made by check_transforms).
-        checked[:, :3, 3] += np.einsum("nij,nj->ni", checked[:, :3, :3], self._offsets)
-        return Scene(self.shapes, self.body_shape, checked, self.names)
+        checked[:, :3, 3] += np.einsum("nij,nj->ni", checked[:, :3, :3], offsets)
+        return Scene(shapes, body_shape, checked, list(self.names))
+
+
+def _state(shapes: list[Shape], body_shape: np.ndarray
+           ) -> tuple[list[Shape], np.ndarray, np.ndarray]:
+    """The shapes some body uses, each once (by identity), in their first order; each body's
+    index among them; each body's offset (see :class:`Scene`): one tuple, replaced whole."""
+    index: dict[int, int] = {}
+    kept: list[Shape] = []
+    remap = np.empty(len(shapes), dtype=np.int64)
+    used = np.zeros(len(shapes), dtype=bool)
+    used[body_shape] = True
+    for k, shape in enumerate(shapes):
+        if used[k]:
+            remap[k] = index.setdefault(id(shape), len(kept))
+            if remap[k] == len(kept):
+                kept.append(shape)
+    body_shape = remap[body_shape]
+    offsets = np.array([s.offset for s in kept]).reshape(-1, 3)[body_shape]
+    return kept, body_shape, offsets
 
 
 def prepare_scene(bodies: Sequence[Any], transforms: Any = None, *,

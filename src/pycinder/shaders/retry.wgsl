@@ -4,10 +4,11 @@
 //
 // A tile is run again, with lists four times longer, when some of its samples were undecided (a
 // pixel listed more crossings than its list holds) and no tile of its pair found the pair: only
-// then can its answer change. A tile that pass F6 left unfinished at its loop budget is not: longer
-// lists cannot help it, and it stays undecided for the host, which cuts its box. Its undecided count is cleared (the retry counts its own; counter
+// then can its answer change. Its undecided count is cleared (the retry counts its own; counter
 // C_UNDECIDED keeps every round's); its flag after the per-pair flags tells pass F1 to cull it
-// again. Tiles of pairs already found are never retried, so no record comes twice.
+// again. A tile that pass F6 left unfinished at its loop budget is not run again here (longer
+// lists cannot help it): it stays undecided for the host, which cuts its box. Tiles of pairs already
+// found are never retried, so no record comes twice.
 //!include tiles.wgsl
 
 struct Params {
