@@ -119,6 +119,55 @@ def test_set_transform_round_trips_and_errors():
         ours.add_object("bad", box, np.eye(3))
 
 
+def test_every_method_tests_the_mesh_as_it_was_added(monkeypatch):
+    """As trimesh builds its BVHs when objects are added: moving objects checks no mesh again,
+    a mesh edited in place is seen by no method until it is added again (in both managers), and
+    adding or removing objects checks the meshes anew."""
+    meshes, transforms, _ = clear_scene(300)
+    ours, theirs = both(**{f"o{i}": (m, t) for i, (m, t) in enumerate(zip(meshes, transforms))})
+    prepared = []
+    real = pycinder.Detector.prepare
+    monkeypatch.setattr(pycinder.Detector, "prepare",
+                        lambda self, *a, **k: prepared.append(1) or real(self, *a, **k))
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        for i in range(len(meshes)):
+            t = transforms[i].copy()
+            t[:3, 3] += rng.normal(scale=0.3, size=3)
+            ours.set_transform(f"o{i}", t)
+        truth = ground_truth(meshes, [ours._objs[f"o{i}"].transform for i in range(len(meshes))])
+        names = ours.in_collision_internal(return_names=True)[1]
+        assert {(f"o{i}", f"o{j}") for i, j in truth.overlap.tolist()} <= names
+        assert not names & {(f"o{i}", f"o{j}") for i, j in truth.separate.tolist()}
+    assert len(prepared) == 1
+    box, ball = trimesh.creation.box((1, 1, 1)), trimesh.creation.icosphere(radius=0.3)
+    far = [T((50, 0, 0)), T((51.3, 0, 0))]
+    probe = T((49.1, 0, 0))                                   # the ball 0.1 from the box
+    other = pycinder.CollisionManager()
+    other.add_object("ball", ball, probe)
+    other_t = TrimeshManager()
+    other_t.add_object("ball", ball, probe)
+    for m in (ours, theirs):
+        m.add_object("box", box, far[0])
+        m.add_object("lid", box, far[1])
+    box.vertices = box.vertices * [1.8, 1, 1]                 # now 0.1 into "lid" and the ball
+    for m, o in ((ours, other), (theirs, other_t)):
+        assert ("box", "lid") not in m.in_collision_internal(return_names=True)[1]
+        assert "box" not in m.in_collision_single(ball, probe, return_names=True)[1]
+        assert ("box", "ball") not in m.in_collision_other(o, return_names=True)[1]
+    assert ours.min_distance_single(ball, probe) > 0.05
+    assert len(prepared) == 2                     # the two adds: once, at the next query
+    for m, o in ((ours, other), (theirs, other_t)):
+        m.add_object("box", box, far[0])
+        assert ("box", "lid") in m.in_collision_internal(return_names=True)[1]
+        assert "box" in m.in_collision_single(ball, probe, return_names=True)[1]
+        assert ("box", "ball") in m.in_collision_other(o, return_names=True)[1]
+    assert list(ours._objs)[-2:] == ["box", "lid"]            # a replaced object keeps its place
+    ours.remove_object("lid")
+    assert not any("lid" in p for p in ours.in_collision_internal(return_names=True)[1])
+    assert len(prepared) == 4
+
+
 def test_single_and_other_as_trimesh():
     box = trimesh.creation.box((1, 1, 1))
     ball = trimesh.creation.icosphere(radius=0.3)

@@ -6,7 +6,10 @@ errors as trimesh's class (which runs python-fcl). What backs each answer:
 * **Collisions** (``in_collision_*``): pycinder's GPU query, one per call (``in_collision_single``
   and ``in_collision_other`` test only the pairs across the two sides), within the tolerance
   contract of :mod:`pycinder.request`. Unlike FCL's surface tests, a body wholly inside another
-  is a collision.
+  is a collision. An object's mesh is copied when it is added, as trimesh builds its BVH then:
+  every method tests the mesh as it was added (edit it, and add it again to have the edit seen),
+  and the copies are checked once (:meth:`pycinder.Detector.prepare`) until objects are added
+  or removed.
 * **Contacts** (``return_data=True``): one :class:`ContactData` per contact region of each
   colliding pair, reduced from the GPU's records (:mod:`pycinder.contacts`). ``normal`` follows
   python-fcl: it points from the contact's first object into its second (``ContactData.pair``;
@@ -36,6 +39,8 @@ from .detector import Detector
 from .optional import require
 from .request import CollisionRequest
 from .result import CollisionResult
+from .scene import PreparedBodies
+from .scene.bodies import mesh_arrays
 
 EXTERNAL = "__external"
 """The name trimesh gives the probe of ``in_collision_single`` and ``min_distance_single``."""
@@ -108,19 +113,29 @@ DistanceAnswer = Union[float, tuple[float, _N], tuple[float, DistanceData | None
 
 @dataclass
 class CollisionObject:
-    """What :meth:`CollisionManager.add_object` returns (trimesh returns python-fcl's object)."""
+    """What :meth:`CollisionManager.add_object` returns (trimesh returns python-fcl's object).
+
+    ``mesh`` is the mesh as given; ``geometry`` the ``(vertices, faces)`` copy of it the manager
+    tests (taken when the object was added, as trimesh builds its BVH then), or None for a probe,
+    tested as given."""
 
     name: str
     mesh: Any
     transform: np.ndarray
+    geometry: Any = field(default=None, repr=False)
     _fcl: Any = field(default=None, repr=False)
     _trimesh: Any = field(default=None, repr=False)
 
     @property
+    def body(self) -> Any:
+        """What a query is given for this object."""
+        return self.mesh if self.geometry is None else self.geometry
+
+    @property
     def trimesh(self) -> Any:
-        """The mesh as a ``trimesh.Trimesh`` (made once from a (vertices, faces) pair)."""
+        """The tested mesh as a ``trimesh.Trimesh`` (made once)."""
         if self._trimesh is None:
-            self._trimesh = _as_trimesh(self.mesh)
+            self._trimesh = _as_trimesh(self.body)
         return self._trimesh
 
     def world_box(self) -> tuple[np.ndarray, np.ndarray]:
@@ -174,6 +189,11 @@ class CollisionManager:
         self._request = CollisionRequest(**options)  # options checked now, not at first use
         self._detector_: Detector | None = None
         self._objs: dict[str, CollisionObject] = {}
+        self._copies: dict[int, tuple[Any, tuple[Any, Any]]] = {}
+        """Per mesh given (by id, the mesh kept so the id stays its own): its copy, shared by the
+        objects added with it while its content is unchanged."""
+        self._prepared: PreparedBodies | None = None
+        """The objects' copies, checked once until objects are added or removed."""
         self._lock = threading.RLock()
 
     # -- objects --------------------------------------------------------------------------------
@@ -190,15 +210,20 @@ class CollisionManager:
         transform : (4, 4) float, optional
             World from object (float32 is fine).
         """
-        obj = CollisionObject(name, mesh, _transform(transform))
-        self._objs[name] = obj
+        obj = CollisionObject(name, mesh, _transform(transform), self._copy(mesh))
+        old = self._objs.get(name)
+        self._objs[name] = obj  # a replaced object keeps its place, as in trimesh
+        if old is not None:
+            self._forget(old.mesh)
+        self._prepared = None
         return obj
 
     @_serialised
     def remove_object(self, name: str) -> None:
         if name not in self._objs:
             raise ValueError(f"{name} not in collision manager!")
-        del self._objs[name]
+        self._forget(self._objs.pop(name).mesh)
+        self._prepared = None
 
     @_serialised
     def set_transform(self, name: str, transform: np.ndarray) -> None:
@@ -414,11 +439,42 @@ class CollisionManager:
             self._detector_ = Detector(self._request)
         return self._detector_
 
+    def _copy(self, mesh: Any) -> tuple[Any, Any]:
+        """The ``(vertices, faces)`` copy of a mesh being added: that of an earlier object added
+        with the same mesh while its content is unchanged (700 objects of one sphere share one),
+        else a new one. Input that is no array is kept as given (the query then says what is
+        wrong with it)."""
+        try:
+            vertices, faces = (np.asarray(a) for a in mesh_arrays(mesh, "mesh"))
+        except (TypeError, ValueError):
+            return mesh
+        known = self._copies.get(id(mesh))
+        if known is not None and known[0] is mesh and np.array_equal(known[1][0], vertices) \
+                and np.array_equal(known[1][1], faces):
+            return known[1]
+        copy = (np.array(vertices), np.array(faces))
+        self._copies[id(mesh)] = (mesh, copy)
+        return copy
+
+    def _forget(self, mesh: Any) -> None:
+        """Drop the copy of a mesh no object uses any more."""
+        if not any(o.mesh is mesh for o in self._objs.values()):
+            self._copies.pop(id(mesh), None)
+
     def _query(self, objs: Sequence[CollisionObject], labels: list[str],
                groups: np.ndarray | None, contacts: bool) -> CollisionResult:
-        return self._detector.find_collisions(
-            [o.mesh for o in objs], np.array([o.transform for o in objs]).reshape(-1, 4, 4),
-            names=labels, groups=groups, records="all" if contacts else "none")
+        transforms = np.array([o.transform for o in objs]).reshape(-1, 4, 4)
+        records = "all" if contacts else "none"
+        if len(objs) == len(self._objs) and labels == list(self._objs) \
+                and all(a is b for a, b in zip(objs, self._objs.values())):
+            # Every object of this manager: their copies are checked once, until objects are
+            # added or removed.
+            if self._prepared is None:
+                self._prepared = self._detector.prepare([o.body for o in objs], names=labels)
+            return self._detector.find_collisions(self._prepared, transforms, groups=groups,
+                                                  records=records)
+        return self._detector.find_collisions([o.body for o in objs], transforms, names=labels,
+                                              groups=groups, records=records)
 
     @staticmethod
     def _contacts(result: CollisionResult) -> list[ContactData]:
