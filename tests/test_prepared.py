@@ -86,6 +86,23 @@ def test_an_update_uploads_only_the_vertices_it_changed_and_ages_no_cached_shape
     assert measured == [len(meshes[0].vertices)] * 3                   # nothing measured again
 
 
+def test_a_loop_of_updates_leaves_nothing_behind():
+    """A body deforming through update() for many frames, with no list query in between: the
+    detector's cache holds no shape per frame, and the answers follow the vertices."""
+    detector = pycinder.Detector()
+    ball = trimesh.creation.icosphere(subdivisions=1, radius=0.5)
+    poses = np.stack([np.eye(4), trimesh.transformations.translation_matrix((1.1, 0, 0))])
+    bodies = detector.prepare([ball, ball])
+    cached = len(detector.shapes)
+    for k in range(300):
+        scale = 1.0 + 0.5 * (k % 2)                    # radius 0.5 (0.1 apart) or 0.75 (overlap)
+        bodies.update(0, np.asarray(ball.vertices) * scale)
+        if k % 50 < 2:
+            want = [[0, 1]] if k % 2 else []
+            assert detector.find_collisions(bodies, poses).pairs.tolist() == want
+    assert len(detector.shapes) == cached and len(bodies.shapes) == 2
+
+
 def test_a_vertex_array_edited_in_place_is_seen_only_once_updated(detector):
     """Like trimesh's manager (its BVHs are built when objects are added), prepared bodies are
     the meshes as they were: an edit counts from update()."""

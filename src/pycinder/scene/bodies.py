@@ -316,9 +316,12 @@ class ShapeCache:
         """The shape of a mesh, checked and measured once per distinct content."""
         return self.get_many([(vertices, faces, label)], strict)[0]
 
-    def get_many(self, meshes: list[tuple[Any, Any, str]], strict: bool) -> list[Shape]:
+    def get_many(self, meshes: list[tuple[Any, Any, str]], strict: bool, keep: bool = True
+                 ) -> list[Shape]:
         """The shapes of meshes ``(vertices, faces, label)``, in order (see :meth:`get`). Their
-        vertices are hashed, checked and measured on several threads when they are large."""
+        vertices are hashed, checked and measured on several threads when they are large.
+        ``keep=False``: shapes made now are not cached (their caller holds them), so a loop that
+        makes them outside of queries leaves nothing behind."""
         given, topos = [], []
         for vertices, faces, label in meshes:
             v = vertices if type(vertices).__name__ == "TrackedArray" else np.asarray(vertices)
@@ -344,15 +347,15 @@ class ShapeCache:
                         [sizes[i] for i in first])
         for (key, where), measure in zip(missing.items(), measured):
             topo, built = topos[where[0]]
-            shape = self._made(key, topo, built, measure, meshes[where[0]][2], strict)
+            shape = self._made(key, topo, built, measure, meshes[where[0]][2], strict, keep)
             for i in where:
                 out[i] = shape
         return out  # type: ignore[return-value]
 
     def _made(self, key: tuple, topo: Topology, built: bool, measure: tuple, label: str,
-              strict: bool) -> Shape:
+              strict: bool, keep: bool = True) -> Shape:
         """A new shape of ``topo`` from its measured vertices, reported on (when its topology is
-        new) and cached under ``key``."""
+        new) and cached under ``key`` (when ``keep``)."""
         v32, offset, lo, hi, radius = measure
         if built:
             _, areas = face_normals(v32, topo.faces)
@@ -362,6 +365,8 @@ class ShapeCache:
             topo.clusters(v32)
             self.topologies.account(topo, topo.nbytes - before)
         shape = Shape(v32, topo, offset, lo, hi, radius)
+        if not keep:
+            return shape
         if key in self._entries:
             self._drop(key)
         self._entries[key] = shape

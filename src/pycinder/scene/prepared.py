@@ -114,9 +114,9 @@ class PreparedBodies(Sequence):
             label = body_label(i, self.names[i])
             meshes.append((v, mesh_arrays(self._bodies[i], label)[1], label))
         with self._lock:
-            # Shapes made now count for the cache's current query (an update is not a query:
-            # it must not age the shapes of the caller's other queries).
-            new = self._cache.get_many(meshes, self._strict)
+            # An update is not a query: it ages none of the cache's shapes, and the shapes it
+            # makes are held here only (a loop of updates leaves nothing in the cache).
+            new = self._cache.get_many(meshes, self._strict, keep=False)
             shapes, body_shape = list(self.shapes), self.body_shape.copy()
             for (v, faces, _), i, shape in zip(meshes, which, new):
                 old = body_shape[i]
