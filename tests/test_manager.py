@@ -157,11 +157,18 @@ def test_every_method_tests_the_mesh_as_it_was_added(monkeypatch):
         assert ("box", "ball") not in m.in_collision_other(o, return_names=True)[1]
     assert ours.min_distance_single(ball, probe) > 0.05
     assert len(prepared) == 2                     # the two adds: once, at the next query
+    past_lid = T((52.2, 0, 0))                  # 0.1 beyond "lid" as added; in it, widened
     for m, o in ((ours, other), (theirs, other_t)):
         m.add_object("box", box, far[0])
         assert ("box", "lid") in m.in_collision_internal(return_names=True)[1]
         assert "box" in m.in_collision_single(ball, probe, return_names=True)[1]
         assert ("box", "ball") in m.in_collision_other(o, return_names=True)[1]
+        # "lid", added with the same mesh, keeps the mesh as it was when it was added
+        assert "lid" not in m.in_collision_single(ball, past_lid, return_names=True)[1]
+    distance, name = ours.min_distance_single(ball, past_lid, return_name=True)
+    assert name == "lid" and 0.1 - 1e-9 <= distance < 0.13    # python-fcl, on the old mesh
+    with pytest.raises(ValueError, match="read-only"):
+        ours._objs["box"].trimesh.vertices[0, 0] = 5.0   # what is tested cannot be edited
     assert list(ours._objs)[-2:] == ["box", "lid"]            # a replaced object keeps its place
     ours.remove_object("lid")
     assert not any("lid" in p for p in ours.in_collision_internal(return_names=True)[1])

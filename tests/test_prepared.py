@@ -95,7 +95,8 @@ def test_a_loop_of_updates_leaves_nothing_behind():
     bodies = detector.prepare([ball, ball])
     cached = len(detector.shapes)
     for k in range(300):
-        scale = 1.0 + 0.5 * (k % 2)                    # radius 0.5 (0.1 apart) or 0.75 (overlap)
+        # radius 0.5 (0.1 apart) or 0.75 (overlap), and new vertices every frame
+        scale = (1.0 + 0.5 * (k % 2)) * (1.0 + 1e-6 * k)
         bodies.update(0, np.asarray(ball.vertices) * scale)
         if k % 50 < 2:
             want = [[0, 1]] if k % 2 else []

@@ -6,10 +6,11 @@ errors as trimesh's class (which runs python-fcl). What backs each answer:
 * **Collisions** (``in_collision_*``): pycinder's GPU query, one per call (``in_collision_single``
   and ``in_collision_other`` test only the pairs across the two sides), within the tolerance
   contract of :mod:`pycinder.request`. Unlike FCL's surface tests, a body wholly inside another
-  is a collision. An object's mesh is copied when it is added, as trimesh builds its BVH then:
-  every method tests the mesh as it was added (edit it, and add it again to have the edit seen),
-  and the copies are checked once (:meth:`pycinder.Detector.prepare`) until objects are added
-  or removed.
+  is a collision. An object's mesh is copied when it is added (read-only), as trimesh builds
+  its BVH then: every method tests the mesh as it was added (edit it, and add it again to have
+  the edit seen). Calls over all of the manager's objects check the copies once
+  (:meth:`pycinder.Detector.prepare`) until objects are added or removed; the others recognise
+  them by trimesh's cached content hash.
 * **Contacts** (``return_data=True``): one :class:`ContactData` per contact region of each
   colliding pair, reduced from the GPU's records (:mod:`pycinder.contacts`). ``normal`` follows
   python-fcl: it points from the contact's first object into its second (``ContactData.pair``;
@@ -115,9 +116,10 @@ DistanceAnswer = Union[float, tuple[float, _N], tuple[float, DistanceData | None
 class CollisionObject:
     """What :meth:`CollisionManager.add_object` returns (trimesh returns python-fcl's object).
 
-    ``mesh`` is the mesh as given; ``geometry`` the ``(vertices, faces)`` copy of it the manager
-    tests (taken when the object was added, as trimesh builds its BVH then), or None for a probe,
-    tested as given."""
+    ``mesh`` is the mesh as given; ``geometry`` what the manager tests: the read-only
+    ``(vertices, faces)`` copy of it taken when the object was added (as trimesh builds its BVH
+    then), the mesh itself where it is no pair of arrays (the query names the problem), or None
+    for a probe, tested as given."""
 
     name: str
     mesh: Any
@@ -189,9 +191,10 @@ class CollisionManager:
         self._request = CollisionRequest(**options)  # options checked now, not at first use
         self._detector_: Detector | None = None
         self._objs: dict[str, CollisionObject] = {}
-        self._copies: dict[int, tuple[Any, tuple[Any, Any]]] = {}
-        """Per mesh given (by id, the mesh kept so the id stays its own): its copy, shared by the
-        objects added with it while its content is unchanged."""
+        self._copies: dict[int, list[Any]] = {}
+        """Per mesh given (by id; the mesh is kept, so the id stays its own): the mesh, its
+        latest copy (shared by the objects added with it while its content is unchanged) and
+        how many objects use the mesh."""
         self._prepared: PreparedBodies | None = None
         """The objects' copies, checked once until objects are added or removed."""
         self._lock = threading.RLock()
@@ -210,8 +213,9 @@ class CollisionManager:
         transform : (4, 4) float, optional
             World from object (float32 is fine).
         """
-        obj = CollisionObject(name, mesh, _transform(transform), self._copy(mesh))
-        old = self._objs.get(name)
+        transform = _transform(transform)
+        old = self._objs.get(name)  # an unhashable name raises here, before anything is kept
+        obj = CollisionObject(name, mesh, transform, self._copy(mesh))
         self._objs[name] = obj  # a replaced object keeps its place, as in trimesh
         if old is not None:
             self._forget(old.mesh)
@@ -439,27 +443,37 @@ class CollisionManager:
             self._detector_ = Detector(self._request)
         return self._detector_
 
-    def _copy(self, mesh: Any) -> tuple[Any, Any]:
+    def _copy(self, mesh: Any) -> Any:
         """The ``(vertices, faces)`` copy of a mesh being added: that of an earlier object added
         with the same mesh while its content is unchanged (700 objects of one sphere share one),
-        else a new one. Input that is no array is kept as given (the query then says what is
-        wrong with it)."""
+        else a new one. Its arrays are read-only and carry trimesh's cached content hash, so a
+        query recognises them without hashing their bytes. Input that is no pair of arrays is
+        kept as given (the query then says what is wrong with it, naming the object)."""
         try:
             vertices, faces = (np.asarray(a) for a in mesh_arrays(mesh, "mesh"))
         except (TypeError, ValueError):
             return mesh
         known = self._copies.get(id(mesh))
-        if known is not None and known[0] is mesh and np.array_equal(known[1][0], vertices) \
+        if known is not None and np.array_equal(known[1][0], vertices) \
                 and np.array_equal(known[1][1], faces):
+            known[2] += 1
             return known[1]
-        copy = (np.array(vertices), np.array(faces))
-        self._copies[id(mesh)] = (mesh, copy)
+        from trimesh.caching import tracked_array
+
+        copy = (tracked_array(np.array(vertices)), tracked_array(np.array(faces)))
+        for a in copy:
+            a.flags.writeable = False
+        users = known[2] if known is not None else 0
+        self._copies[id(mesh)] = [mesh, copy, users + 1]
         return copy
 
     def _forget(self, mesh: Any) -> None:
-        """Drop the copy of a mesh no object uses any more."""
-        if not any(o.mesh is mesh for o in self._objs.values()):
-            self._copies.pop(id(mesh), None)
+        """One object less uses ``mesh``: drop its copy once none does."""
+        known = self._copies.get(id(mesh))
+        if known is not None and known[0] is mesh:
+            known[2] -= 1
+            if known[2] <= 0:
+                del self._copies[id(mesh)]
 
     def _query(self, objs: Sequence[CollisionObject], labels: list[str],
                groups: np.ndarray | None, contacts: bool) -> CollisionResult:

@@ -77,6 +77,14 @@ def _map(fn: Any, items: list, sizes: list[int]) -> list:
     return [done[i][1] for i in range(len(items))]
 
 
+def _array(values: Any, label: str) -> np.ndarray:
+    """``np.asarray(values)``, its failure (ragged rows) worded with the body's label."""
+    try:
+        return np.asarray(values)
+    except ValueError as exc:
+        raise ValueError(f"{label}: vertices must be a (V, 3) array of numbers ({exc})") from None
+
+
 MAX_EXTENT = 1e30
 """Largest body extent and distance from its own origin, in its own units: single precision (the
 GPU's) holds the re-centred vertices with room to spare."""
@@ -324,7 +332,7 @@ class ShapeCache:
         makes them outside of queries leaves nothing behind."""
         given, topos = [], []
         for vertices, faces, label in meshes:
-            v = vertices if type(vertices).__name__ == "TrackedArray" else np.asarray(vertices)
+            v = vertices if type(vertices).__name__ == "TrackedArray" else _array(vertices, label)
             if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0 or v.dtype.kind not in "iuf":
                 check_vertices(v, label)  # raises with the message for the shape or dtype
             given.append(v)
