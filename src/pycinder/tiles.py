@@ -11,8 +11,9 @@ touch and gets no tile (a separating-axis test for free).
 
 The pixel size is the pair's tolerance (see :mod:`pycinder.request` for the contract). A window
 is cut into pieces of at most :data:`MAX_TILE` pixels, and the pieces are packed into the atlas:
-bands :data:`ATLAS_WIDTH` pixels wide, one band height per class of tile height, each tile at the
-next free column of its class's band. A tile that would cross a band's end is cut in two there.
+bands :data:`ATLAS_WIDTH` pixels wide (narrower for a plan whose every class of tiles fits one
+narrower band), one band height per class of tile height, each tile at the next free column of
+its class's band. A tile that would cross a band's end is cut in two there.
 When the atlas would need more pixels than the budget allows, it is processed in rounds.
 
 Tile coordinates: ``u`` and ``v`` count pixels across the window from its corner, ``z`` counts
@@ -41,6 +42,9 @@ HEIGHT_CLASSES = (8, 16, 32, 64, 128)
 """Band heights of the atlas: a tile goes to the band of the smallest class that holds it."""
 
 ATLAS_WIDTH = 2048
+"""Widest atlas (bands of tiles this wide)."""
+MIN_ATLAS_WIDTH = 64
+"""Narrowest atlas a small plan gets (see :func:`fitted_width`)."""
 
 MARGIN_PX = 1
 """Pixels added around the overlap box's projection, so that a sample near the box's edge still
@@ -241,9 +245,27 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     cat["h"] = cat["h"].astype(np.int64)
     dense = np.ones(len(cat["w"]), dtype=bool) if faces is None else \
         faces[cat["bodies"][:, 0]] + faces[cat["bodies"][:, 1]] >= PROBE_FACES
-    plans = [_pack(p, budget_pixels, separated) for p in _phases(cat, probe, dense)
-             if len(p["w"])]
-    return concat_plans(plans)
+    phases = [p for p in _phases(cat, probe, dense) if len(p["w"])]
+    width = fitted_width(np.concatenate([p["w"] for p in phases]),
+                         np.concatenate([p["h"] for p in phases]))
+    return concat_plans([_pack(p, budget_pixels, separated, width) for p in phases])
+
+
+def fitted_width(w: np.ndarray, h: np.ndarray) -> int:
+    """The narrowest atlas, a power of two from :data:`MIN_ATLAS_WIDTH` to :data:`ATLAS_WIDTH`,
+    in which every class of tiles (widths ``w``, heights ``h`` (T,)) fits one band: a small plan
+    clears and rasterises less unused atlas (two small bodies: 1,872 pixels of tiles in an atlas
+    of 4,096 pixels instead of 65,536). Plans that need more take the widest.
+
+    Returns
+    -------
+    int
+    """
+    cls = np.searchsorted(np.array(HEIGHT_CLASSES), h)
+    widest = max(float(np.bincount(cls, weights=w).max()), float(w.max()), 1.0)
+    if widest >= ATLAS_WIDTH:
+        return ATLAS_WIDTH
+    return max(MIN_ATLAS_WIDTH, 1 << int(np.ceil(np.log2(widest))))
 
 
 def concat_plans(plans: list[TilePlan]) -> TilePlan:
@@ -473,10 +495,13 @@ def _phases(t: dict, probe: bool, dense: np.ndarray) -> list[dict]:
     return [first, _pieces(t, large, FLAG_SKIP_IF_HIT)]
 
 
-def _pack(t: dict, budget_pixels: int, separated: int, atlas_width: int = ATLAS_WIDTH
+def _pack(t: dict, budget_pixels: int, separated: int, atlas_width: int | None = None
           ) -> TilePlan:
-    """Place the tiles in atlas bands ``atlas_width`` wide (at least a tile's largest width),
-    cutting tiles at band ends, and split the bands into rounds of at most ``budget_pixels``."""
+    """Place the tiles in atlas bands ``atlas_width`` wide (at least a tile's largest width;
+    default: :func:`fitted_width`), cutting tiles at band ends, and split the bands into rounds
+    of at most ``budget_pixels``."""
+    if atlas_width is None:
+        atlas_width = fitted_width(t["w"], t["h"])
     classes = np.array(HEIGHT_CLASSES)
     cls = np.searchsorted(classes, t["h"])
     order = np.argsort(cls, kind="stable")
