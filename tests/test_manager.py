@@ -175,6 +175,35 @@ def test_every_method_tests_the_mesh_as_it_was_added(monkeypatch):
     assert len(prepared) == 4
 
 
+def test_a_call_with_another_manager_waits_for_that_manager():
+    """in_collision_other reads the other manager's objects: it holds that manager's lock, so
+    an add_object there (from another thread) cannot change them under it."""
+    import threading
+
+    box = trimesh.creation.box((1, 1, 1))
+    ours, other = pycinder.CollisionManager(), pycinder.CollisionManager()
+    ours.add_object("a", box)
+    other.add_object("b", box, T((0.5, 0, 0)))
+    answers = []
+    with other._lock:                                   # as if other were busy in a call
+        worker = threading.Thread(target=lambda: answers.append(
+            ours.in_collision_other(other, return_names=True)))
+        worker.start()
+        worker.join(timeout=0.5)
+        assert worker.is_alive() and not answers         # it waits for other's lock
+    worker.join(timeout=60)
+    assert answers == [(True, {("a", "b")})]
+    # crossed calls from two threads take the two locks in one order: no deadlock
+    results = []
+    threads = [threading.Thread(target=lambda m, o: results.append(m.in_collision_other(o)),
+                                args=pair) for pair in ((ours, other), (other, ours)) * 3]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=120)
+    assert results == [True] * 6
+
+
 def test_single_and_other_as_trimesh():
     box = trimesh.creation.box((1, 1, 1))
     ball = trimesh.creation.icosphere(radius=0.3)

@@ -26,6 +26,7 @@ errors as trimesh's class (which runs python-fcl). What backs each answer:
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import sys
 import threading
@@ -162,11 +163,18 @@ _Method = TypeVar("_Method", bound=Callable[..., Any])
 
 def _serialised(method: _Method) -> _Method:
     """One call of a manager at a time, from any thread: its objects and its detector are
-    shared by every call."""
+    shared by every call. A call given another manager (``*_other``) holds that one's lock too
+    (the two taken in one order, so that crossed calls cannot deadlock)."""
 
     @functools.wraps(method)
     def call(self: CollisionManager, *args: Any, **kwargs: Any) -> Any:
-        with self._lock:
+        other = kwargs.get("other_manager", args[0] if args else None)
+        locks = [self._lock]
+        if isinstance(other, CollisionManager) and other is not self:
+            locks = sorted(locks + [other._lock], key=id)
+        with contextlib.ExitStack() as held:
+            for lock in locks:
+                held.enter_context(lock)
             return method(self, *args, **kwargs)
 
     return cast(_Method, call)
