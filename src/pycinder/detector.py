@@ -118,9 +118,9 @@ class Detector:
 
         Parameters
         ----------
-        bodies : sequence of trimesh.Trimesh or (vertices (V, 3), faces (F, 3)) pairs, or PreparedBodies
-            Meshes in body coordinates (closed ones are solids), or meshes checked once by
-            :meth:`prepare`.
+        bodies : sequence of trimesh.Trimesh or (vertices (V, 3), faces (F, 3)) pairs
+            Meshes in body coordinates (closed ones are solids), or :class:`PreparedBodies`:
+            meshes checked once by :meth:`prepare`.
         transforms : (N, 4, 4) float, optional
             World-from-body matrices (default: identity).
         names : sequence of str, optional
