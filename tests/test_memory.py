@@ -105,8 +105,28 @@ def test_bodies_are_measured_on_threads_and_in_a_forked_child():
     poses = np.stack([np.eye(4)] * 8)
     poses[:, 0, 3] = 1.9 * np.arange(8)
     bodies_in = [(v, faces) for v in verts]
-    threaded = pycinder.Detector().find_collisions(bodies_in, poses)
-    assert threads._pool is not None                         # the threads were used
+    detector = pycinder.Detector()
+
+    class Counting:
+        """The pool, counting the tasks given to it."""
+
+        def __init__(self, pool):
+            self.pool, self.tasks = pool, 0
+
+        def submit(self, *args, **kwargs):
+            self.tasks += 1
+            return self.pool.submit(*args, **kwargs)
+
+        def map(self, fn, *iterables):
+            items = list(zip(*iterables))
+            self.tasks += len(items)
+            return self.pool.map(fn, *zip(*items))
+
+    counting = Counting(threads.pool())
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(threads, "pool", lambda: counting)
+        threaded = detector.find_collisions(bodies_in, poses)
+    assert counting.tasks >= 2                               # the threads were used
     one = pycinder.Detector()
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(bodies, "PARALLEL_BYTES", 1 << 60)
