@@ -328,8 +328,10 @@ class ShapeCache:
                  ) -> list[Shape]:
         """The shapes of meshes ``(vertices, faces, label)``, in order (see :meth:`get`). Their
         vertices are hashed, checked and measured on several threads when they are large.
-        ``keep=False``: shapes made now are not cached (their caller holds them), so a loop that
-        makes them outside of queries leaves nothing behind."""
+        ``keep=False``: new vertices, by the caller's word (:meth:`PreparedBodies.update`): they
+        are not hashed or looked up (an array given twice makes one shape), and the shapes made
+        are not cached (their caller holds them), so a loop that makes them outside of queries
+        leaves nothing behind."""
         given, topos = [], []
         for vertices, faces, label in meshes:
             v = vertices if type(vertices).__name__ == "TrackedArray" else _array(vertices, label)
@@ -338,7 +340,8 @@ class ShapeCache:
             given.append(v)
             topos.append(self.topologies.get(faces, len(v), label))
         sizes = [v.nbytes for v in given]
-        keys = _map(_vertex_key, [(v,) for v in given], sizes)
+        keys = _map(_vertex_key, [(v,) for v in given], sizes) if keep else \
+            [("given", id(v)) for v in given]
         out: list[Shape | None] = [None] * len(meshes)
         missing: dict[tuple, list[int]] = {}  # new content: the meshes that have it
         for i, ((topo, _), key) in enumerate(zip(topos, keys)):

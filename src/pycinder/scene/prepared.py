@@ -90,8 +90,10 @@ class PreparedBodies(Sequence):
             One body, or several.
         vertices : (V, 3) real, or a sequence of them
             Its vertices, or one array per body (V may change as far as the faces allow). They
-            are checked now, and used as given: editing an array later is seen by a result's
-            :meth:`~pycinder.CollisionResult.contacts` only if it calls :meth:`update` again.
+            are checked and copied now (not hashed: they are taken to be new), so editing an
+            array later changes nothing until it is passed here again; a result's
+            :meth:`~pycinder.CollisionResult.contacts`, computed later, runs its query again on
+            the bodies as they are then.
 
         Raises
         ------
@@ -118,13 +120,16 @@ class PreparedBodies(Sequence):
             # makes are held here only (a loop of updates leaves nothing in the cache).
             new = self._cache.get_many(meshes, self._strict, keep=False)
             shapes, body_shape = list(self.shapes), self.body_shape.copy()
+            users = np.bincount(body_shape, minlength=len(shapes)).tolist()
             for (v, faces, _), i, shape in zip(meshes, which, new):
-                old = body_shape[i]
-                if np.count_nonzero(body_shape == old) == 1:
+                old = int(body_shape[i])
+                if users[old] == 1:
                     shapes[old] = shape  # its own shape: the same slot keeps the GPU's layout
                 else:
+                    users[old] -= 1
                     body_shape[i] = len(shapes)
                     shapes.append(shape)
+                    users.append(1)
                 self._bodies[i] = (v, faces)
             self._state = _state(shapes, body_shape)
 
