@@ -200,7 +200,6 @@ class FocusedStrategy:
         found = np.zeros(len(pairs), dtype=bool)
         rows, plans = [], []
         current, capacity = plan, self.passes.capacity
-        retries = 0
         lists_overflowed = False
         for attempt in range(RETRIES + 1):
             current, out = self._run_plan(current, scene, pack, len(pairs), records, capacity,
@@ -209,7 +208,6 @@ class FocusedStrategy:
             if out.retried_tiles:
                 # The frame ran its undecided tiles again itself, with longer lists.
                 lists_overflowed = True
-                retries += 1
                 stats.retries += 1
                 capacity = out.capacity
             found |= out.pair_found
@@ -225,10 +223,9 @@ class FocusedStrategy:
             again = undecided if records.every_tile else undecided & ~found[current.pair]
             if not again.any():
                 break
-            if retries == RETRIES:
+            if stats.retries == RETRIES:
                 self._report_loss(stats, current.bodies[again], decided, capacity)
                 break
-            retries += 1
             stats.retries += 1
             # First with longer lists (few tiles overflow, so memory is no concern), then with
             # the boxes cut in two along the view; at once with both when pass F6 ran out of

@@ -15,7 +15,8 @@ is encoded by :meth:`FocusedPasses._encode_round`. F1 to F6 run once per round o
 round unless the memory budget is exceeded), F0 before them when vertices changed, and then,
 when asked, a retry round per round for the tiles left undecided, with longer lists: all in one
 submission; one readback brings back the counters, a hit flag per candidate pair, the first
-records and the timestamps (the per-tile counts only when a tile must be run again by the host). Pipelines and buffers are created once and grown when a frame needs more; a frame
+records and the timestamps (the per-tile counts only when a tile must be run again by the host).
+Pipelines and buffers are created once and grown when a frame needs more; a frame
 whose counts outgrow a buffer is run again with the buffer grown, so nothing is dropped.
 """
 
@@ -28,8 +29,9 @@ import wgpu
 
 from ..gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ..gpu.device import Gpu
-from ..layout import (C_AGAIN, C_CUTS, C_EDGES, C_MAX_EDGES, C_MAX_TRIS, C_RECORDS, C_RETRY_TILES, C_UNDECIDED, COUNTERS,
-                      FLAG_OPEN, ROUND_COUNTERS, ROW, TILE_WORDS, WORKGROUP)
+from ..layout import (C_AGAIN, C_CUTS, C_EDGES, C_MAX_EDGES, C_MAX_TRIS, C_RECORDS,
+                      C_RETRY_TILES, C_UNDECIDED, COUNTERS, FLAG_OPEN, ROUND_COUNTERS, ROW,
+                      TILE_WORDS, WORKGROUP)
 from ..request import RecordMode
 from ..scene.pack import ShapePack
 from ..tiles import TilePlan
@@ -113,8 +115,8 @@ class FocusedOutput:
     tile_counts : (T, 2) int64 or None
         Per tile: samples found inside the other body (or crossings), samples undecided (list
         overflow; :data:`~pycinder.layout.UNDECIDED_BUDGET_BIT` set where pass F6 ran out of
-        its loop budget). Read only when some tile is left undecided and its answer could still change
-        (the host then runs it again); None otherwise.
+        its loop budget). Read only when some tile is left undecided and its answer could
+        still change (the host then runs it again); None otherwise.
     records : (R, 4) uint32
         tile, u | v << 16, f32 bits of z, id | kind | side (see :mod:`pycinder.layout`); sorted.
     counters : (COUNTERS,) int64
