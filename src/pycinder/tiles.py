@@ -236,7 +236,7 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     parts = list(workers.map(plan, starts)) if workers and len(starts) > 1 else \
         [plan(s) for s in starts]
     keep = [p for p in parts if p is not None]
-    separated = len(pairs) - sum(len(np.unique(p["pair"])) for p in keep)
+    separated = len(pairs) - sum(len(p["pair"]) for p in keep)  # a window per kept pair
     if not keep:
         return _empty_plan(separated)
     cat = {k: np.concatenate([p[k] for p in keep]) for k in keep[0]}
@@ -290,7 +290,7 @@ def _support(rows: np.ndarray, centre: np.ndarray, axes: np.ndarray
 
 @dataclass
 class _BodyBounds:
-    """Every body's two bounding boxes, and their intervals along the axes of the world and of
+    """Every body's two bounding boxes, and where both hold along the axes of the world and of
     the body's own frame (what a pair's planning needs of each body alone).
 
     obb_centre : (N, 3)
@@ -301,10 +301,10 @@ class _BodyBounds:
         The world box's centre and half extents.
     frames : (N, 3, 3)
         Orthonormal body frames, rows = axes.
-    world : (N, 2, 2, 3)
-        Per body, box (oriented, world) and (centre, half width) along the world's axes.
-    own : (N, 2, 2, 3)
-        The same along the body's own frame's axes.
+    world : (N, 2, 3)
+        Per body, the interval ``(lo, hi)`` along each world axis where both boxes hold.
+    own : (N, 2, 3)
+        The same along the axes of the body's own frame.
     mirrored : (N,) bool
         Whether the transform mirrors the body.
     """
@@ -319,6 +319,13 @@ class _BodyBounds:
     mirrored: np.ndarray
 
 
+def _both(first: tuple[np.ndarray, np.ndarray], second: tuple[np.ndarray, np.ndarray]
+          ) -> np.ndarray:
+    """(..., 2, 3): the interval ``(lo, hi)`` where two intervals given as (centre, half) hold."""
+    (c1, h1), (c2, h2) = first, second
+    return np.stack([np.maximum(c1 - h1, c2 - h2), np.minimum(c1 + h1, c2 + h2)], axis=-2)
+
+
 def _body_bounds(local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarray,
                  world_hi: np.ndarray, transforms: np.ndarray) -> _BodyBounds:
     # Both boxes as centre + M @ [-1, 1]^3 (columns of M: the box's half axes).
@@ -327,10 +334,8 @@ def _body_bounds(local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarra
     obb_m = t3 * (0.5 * (local_hi - local_lo))[:, None, :]
     aabb_c, aabb_h = 0.5 * (world_lo + world_hi), 0.5 * (world_hi - world_lo)
     frames = _frames(transforms)
-    world = np.stack([np.stack([obb_c, np.abs(obb_m).sum(axis=2)], axis=1),
-                      np.stack([aabb_c, aabb_h], axis=1)], axis=1)
-    own = np.stack([np.stack(_support(frames, obb_c, obb_m), axis=1),
-                    np.stack(_support_box(frames, aabb_c, aabb_h), axis=1)], axis=1)
+    world = _both((obb_c, np.abs(obb_m).sum(axis=2)), (aabb_c, aabb_h))
+    own = _both(_support(frames, obb_c, obb_m), _support_box(frames, aabb_c, aabb_h))
     return _BodyBounds(obb_c, obb_m, aabb_c, aabb_h, frames, world, own,
                        np.linalg.det(t3) < 0)
 
@@ -350,22 +355,19 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: _BodyBounds,
     cand[:, 0] = np.eye(3)
     cand[:, 1] = bounds.frames[a]
     cand[:, 2] = bounds.frames[b]
-    # Four bounds per pair (both oriented boxes, both world boxes), in every candidate frame:
-    # those of a body in the world's frame and in its own are the body's; only the other body's
-    # boxes in a body's frame are the pair's own work.
-    iv = np.empty((4, 2, k, 3, 3))                          # bound, (centre, half), frame, axis
-    iv[0:2, :, :, 0] = bounds.world[a].transpose(1, 2, 0, 3)
-    iv[2:4, :, :, 0] = bounds.world[b].transpose(1, 2, 0, 3)
+    # The box where all four bounds (both bodies' two boxes) hold, in every candidate frame:
+    # where a body's own two boxes hold along the world's axes and its own frame's is the
+    # body's; only the other body's boxes in a body's frame are the pair's own work.
+    lo = np.empty((k, 3, 3))                                                          # frame, axis
+    hi = np.empty((k, 3, 3))
+    wa, wb = bounds.world[a], bounds.world[b]
+    lo[:, 0], hi[:, 0] = np.maximum(wa[:, 0], wb[:, 0]), np.minimum(wa[:, 1], wb[:, 1])
     for f, (me, other) in enumerate(((a, b), (b, a)), start=1):
         rows = bounds.frames[me]
-        iv[0:2, :, :, f] = bounds.own[me].transpose(1, 2, 0, 3)
-        iv[2, 0, :, f], iv[2, 1, :, f] = _support(rows, bounds.obb_centre[other],
-                                                 bounds.obb_axes[other])
-        iv[3, 0, :, f], iv[3, 1, :, f] = _support_box(rows, bounds.aabb_centre[other],
-                                                     bounds.aabb_half[other])
-    below, above = iv[:, 0] - iv[:, 1], iv[:, 0] + iv[:, 1]                        # (4, k, 3, 3)
-    lo = np.maximum(np.maximum(below[0], below[1]), np.maximum(below[2], below[3]))  # (k, 3, 3)
-    hi = np.minimum(np.minimum(above[0], above[1]), np.minimum(above[2], above[3]))
+        seen = _both(_support(rows, bounds.obb_centre[other], bounds.obb_axes[other]),
+                     _support_box(rows, bounds.aabb_centre[other], bounds.aabb_half[other]))
+        mine = bounds.own[me]
+        lo[:, f], hi[:, f] = np.maximum(mine[:, 0], seen[:, 0]), np.minimum(mine[:, 1], seen[:, 1])
     apart = (hi < lo).any(axis=(1, 2))
     lo = np.minimum(lo, hi)
     extent = hi - lo
@@ -504,10 +506,11 @@ def _pack(t: dict, budget_pixels: int, separated: int, atlas_width: int | None =
         atlas_width = fitted_width(t["w"], t["h"])
     classes = np.array(HEIGHT_CLASSES)
     cls = np.searchsorted(classes, t["h"])
+    # The tiles are gathered once, at the end: ``order`` sorts them by class, ``src`` appends
+    # the second parts of cut tiles, ``o`` sorts them by band.
     order = np.argsort(cls, kind="stable")
-    t = {k: v[order] for k, v in t.items()}
     cls = cls[order]
-    w = t["w"]
+    w = t["w"][order]
     # Start column of every tile in its class's run of bands.
     first_of_class = np.searchsorted(cls, np.arange(len(classes)))
     csum = np.cumsum(w)
@@ -525,9 +528,6 @@ def _pack(t: dict, budget_pixels: int, separated: int, atlas_width: int | None =
     widths = np.concatenate([first_w, w[rest] - first_w[rest]])
     src = np.concatenate([np.arange(len(w)), rest])
     shift = np.concatenate([np.zeros(len(w)), first_w[rest].astype(np.float64)])
-    out = {k: v[src] for k, v in t.items()}
-    out["origin"] = out["origin"] + (shift * out["pixel"])[:, None] * out["axes"][:, 0]
-    out["w"] = widths
     tile_cls = cls[src]
     # Bands of each class, in class order; rows from the top of the atlas.
     class_width = np.bincount(cls, weights=w, minlength=len(classes))
@@ -547,12 +547,15 @@ def _pack(t: dict, budget_pixels: int, separated: int, atlas_width: int | None =
         band_row0[i] = round_rows[-1]
         round_rows[-1] += rows
     global_band = band_first[tile_cls] + bands
-    window = np.stack([cols, band_row0[global_band], widths, out["h"]], axis=1)
     # Tiles in band order, so that each round's tiles are contiguous.
     o = np.argsort(global_band, kind="stable")
-    return TilePlan(out["pair"][o], out["bodies"][o], out["axes"][o], out["origin"][o],
-                    out["pixel"][o], window[o], out["slab"][o], out["flags"][o],
-                    band_round[global_band][o], round_rows, atlas_width, separated)
+    idx = order[src[o]]
+    axes, pixel = t["axes"][idx], t["pixel"][idx]
+    origin = t["origin"][idx] + (shift[o] * pixel)[:, None] * axes[:, 0]
+    window = np.stack([cols[o], band_row0[global_band[o]], widths[o], t["h"][idx]], axis=1)
+    return TilePlan(t["pair"][idx], t["bodies"][idx], axes, origin, pixel, window,
+                    t["slab"][idx], t["flags"][idx], band_round[global_band[o]], round_rows,
+                    atlas_width, separated)
 
 
 def repack(plan: TilePlan, budget_pixels: int, atlas_width: int = ATLAS_WIDTH) -> TilePlan:
