@@ -34,6 +34,41 @@ def test_repr_is_short_and_names_the_pairs(detector):
     assert stats.count("\n") < 8 and "tiles=" in stats and "resolution" not in stats
 
 
+def test_records_are_decoded_when_first_read(detector, monkeypatch):
+    """A query returns before its records are decoded; reading them decodes them once, and
+    they hold the geometry: every record's point lies inside the body it penetrates (within a
+    tolerance), on the penetrating body's surface."""
+    import threading
+
+    from pycinder import focused
+
+    calls = []
+    decode = focused.decode_records
+    monkeypatch.setattr(focused, "decode_records",
+                        lambda *a: calls.append(1) or decode(*a))
+    box, ball = box_and_ball()
+    result = detector.find_collisions([box, ball], records="all")
+    count = result.stats.records
+    assert count > 100 and result.pairs.tolist() == [[0, 1]]
+    assert f"{count} records" in repr(result) and not calls  # not decoded by the query
+    readers = [threading.Thread(target=lambda: result.records) for _ in range(4)]
+    for t in readers:
+        t.start()
+    for t in readers:
+        t.join()
+    rec = result.records
+    assert 1 <= len(calls) <= 4 and len(rec) == count
+    assert result.records is rec  # kept
+    tol = result.stats.tolerance[1]
+    meshes = (box, ball)
+    for body in (0, 1):
+        mine = rec[rec["penetrating"] == body]
+        assert len(mine) and (mine["penetrated"] == 1 - body).all()
+        inside = trimesh.proximity.signed_distance(meshes[1 - body], mine["point"])
+        on = trimesh.proximity.signed_distance(meshes[body], mine["point"])
+        assert (inside > -tol).all() and (np.abs(on) < tol).all()
+
+
 @pytest.mark.parametrize("tol", [0.005, 0.001])
 def test_contacts_from_a_default_query_measure_the_exact_overlap(tol):
     """One contact region, whatever the tolerance (at 0.001 the ball's cap is sampled at a

@@ -17,6 +17,7 @@ boxes is planned by the host.
 from __future__ import annotations
 
 import time
+from functools import partial
 
 import numpy as np
 
@@ -247,12 +248,11 @@ class FocusedStrategy:
         t4 = time.perf_counter()
         stats.add_ms("gpu", (t4 - t3) * 1e3)
         result_pairs = unique_pairs(pairs[found, 0], pairs[found, 1])
-        # Every attempt's records name tiles of its own plan: number them in the plans' order,
-        # so that ``records["view"]`` indexes the concatenated plan the result carries.
-        first_tile = np.cumsum([0] + [len(p) for p in plans[:-1]])
-        rec = np.concatenate([self._decode(scene, p, pack, r, int(o))
-                              for (p, r), o in zip(rows, first_tile)])
-        stats.records = len(rec)
+        stats.records = sum(len(r) for _, r in rows)
+        decode = partial(decode_records, rows, pack, scene, self.request.encode)
+        # Records are decoded when first read (most callers read only the pairs); normals come
+        # from the bodies' vertices, which the caller may change once the query returns.
+        records = decode() if self.request.encode == "normal" else (stats.records, decode)
         if stats.dropped_records:
             warn_at_caller(
                 f"{stats.dropped_records} records were dropped: more than one buffer of this "
@@ -260,7 +260,8 @@ class FocusedStrategy:
                 "reported, but contacts come from the records kept; see stats.dropped_records",
                 LossWarning)
         stats.add_ms("decode", (time.perf_counter() - t4) * 1e3)
-        return CollisionResult(result_pairs, rec, stats, tiles=concat_plans(plans), scene=scene)
+        return CollisionResult(result_pairs, records, stats, tiles=concat_plans(plans),
+                               scene=scene)
 
     def _run_plan(self, plan: TilePlan, scene: Scene, pack: ShapePack, n_pairs: int,
                   records: RecordMode, capacity: int, submitted: Submitted | None = None
@@ -334,35 +335,53 @@ class FocusedStrategy:
         for name, ms in out.gpu_ms.items():
             stats.gpu_ms[name] = stats.gpu_ms.get(name, 0.0) + ms
 
-    def _decode(self, scene: Scene, plan: TilePlan, pack: ShapePack, rows: np.ndarray,
-                first_tile: int = 0) -> np.ndarray:
-        """Records from the rows of passes F4 and F5 (tile, u | v << 16, z bits,
-        id | kind | side, see :mod:`pycinder.layout`): ``id`` is a packed edge (F4) or face (F5). A record's
-        ``view`` is its tile's index in ``plan`` plus ``first_tile``."""
-        if len(rows) == 0:
-            return empty_records()
-        tile = rows[:, 0].astype(np.int64)
-        u = (rows[:, 1] & 0xFFFF).astype(np.int64)
-        v = (rows[:, 1] >> 16).astype(np.int64)
-        z = rows[:, 2].view(np.float32)
-        ident = (rows[:, 3] & RECORD_ID_MASK).astype(np.int64)
-        surface = (rows[:, 3] >> RECORD_KIND_SHIFT) & 3 == RECORD_SURFACE
-        side = (rows[:, 3] >> RECORD_SIDE_BIT).astype(np.int64)
-        rec = np.zeros(len(rows), dtype=RECORD_DTYPE)
-        rec["penetrating"] = plan.bodies[tile, side]
-        rec["penetrated"] = plan.bodies[tile, 1 - side]
-        rec["edge"] = np.where(surface, -1, pack.edge_original[np.where(surface, 0, ident)])
-        rec["face"] = np.where(surface, pack.face_original[np.where(surface, ident, 0)], -1)
-        rec["view"] = tile + first_tile
-        rec["pixel_x"], rec["pixel_y"], rec["pixel_z"] = u, v, z
-        rec["point"] = plan.to_world(tile, u + 0.5, v + 0.5, z)
-        rec["normal"] = np.nan
-        if self.request.encode == "normal":
-            e = ~surface
-            rec["normal"][e] = edge_normals(scene, rec["penetrating"][e], rec["edge"][e])
-            rec["normal"][surface] = face_normals_world(scene, rec["penetrating"][surface],
-                                                        rec["face"][surface])
-        return rec
+
+def decode_records(rows: list[tuple[TilePlan, np.ndarray]], pack: ShapePack, scene: Scene,
+                   encode: str) -> np.ndarray:
+    """Records from the rows each plan's passes F4 and F5 found (tile, u | v << 16, z bits,
+    id | kind | side, see :mod:`pycinder.layout`): ``id`` is a packed edge (F4) or face (F5).
+
+    Every attempt's records name tiles of its own plan: they are numbered in the plans' order, so
+    that ``records["view"]`` indexes the concatenated plan the result carries. ``encode``
+    "normal" fills ``normal`` from the bodies' vertices.
+
+    Returns
+    -------
+    structured array of :data:`~pycinder.RECORD_DTYPE`
+    """
+    first_tile = np.cumsum([0] + [len(p) for p, _ in rows[:-1]])
+    return np.concatenate([_decode(scene, plan, pack, r, int(o), encode)
+                           for (plan, r), o in zip(rows, first_tile)])
+
+
+def _decode(scene: Scene, plan: TilePlan, pack: ShapePack, rows: np.ndarray, first_tile: int,
+            encode: str) -> np.ndarray:
+    """:func:`decode_records` of one plan's rows; a record's ``view`` is its tile's index in
+    ``plan`` plus ``first_tile``."""
+    if len(rows) == 0:
+        return empty_records()
+    tile = rows[:, 0].astype(np.int64)
+    u = (rows[:, 1] & 0xFFFF).astype(np.int64)
+    v = (rows[:, 1] >> 16).astype(np.int64)
+    z = rows[:, 2].view(np.float32)
+    ident = (rows[:, 3] & RECORD_ID_MASK).astype(np.int64)
+    surface = (rows[:, 3] >> RECORD_KIND_SHIFT) & 3 == RECORD_SURFACE
+    side = (rows[:, 3] >> RECORD_SIDE_BIT).astype(np.int64)
+    rec = np.zeros(len(rows), dtype=RECORD_DTYPE)
+    rec["penetrating"] = plan.bodies[tile, side]
+    rec["penetrated"] = plan.bodies[tile, 1 - side]
+    rec["edge"] = np.where(surface, -1, pack.edge_original[np.where(surface, 0, ident)])
+    rec["face"] = np.where(surface, pack.face_original[np.where(surface, ident, 0)], -1)
+    rec["view"] = tile + first_tile
+    rec["pixel_x"], rec["pixel_y"], rec["pixel_z"] = u, v, z
+    rec["point"] = plan.to_world(tile, u + 0.5, v + 0.5, z)
+    rec["normal"] = np.nan
+    if encode == "normal":
+        e = ~surface
+        rec["normal"][e] = edge_normals(scene, rec["penetrating"][e], rec["edge"][e])
+        rec["normal"][surface] = face_normals_world(scene, rec["penetrating"][surface],
+                                                    rec["face"][surface])
+    return rec
 
 
 MAX_PIXELS_ACROSS = 2.0**20

@@ -3,7 +3,7 @@ cost."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any
 
@@ -210,7 +210,6 @@ def remember_query(result: CollisionResult, detector: Any, bodies: Sequence[Any]
                          None if groups is None else np.array(groups), records)
 
 
-@dataclass(repr=False)
 class CollisionResult:
     """The answer to one query.
 
@@ -220,7 +219,9 @@ class CollisionResult:
         Unique colliding pairs ``(i, j)`` with ``i < j``, sorted.
     records : structured array of :data:`~pycinder.RECORD_DTYPE`
         One row per sample found inside another body (see :mod:`pycinder.records`): samples,
-        not contacts; :meth:`contacts` reduces them to one contact per region.
+        not contacts; :meth:`contacts` reduces them to one contact per region. A focused query
+        decodes its records (world points, edges and faces) when they are first read, not
+        before it returns: a caller that reads only the pairs never pays for them.
     stats : Stats
     views : list of View
         Scene strategy: the view of each ``records["view"]`` index.
@@ -230,16 +231,40 @@ class CollisionResult:
         The validated bodies the query ran on.
     query : Query or None
         What made this result (the detector and its inputs), to compute contacts later.
+
+    Parameters
+    ----------
+    records : structured array, or (count, decode)
+        The records, or how many there are and a function of no arguments that decodes them
+        (called once, on first read).
     """
 
-    pairs: np.ndarray
-    records: np.ndarray
-    stats: Stats
-    views: list[View] = field(default_factory=list)
-    tiles: TilePlan | None = None
-    scene: Scene | None = None
-    query: Query | None = None
-    _contacts: Contacts | None = field(default=None, init=False)
+    def __init__(self, pairs: np.ndarray,
+                 records: np.ndarray | tuple[int, Callable[[], np.ndarray]], stats: Stats,
+                 views: list[View] | None = None, tiles: TilePlan | None = None,
+                 scene: Scene | None = None, query: Query | None = None) -> None:
+        self.pairs = pairs
+        self.stats = stats
+        self.views = [] if views is None else views
+        self.tiles = tiles
+        self.scene = scene
+        self.query = query
+        self._contacts: Contacts | None = None
+        self._decode: Callable[[], np.ndarray] | None = None
+        self._records: np.ndarray | None = None
+        if isinstance(records, tuple):
+            self._count, self._decode = records
+        else:
+            self._count, self._records = len(records), records
+
+    @property
+    def records(self) -> np.ndarray:
+        records = self._records
+        if records is None:
+            # Decoding is a pure function of what the query read: two threads reading at once
+            # both decode, and either answer is the same.
+            records = self._records = self._decode()
+        return records
 
     @classmethod
     def empty(cls, stats: Stats) -> CollisionResult:
@@ -278,7 +303,7 @@ class CollisionResult:
             setting = f"resolution {st.resolution[0]}"
         pairs = f"{len(self.pairs)} pair" + ("" if len(self.pairs) == 1 else "s")
         return (f"CollisionResult({pairs}" + (f": {', '.join(shown)}" if shown else "") +
-                f"; {len(self.records)} records; {st.strategy} strategy, {setting}; "
+                f"; {self._count} records; {st.strategy} strategy, {setting}; "
                 f"{st.bodies} bodies; on {st.adapter or 'no adapter'})")
 
     def _pair_label(self, i: int, j: int) -> str:
