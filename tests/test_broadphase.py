@@ -32,6 +32,27 @@ def test_sweep_and_prune_matches_brute_force(seed):
         [p for p in brute(lo, hi) if groups[p[0]] != groups[p[1]]]
 
 
+@pytest.mark.parametrize("n", [2, 3, 17, broadphase.ALL_PAIRS_BELOW - 1, broadphase.ALL_PAIRS_BELOW])
+def test_few_boxes_are_tested_pair_by_pair_exactly(n):
+    """Below ALL_PAIRS_BELOW boxes every pair is tested; the answer is the brute force's, with
+    touching boxes, keys (``within``) and groups, as the sweep's."""
+    rng = np.random.default_rng(n)
+    lo = rng.uniform(0, 3, (n, 3))
+    hi = lo + rng.uniform(0.1, 1.5, (n, 3))
+    lo[1] = hi[0]  # exactly touching
+    within = rng.integers(0, 2, n)
+    groups = rng.integers(0, 3, n)
+    truth = brute(lo, hi)
+    for kw, keep in (({}, lambda p: True),
+                     ({"within": within}, lambda p: within[p[0]] == within[p[1]]),
+                     ({"groups": groups}, lambda p: groups[p[0]] != groups[p[1]]),
+                     ({"within": within, "groups": groups},
+                      lambda p: within[p[0]] == within[p[1]] and groups[p[0]] != groups[p[1]])):
+        pairs = sweep_and_prune(lo, hi, **kw)
+        assert pairs.dtype == np.int64 and pairs.shape[1] == 2
+        assert [tuple(p) for p in pairs.tolist()] == [p for p in truth if keep(p)], kw
+
+
 def test_sweep_in_chunks(monkeypatch):
     rng = np.random.default_rng(9)
     lo = rng.uniform(0, 3, (400, 3))

@@ -13,21 +13,9 @@ import numpy as np
 CHUNK_PAIRS = 4_000_000
 """Most axis-overlap pairs expanded at once (about 100 MB of temporaries)."""
 
-
-def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """The 8 corners of each box.
-
-    Parameters
-    ----------
-    lo, hi : (N, 3) float
-        Minimum and maximum corners.
-
-    Returns
-    -------
-    (N, 8, 3) float
-    """
-    bits = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)], dtype=lo.dtype)
-    return lo[:, None, :] + bits[None] * (hi - lo)[:, None, :]
+ALL_PAIRS_BELOW = 32
+"""Fewer boxes than this are tested pair by pair: a handful of array operations instead of the
+sweep's two dozen (2 boxes: about 20 microseconds instead of 100)."""
 
 
 def world_boxes(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
@@ -53,12 +41,12 @@ def world_boxes(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
     lo, hi : (N, 3) float64
     """
     t3 = transforms[:, :3, :3]
-    corners = np.einsum("nij,nkj->nki", t3, box_corners(local_lo, local_hi)) \
-        + transforms[:, None, :3, 3]
     centre = np.einsum("nij,nj->ni", t3, 0.5 * (local_lo + local_hi)) + transforms[:, :3, 3]
-    half = radius[:, None] * np.linalg.norm(t3, axis=2)
-    return (np.maximum(corners.min(axis=1), centre - half),
-            np.minimum(corners.max(axis=1), centre + half))
+    # Half-widths along world axis i: of the box, |row i| . (its half extents); of the sphere,
+    # the radius times |row i|.
+    box = np.einsum("nij,nj->ni", np.abs(t3), 0.5 * (local_hi - local_lo))
+    half = np.minimum(box, radius[:, None] * np.linalg.norm(t3, axis=2))
+    return centre - half, centre + half
 
 
 def side_by_side(lo: np.ndarray, hi: np.ndarray, keys: np.ndarray
@@ -108,6 +96,8 @@ def sweep_and_prune(lo: np.ndarray, hi: np.ndarray, within: np.ndarray | None = 
     n = len(lo)
     if n < 2:
         return np.zeros((0, 2), dtype=np.int64)
+    if n < ALL_PAIRS_BELOW:
+        return _all_pairs(lo, hi, within, groups)
     if within is not None:
         lo, hi = side_by_side(lo, hi, within)
     centre = 0.5 * (lo + hi)
@@ -144,3 +134,15 @@ def sweep_and_prune(lo: np.ndarray, hi: np.ndarray, within: np.ndarray | None = 
     if groups is not None:
         pairs = pairs[groups[pairs[:, 0]] != groups[pairs[:, 1]]]
     return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+
+
+def _all_pairs(lo: np.ndarray, hi: np.ndarray, within: np.ndarray | None,
+               groups: np.ndarray | None) -> np.ndarray:
+    """:func:`sweep_and_prune` of a few boxes, every pair tested."""
+    i, j = np.triu_indices(len(lo), 1)  # (i, j) with i < j, sorted
+    keep = ((lo[i] <= hi[j]) & (lo[j] <= hi[i])).all(axis=1)
+    if within is not None:
+        keep &= within[i] == within[j]
+    if groups is not None:
+        keep &= groups[i] != groups[j]
+    return np.stack([i[keep], j[keep]], axis=1).astype(np.int64)
