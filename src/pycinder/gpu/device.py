@@ -10,6 +10,8 @@ from importlib import resources
 
 import wgpu
 
+from .cffi_types import preparse
+
 INSTALL_HINT = (
     "pycinder needs a WebGPU adapter (Vulkan, Metal, D3D12 or OpenGL). On a machine without a GPU, "
     "install a software driver: on Debian/Ubuntu `apt-get install mesa-vulkan-drivers` (lavapipe)."
@@ -57,6 +59,7 @@ class Gpu:
 
 
 def _request_adapter() -> wgpu.GPUAdapter:
+    preparse()  # the first GPU call: wgpu-py's C types in one parse, not one by one
     power = os.environ.get("PYCINDER_POWER_PREFERENCE", "high-performance")
     try:
         adapter = wgpu.gpu.request_adapter_sync(power_preference=power)
