@@ -249,7 +249,8 @@ class FocusedStrategy:
         stats.add_ms("gpu", (t4 - t3) * 1e3)
         result_pairs = unique_pairs(pairs[found, 0], pairs[found, 1])
         stats.records = sum(len(r) for _, r in rows)
-        decode = partial(decode_records, rows, pack, scene, self.request.encode)
+        decode = partial(decode_records, rows, pack.edge_original, pack.face_original, scene,
+                         self.request.encode)
         # Records are decoded when first read (most callers read only the pairs); normals come
         # from the bodies' vertices, which the caller may change once the query returns.
         records = decode() if self.request.encode == "normal" else (stats.records, decode)
@@ -336,10 +337,12 @@ class FocusedStrategy:
             stats.gpu_ms[name] = stats.gpu_ms.get(name, 0.0) + ms
 
 
-def decode_records(rows: list[tuple[TilePlan, np.ndarray]], pack: ShapePack, scene: Scene,
-                   encode: str) -> np.ndarray:
+def decode_records(rows: list[tuple[TilePlan, np.ndarray]], edge_original: np.ndarray,
+                   face_original: np.ndarray, scene: Scene, encode: str) -> np.ndarray:
     """Records from the rows each plan's passes F4 and F5 found (tile, u | v << 16, z bits,
-    id | kind | side, see :mod:`pycinder.layout`): ``id`` is a packed edge (F4) or face (F5).
+    id | kind | side, see :mod:`pycinder.layout`): ``id`` is a packed edge (F4) or face (F5),
+    numbered in its shape's own order by ``edge_original`` and ``face_original`` (of the
+    :class:`~pycinder.scene.pack.ShapePack` the frame ran on).
 
     Every attempt's records name tiles of its own plan: they are numbered in the plans' order, so
     that ``records["view"]`` indexes the concatenated plan the result carries. ``encode``
@@ -350,12 +353,13 @@ def decode_records(rows: list[tuple[TilePlan, np.ndarray]], pack: ShapePack, sce
     structured array of :data:`~pycinder.RECORD_DTYPE`
     """
     first_tile = np.cumsum([0] + [len(p) for p, _ in rows[:-1]])
-    return np.concatenate([_decode(scene, plan, pack, r, int(o), encode)
-                           for (plan, r), o in zip(rows, first_tile)])
+    return np.concatenate([
+        _decode(scene, plan, edge_original, face_original, r, int(o), encode)
+        for (plan, r), o in zip(rows, first_tile)])
 
 
-def _decode(scene: Scene, plan: TilePlan, pack: ShapePack, rows: np.ndarray, first_tile: int,
-            encode: str) -> np.ndarray:
+def _decode(scene: Scene, plan: TilePlan, edge_original: np.ndarray, face_original: np.ndarray,
+            rows: np.ndarray, first_tile: int, encode: str) -> np.ndarray:
     """:func:`decode_records` of one plan's rows; a record's ``view`` is its tile's index in
     ``plan`` plus ``first_tile``."""
     if len(rows) == 0:
@@ -370,8 +374,8 @@ def _decode(scene: Scene, plan: TilePlan, pack: ShapePack, rows: np.ndarray, fir
     rec = np.zeros(len(rows), dtype=RECORD_DTYPE)
     rec["penetrating"] = plan.bodies[tile, side]
     rec["penetrated"] = plan.bodies[tile, 1 - side]
-    rec["edge"] = np.where(surface, -1, pack.edge_original[np.where(surface, 0, ident)])
-    rec["face"] = np.where(surface, pack.face_original[np.where(surface, ident, 0)], -1)
+    rec["edge"] = np.where(surface, -1, edge_original[np.where(surface, 0, ident)])
+    rec["face"] = np.where(surface, face_original[np.where(surface, ident, 0)], -1)
     rec["view"] = tile + first_tile
     rec["pixel_x"], rec["pixel_y"], rec["pixel_z"] = u, v, z
     rec["point"] = plan.to_world(tile, u + 0.5, v + 0.5, z)
