@@ -5,9 +5,10 @@ import json
 import fcl  # noqa: F401  (the test extra brings python-fcl, the first peer)
 import numpy as np
 import pytest
+import trimesh
 
 from pycinder.benchmarks import peers, report, runner
-from pycinder.benchmarks.scenes import SphereField, SpreadPairs
+from pycinder.benchmarks.scenes import Scene, SphereField, SpreadPairs
 
 
 def test_aabb_candidates_match_brute_force():
@@ -39,6 +40,32 @@ def test_run_scene_scores_every_system(tmp_path):
     text = paths[1].read_text()
     assert "| spheres-12x320 |" in text and "Stairs-250" in text
     assert (tmp_path / "scenes.png").stat().st_size > 1000
+
+
+class Breathing(Scene):
+    """Two balls whose vertices grow: apart in frame 0, overlapping in frame 1 (a deforming
+    scene small enough to check by hand)."""
+
+    def __init__(self) -> None:
+        ball = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+        super().__init__("breathing", "two balls growing", [np.asarray(ball.faces)] * 2,
+                         [np.asarray(ball.vertices)] * 2, 2, deforming=True)
+        self.transforms = np.tile(np.eye(4), (2, 1, 1))
+        self.transforms[1, 0, 3] = 1.0
+
+    def frame(self, k):
+        radius = (0.4, 0.6)[k]  # 0.2 apart, then 0.2 deep
+        return [v * radius for v in self.rest], self.transforms
+
+
+def test_deforming_scenes_give_the_peer_each_frames_vertices():
+    scene = Breathing()
+    py = peers.Pycinder()
+    entry = runner.run_scene(scene, [py, peers.FCL()], truth_frames=(0, 1))
+    assert py.prepared is not None  # checked once, then updated frame by frame
+    assert py.step(scene, 0).tolist() == [] and py.step(scene, 1).tolist() == [[0, 1]]
+    for name, acc in entry["accuracy"].items():
+        assert (acc["must"], acc["found"], acc["false"]) == (1, 1, 0), name
 
 
 def test_spread_pairs_are_what_they_say():

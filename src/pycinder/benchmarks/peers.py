@@ -67,8 +67,9 @@ class System:
 
 class Pycinder(System):
     """pycinder with a request's options (default: the focused strategy, pairs only). The
-    meshes of rigid scenes are checked once (:meth:`~pycinder.Detector.prepare`), as the other
-    systems build their BVHs once; those of deforming scenes are passed every frame."""
+    meshes are checked once (:meth:`~pycinder.Detector.prepare`), as the other systems build
+    their BVHs once; a deforming scene's new vertices are given to every body each frame
+    (:meth:`~pycinder.PreparedBodies.update`, timed, as the others' refits are)."""
 
     def __init__(self, name: str = "pycinder", **options: Any) -> None:
         options.setdefault("records", "none")
@@ -78,13 +79,17 @@ class Pycinder(System):
         self.prepared: PreparedBodies | None = None
 
     def prepare(self, scene: Scene) -> None:
-        self.prepared = None if scene.deforming else self.detector.prepare(scene.bodies(0)[0])
+        self.prepared = self.detector.prepare(scene.bodies(0)[0])
 
     def bodies(self, scene: Scene, k: int) -> tuple[Any, np.ndarray]:
-        """What a query of frame k is given: the bodies (prepared ones for a rigid scene) and
-        the transforms."""
-        bodies, transforms = scene.bodies(k)
-        return (bodies if self.prepared is None else self.prepared), transforms
+        """What a query of frame k is given: the prepared bodies (with frame k's vertices, for
+        a deforming scene) and the transforms."""
+        vertices, transforms = scene.frame(k)
+        if self.prepared is None:  # not prepared: the meshes as they are
+            return list(zip(vertices, scene.faces)), transforms
+        if scene.deforming:
+            self.prepared.update(range(len(vertices)), vertices)
+        return self.prepared, transforms
 
     def step(self, scene: Scene, k: int) -> np.ndarray:
         self.last = self.detector.find_collisions(*self.bodies(scene, k))
