@@ -107,7 +107,9 @@ def sweep_and_prune(lo: np.ndarray, hi: np.ndarray, within: np.ndarray | None = 
     # For the box at sorted position i, the boxes i+1 .. end[i]-1 start before it ends.
     end = np.searchsorted(lo_s[:, axis], hi_s[:, axis], side="right")
     count = np.maximum(end - np.arange(n) - 1, 0)
-    others = [a for a in range(3) if a != axis]
+    # The other two axes' bounds as contiguous columns (gathers from them are faster).
+    others = [(np.ascontiguousarray(lo_s[:, a]), np.ascontiguousarray(hi_s[:, a]))
+              for a in range(3) if a != axis]
     out = []
     cum = np.cumsum(count)
     start = 0
@@ -122,10 +124,11 @@ def sweep_and_prune(lo: np.ndarray, hi: np.ndarray, within: np.ndarray | None = 
             i = np.repeat(np.arange(start, stop), c)
             offset = np.arange(total) - np.repeat(np.cumsum(c) - c, c)
             j = i + 1 + offset
-            keep = np.ones(total, dtype=bool)
-            for a in others:
-                keep &= (lo_s[j, a] <= hi_s[i, a]) & (lo_s[i, a] <= hi_s[j, a])
-            a_, b_ = order[i[keep]], order[j[keep]]
+            # One axis at a time: the second tests only the pairs the first kept.
+            for axis_lo, axis_hi in others:
+                keep = (axis_lo[j] <= axis_hi[i]) & (axis_lo[i] <= axis_hi[j])
+                i, j = i[keep], j[keep]
+            a_, b_ = order[i], order[j]
             out.append(np.stack([np.minimum(a_, b_), np.maximum(a_, b_)], axis=1))
         start = stop
     if not out:
