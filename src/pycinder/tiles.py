@@ -371,8 +371,7 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: _BodyBounds,
     apart = (hi < lo).any(axis=(1, 2))
     lo = np.minimum(lo, hi)
     extent = hi - lo
-    order = np.argsort(-extent, axis=2)                                                 # long, mid, thin
-    e_sorted = np.take_along_axis(extent, order, axis=2)
+    e_sorted = -np.sort(-extent, axis=2)                                               # long, mid, thin
     c, s = np.cos(TILT), np.sin(TILT)
     p = tol[:, None]
     win_x = (e_sorted[..., 0] * s + e_sorted[..., 1] * c) / p + 2 * MARGIN_PX + 1
@@ -385,7 +384,7 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: _BodyBounds,
     f = best[idx]
     frame = cand[idx, f]                                                                # (m, 3, 3)
     lo_f, hi_f = lo[idx, f], hi[idx, f]
-    o = order[idx, f]
+    o = np.argsort(-extent[idx, f], axis=1)  # the chosen frame's axes: long, mid, thin
     r = np.arange(len(idx))
     long_, mid, thin = frame[r, o[:, 0]], frame[r, o[:, 1]], frame[r, o[:, 2]]
     x_axis = -s * long_ + c * mid
@@ -416,11 +415,11 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: _BodyBounds,
     z0 = (vlo[:, 2] - zmid) / px
     z1 = (vhi[:, 2] - zmid) / px
     # Count towards the side of the slab with less of the pair's depth extent behind it.
-    dc, dh = _support(axes[:, None, 2:3],                                             # (m, 2, 1)
-                      np.stack([bounds.obb_centre[a[idx]], bounds.obb_centre[b[idx]]], axis=1),
-                      np.stack([bounds.obb_axes[a[idx]], bounds.obb_axes[b[idx]]], axis=1))
-    front_len = vlo[:, 2] - (dc - dh).min(axis=(1, 2))
-    back_len = (dc + dh).max(axis=(1, 2)) - vhi[:, 2]
+    view = axes[:, 2:3]                                                                 # (m, 1, 3)
+    (ca, ha), (cb, hb) = (_support(view, bounds.obb_centre[body], bounds.obb_axes[body])
+                          for body in (a[idx], b[idx]))                                 # (m, 1)
+    front_len = vlo[:, 2] - np.minimum(ca - ha, cb - hb)[:, 0]
+    back_len = np.maximum(ca + ha, cb + hb)[:, 0] - vhi[:, 2]
     flags = np.where(back_len < front_len, FLAG_COUNT_BACK, 0)
     flags |= np.where(bounds.mirrored[a[idx]], FLAG_MIRROR[0], 0)
     flags |= np.where(bounds.mirrored[b[idx]], FLAG_MIRROR[1], 0)
