@@ -236,7 +236,7 @@ class CollisionResult:
     ----------
     records : structured array, or (count, decode)
         The records, or how many there are and a function of no arguments that decodes them
-        (called once, on first read).
+        (called on first read, and its answer kept).
     """
 
     def __init__(self, pairs: np.ndarray,
