@@ -32,7 +32,8 @@ def test_sweep_and_prune_matches_brute_force(seed):
         [p for p in brute(lo, hi) if groups[p[0]] != groups[p[1]]]
 
 
-@pytest.mark.parametrize("n", [2, 3, 17, broadphase.ALL_PAIRS_BELOW - 1, broadphase.ALL_PAIRS_BELOW])
+@pytest.mark.parametrize("n", [2, 3, 17, broadphase.ALL_PAIRS_BELOW - 1,
+                               broadphase.ALL_PAIRS_BELOW])
 def test_few_boxes_are_tested_pair_by_pair_exactly(n):
     """Below ALL_PAIRS_BELOW boxes every pair is tested; the answer is the brute force's, with
     touching boxes, keys (``within``) and groups, as the sweep's."""

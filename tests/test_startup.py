@@ -79,7 +79,8 @@ import numpy as np, trimesh, pycinder
 box, ball = trimesh.creation.box((1, 1, 1)), trimesh.creation.icosphere(2, 0.5)
 moved = np.eye(4)
 moved[0, 3] = 0.95
-assert pycinder.Detector().find_collisions([box, ball], [np.eye(4), moved]).pairs.tolist() == [[0, 1]]
+result = pycinder.Detector().find_collisions([box, ball], [np.eye(4), moved])
+assert result.pairs.tolist() == [[0, 1]]
 pycinder.Detector(profile=True, records="all").find_collisions([box, ball], [np.eye(4), moved])
 pycinder.Detector(strategy="scene").find_collisions([box, ball], [np.eye(4), moved])
 manager = pycinder.CollisionManager()

@@ -371,7 +371,7 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: _BodyBounds,
     apart = (hi < lo).any(axis=(1, 2))
     lo = np.minimum(lo, hi)
     extent = hi - lo
-    e_sorted = -np.sort(-extent, axis=2)                                               # long, mid, thin
+    e_sorted = -np.sort(-extent, axis=2)                                      # long, mid, thin
     c, s = np.cos(TILT), np.sin(TILT)
     p = tol[:, None]
     win_x = (e_sorted[..., 0] * s + e_sorted[..., 1] * c) / p + 2 * MARGIN_PX + 1
