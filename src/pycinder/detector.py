@@ -165,6 +165,32 @@ class Detector:
         ...     handle(pending.result())
         ...     pending = following
         """
+        return self._pending(bodies, transforms, names, groups, view, records)
+
+    def in_collision(self, bodies: Sequence[Any], transforms: Any = None, *,
+                     names: Sequence[str | None] | None = None, groups: Any = None) -> bool:
+        """Whether any two bodies interfere, as :meth:`find_collisions` would answer, for less:
+        the GPU skips every tile that has not started once any pair is found (the focused
+        strategy; the scene strategy runs its whole query). Arguments as
+        :meth:`find_collisions`.
+
+        Returns
+        -------
+        bool
+            True exactly when :meth:`find_collisions` would report a pair: the contract's
+            promises hold for the answer (see :mod:`pycinder.request`).
+        """
+        if self.request.strategy != "focused":
+            return bool(len(self.find_collisions(bodies, transforms, names=names,
+                                                 groups=groups).pairs))
+        pending = self._pending(bodies, transforms, names, groups, None, "none",
+                                stop_at_first=True)
+        return bool(len(pending.result().pairs))
+
+    def _pending(self, bodies: Sequence[Any], transforms: Any,
+                 names: Sequence[str | None] | None, groups: Any,
+                 view: View | Sequence[View] | None, records: str | None,
+                 stop_at_first: bool = False) -> PendingQuery:
         if not isinstance(bodies, Sequence):
             bodies = list(bodies)  # kept on the result, to run it again for contacts
         if isinstance(bodies, PreparedBodies) and names is not None:
@@ -174,7 +200,7 @@ class Detector:
             t0 = time.perf_counter()
             try:
                 return PendingQuery(self, self._submit(bodies, transforms, names, groups, view,
-                                                       records, t0), t0,
+                                                       records, t0, stop_at_first), t0,
                                     (bodies, transforms, names, groups, records))
             except (GpuTimeoutError, wgpu.GPUError) as exc:
                 raise self._recover(exc) from exc
@@ -207,7 +233,8 @@ class Detector:
 
     def _submit(self, bodies: Sequence[Any], transforms: Any,
                 names: Sequence[str | None] | None, groups: Any,
-                view: View | Sequence[View] | None, records: str | None, t0: float) -> Any:
+                view: View | Sequence[View] | None, records: str | None, t0: float,
+                stop_at_first: bool = False) -> Any:
         if view is not None and self.request.strategy != "scene":
             raise ValueError("view applies to strategy='scene'; the focused strategy chooses a "
                              "view per candidate pair")
@@ -235,7 +262,7 @@ class Detector:
         if isinstance(self.strategy, SceneStrategy):
             result = self.strategy.run(scene, stats, view)
             return _Done(result.across(groups) if groups is not None else result)
-        return self.strategy.submit(scene, stats, groups, records)
+        return self.strategy.submit(scene, stats, groups, records, stop_at_first=stop_at_first)
 
 
 class PendingQuery:

@@ -24,8 +24,8 @@ import numpy as np
 from .broadphase import sweep_and_prune
 from .errors import GpuMemoryError, LossWarning, PrecisionWarning, warn_at_caller
 from .gpu.device import Gpu
-from .layout import (C_SAMPLES, C_TOTAL_TRIS, RECORD_ID_MASK, RECORD_KIND_SHIFT, RECORD_SIDE_BIT,
-                     RECORD_SURFACE, UNDECIDED_BUDGET_BIT)
+from .layout import (C_SAMPLES, C_TOTAL_TRIS, FLAG_STOP_AT_FIRST, RECORD_ID_MASK,
+                     RECORD_KIND_SHIFT, RECORD_SIDE_BIT, RECORD_SURFACE, UNDECIDED_BUDGET_BIT)
 from .passes.broadphase import GpuBroadPhase, in_range
 from .passes.focused import (ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS,
                              FocusedOutput, FocusedPasses, RoundTooLarge, Submitted)
@@ -128,9 +128,15 @@ class FocusedStrategy:
 
     def submit(self, scene: Scene, stats: Stats, groups: np.ndarray | None = None,
                records: str | None = None, within: np.ndarray | None = None,
-               tolerance: np.ndarray | None = None) -> PendingFocused:
+               tolerance: np.ndarray | None = None, stop_at_first: bool = False
+               ) -> PendingFocused:
         """:meth:`run` up to the first frame's submission: the broad phase, the tiles, the
-        upload and the frame's command buffer. The GPU then works while the caller does."""
+        upload and the frame's command buffer. The GPU then works while the caller does.
+
+        ``stop_at_first``: the query asks only whether anything collides; every tile is flagged
+        :data:`~pycinder.layout.FLAG_STOP_AT_FIRST`, so that the GPU skips what has not started
+        once a pair is found, and the host runs nothing again once one is (records "none":
+        the pairs are then those found before the GPU stopped, at least one)."""
         mode = record_mode(records or self.request.records)
         t0 = time.perf_counter()
         if len(scene) < 2:
@@ -149,6 +155,11 @@ class FocusedStrategy:
                           open_bodies=scene.open, max_pixels=self.request.max_pixels,
                           faces=scene.face_counts)
         stats.separated = plan.separated
+        if stop_at_first:
+            if mode.read:
+                raise ValueError("stop_at_first answers whether anything collides: records "
+                                 "'none' only")
+            plan.flags |= FLAG_STOP_AT_FIRST
         t2 = time.perf_counter()
         stats.add_ms("tiles", (t2 - t1) * 1e3)
         if len(plan) == 0:
@@ -160,7 +171,8 @@ class FocusedStrategy:
         t3 = time.perf_counter()
         stats.add_ms("upload", (t3 - t2) * 1e3)
         stats.submitted_ms = (t3 - t0) * 1e3
-        return PendingFocused(self, None, (scene, stats, mode, pairs, plan, pack, first, t3))
+        return PendingFocused(self, None, (scene, stats, mode, pairs, plan, pack, first, t3,
+                                           stop_at_first))
 
     def _candidates(self, scene: Scene, lo: np.ndarray, hi: np.ndarray,
                     within: np.ndarray | None, groups: np.ndarray | None
@@ -194,8 +206,8 @@ class FocusedStrategy:
             <= self._budget(self.passes.capacity * RETRY_LISTS)
 
     def _complete(self, scene: Scene, stats: Stats, records: RecordMode, pairs: np.ndarray,
-                  plan: TilePlan, pack: ShapePack, first: Submitted, t3: float
-                  ) -> CollisionResult:
+                  plan: TilePlan, pack: ShapePack, first: Submitted, t3: float,
+                  stop_at_first: bool = False) -> CollisionResult:
         """The rest of :meth:`run` once the first frame is submitted: its readback, the retries
         of undecided tiles, and the decoding."""
         found = np.zeros(len(pairs), dtype=bool)
@@ -214,7 +226,7 @@ class FocusedStrategy:
             found |= out.pair_found
             rows.append((current, out.records))
             plans.append(current)
-            if out.tile_counts is None:
+            if out.tile_counts is None or (stop_at_first and found.any()):
                 break  # no tile left undecided whose answer could change
             decided = pairs[found]
             # An undecided tile of a pair found elsewhere changes no answer, but with

@@ -30,6 +30,9 @@ FLAG_SKIP_IF_HIT = 8
 FLAG_OPEN = (16, 32)
 """Body a (body b) is not a closed solid: nothing is tested against its inside (it has none);
 its surface is tested by the edge-face crossing pass instead."""
+FLAG_STOP_AT_FIRST = 64
+"""Skip the tile once any pair of the frame is found (a query that asks only whether anything
+collides: :meth:`pycinder.Detector.in_collision`)."""
 
 # Counters of a frame (``counters`` buffer). Items and triangles are reset every round.
 COUNTER_NAMES = (
@@ -51,11 +54,12 @@ COUNTER_NAMES = (
     "C_AGAIN",             # tiles left undecided whose answer could still change (host retries)
     "C_EDGES",             # edges listed for sampling by pass F4 (this round)
     "C_MAX_EDGES",
+    "C_FOUND",             # non-zero once any pair of the frame is found
 )
 COUNTERS = len(COUNTER_NAMES)
 (C_FACE_ITEMS, C_EDGE_ITEMS, C_TRIS, C_ACTIVE, C_RECORDS, C_UNDECIDED, C_SAMPLES, C_RETRY_TILES,
  C_MAX_FACE_ITEMS, C_MAX_EDGE_ITEMS, C_MAX_TRIS, C_TOTAL_TRIS, C_TOTAL_FACE_ITEMS,
- C_TOTAL_EDGE_ITEMS, C_CUTS, C_AGAIN, C_EDGES, C_MAX_EDGES) = range(COUNTERS)
+ C_TOTAL_EDGE_ITEMS, C_CUTS, C_AGAIN, C_EDGES, C_MAX_EDGES, C_FOUND) = range(COUNTERS)
 ROUND_COUNTERS = 4
 """The first counters, reset before every round (and C_CUTS, C_EDGES)."""
 
@@ -88,6 +92,7 @@ def wgsl_prelude() -> str:
     const("FLAG_SKIP_IF_HIT", FLAG_SKIP_IF_HIT)
     const("FLAG_OPEN0", FLAG_OPEN[0])
     const("FLAG_OPEN1", FLAG_OPEN[1])
+    const("FLAG_STOP_AT_FIRST", FLAG_STOP_AT_FIRST)
     for i, name in enumerate(COUNTER_NAMES):
         const(name, i)
     const("ROUND_COUNTERS", ROUND_COUNTERS)

@@ -267,6 +267,8 @@ class CollisionManager:
         """Whether any two objects collide; optionally the set of sorted name pairs and the
         contacts."""
         names = list(self._objs)
+        if not return_names and not return_data:
+            return self._any([self._objs[n] for n in names], names, None)
         result = self._query([self._objs[n] for n in names], names, None, return_data)
         pairs = {tuple(sorted((names[i], names[j]))) for i, j in result.pairs.tolist()}
         data = self._contacts(result) if return_data else []
@@ -299,6 +301,9 @@ class CollisionManager:
         names = list(self._objs)
         probe = CollisionObject(EXTERNAL, mesh, _transform(transform))
         groups = np.r_[np.zeros(len(names), np.int64), 1]
+        if not return_names and not return_data:
+            return self._any([self._objs[n] for n in names] + [probe], names + [EXTERNAL],
+                             groups)
         result = self._query([self._objs[n] for n in names] + [probe], names + [EXTERNAL],
                              groups, return_data)
         found = {names[i] for i, j in result.pairs.tolist()}
@@ -330,6 +335,8 @@ class CollisionManager:
         mine, theirs = list(self._objs), list(other_manager._objs)
         objs = [self._objs[n] for n in mine] + [other_manager._objs[n] for n in theirs]
         groups = np.r_[np.zeros(len(mine), np.int64), np.ones(len(theirs), np.int64)]
+        if not return_names and not return_data:
+            return self._any(objs, mine + theirs, groups)
         result = self._query(objs, mine + theirs, groups, return_data)
         k = len(mine)
         found = {(mine[i], theirs[j - k]) for i, j in result.pairs.tolist()}
@@ -485,18 +492,29 @@ class CollisionManager:
 
     def _query(self, objs: Sequence[CollisionObject], labels: list[str],
                groups: np.ndarray | None, contacts: bool) -> CollisionResult:
+        bodies, transforms, names = self._bodies(objs, labels)
+        return self._detector.find_collisions(bodies, transforms, names=names, groups=groups,
+                                              records="all" if contacts else "none")
+
+    def _any(self, objs: Sequence[CollisionObject], labels: list[str],
+             groups: np.ndarray | None) -> bool:
+        """Whether any two of ``objs`` (in different ``groups``) collide: the GPU stops at the
+        first pair it finds (:meth:`~pycinder.Detector.in_collision`)."""
+        bodies, transforms, names = self._bodies(objs, labels)
+        return self._detector.in_collision(bodies, transforms, names=names, groups=groups)
+
+    def _bodies(self, objs: Sequence[CollisionObject], labels: list[str]
+                ) -> tuple[Any, np.ndarray, list[str] | None]:
+        """What a query of ``objs`` is given: bodies, (N, 4, 4) transforms and names."""
         transforms = np.array([o.transform for o in objs]).reshape(-1, 4, 4)
-        records = "all" if contacts else "none"
         if len(objs) == len(self._objs) and labels == list(self._objs) \
                 and all(a is b for a, b in zip(objs, self._objs.values())):
             # Every object of this manager: their copies are checked once, until objects are
             # added or removed.
             if self._prepared is None:
                 self._prepared = self._detector.prepare([o.body for o in objs], names=labels)
-            return self._detector.find_collisions(self._prepared, transforms, groups=groups,
-                                                  records=records)
-        return self._detector.find_collisions([o.body for o in objs], transforms, names=labels,
-                                              groups=groups, records=records)
+            return self._prepared, transforms, None
+        return [o.body for o in objs], transforms, labels
 
     @staticmethod
     def _contacts(result: CollisionResult) -> list[ContactData]:

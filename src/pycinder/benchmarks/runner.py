@@ -303,10 +303,12 @@ def run_manager(repeat: int) -> list[dict[str, Any]]:
         for i, c in enumerate(centres):
             batch.add_object(f"p{i}", ball, T(c))
     calls = {
+        "in_collision_internal()": lambda m, o, b: m.in_collision_internal(),
         "in_collision_internal(return_names=True)":
             lambda m, o, b: m.in_collision_internal(return_names=True),
         "in_collision_internal(return_data=True)":
             lambda m, o, b: m.in_collision_internal(return_data=True),
+        "in_collision_single(probe)": lambda m, o, b: m.in_collision_single(probe),
         "in_collision_single(probe, return_names=True)":
             lambda m, o, b: m.in_collision_single(probe, return_names=True),
         "in_collision_single(box, return_names=True), 700 small spheres":

@@ -108,7 +108,7 @@ fn crossing_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_ind
         let found = atomicLoad(&tile_counts[params.pair_offset + t.info.w]) != 0u;
         let neither_open = !is_open(t, 0u) && !is_open(t, 1u);
         stop = select(0u, 1u, item_index >= items || neither_open
-                                  || (params.early_out != 0u && found));
+                                  || (params.early_out != 0u && found) || frame_decided(t));
     }
     if (workgroupUniformLoad(&stop) != 0u) {
         return;

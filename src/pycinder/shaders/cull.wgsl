@@ -6,6 +6,7 @@
 // bounds meet the box itself (only there can an edge lie inside the other body or cross its
 // surface).
 //!include tiles.wgsl
+//!include stop.wgsl
 
 struct Params {
     total: u32,        // threads of this round
@@ -63,6 +64,9 @@ fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     let t = tiles[tile_index];
     if ((t.info.z & FLAG_SKIP_IF_HIT) != 0u && counts[params.pair_offset + t.info.w] != 0u) {
         return;  // another tile of this pair already found it colliding
+    }
+    if (frame_decided(t)) {
+        return;  // the frame asks only whether anything collides, and something does
     }
     let c = entries[e].y + (i - entries[e].x);
     // Half a pixel more, so rounding never culls what touches the window.

@@ -150,7 +150,9 @@ fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32, segment: u32, steps: u
 }
 
 fn pair_found(t: Tile) -> bool {
-    return params.early_out != 0u && atomicLoad(&tile_counts[params.pair_offset + t.info.w]) != 0u;
+    return (params.early_out != 0u
+            && atomicLoad(&tile_counts[params.pair_offset + t.info.w]) != 0u)
+        || frame_decided(t);
 }
 
 @compute @workgroup_size(WORKGROUP)

@@ -5,6 +5,7 @@
 // found, which is what the early-outs of later tiles test. With records "found" only the first
 // `pair_records` samples of a pair are kept (what contacts of "all" do not need is not written,
 // read back or decoded); with "all" every one is.
+//!include stop.wgsl
 
 fn append_record(t: Tile, row: vec4u) {
     if (params.record_cap == 0u) {
@@ -23,7 +24,9 @@ fn append_record(t: Tile, row: vec4u) {
     }
 }
 
-// Mark the pair of tile `t` found (its count stays as it is when records were kept).
+// Mark the pair of tile `t` found (its count stays as it is when records were kept), and the
+// frame as having found something.
 fn mark_found(t: Tile) {
     atomicMax(&tile_counts[params.pair_offset + t.info.w], 1u);
+    atomicMax(&counters[C_FOUND], 1u);
 }

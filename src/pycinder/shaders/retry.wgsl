@@ -10,6 +10,7 @@
 // lists cannot help it): it stays undecided for the host, which cuts its box. Tiles of pairs already
 // found are never retried, so no record comes twice.
 //!include tiles.wgsl
+//!include stop.wgsl
 
 struct Params {
     tiles: u32,         // tiles of the frame
@@ -43,7 +44,7 @@ fn select_retry(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
     }
     let undecided = tile_counts[2u * i + 1u];
     let again = undecided > 0u && (undecided & UNDECIDED_BUDGET_BIT) == 0u
-        && tile_counts[params.pair_offset + tiles[i].info.w] == 0u;
+        && tile_counts[params.pair_offset + tiles[i].info.w] == 0u && !frame_decided(tiles[i]);
     tile_counts[params.retry_offset + i] = select(0u, 1u, again);
     if (again) {
         tile_counts[2u * i + 1u] = 0u;
@@ -71,7 +72,7 @@ fn count_again(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index
     if (i >= params.tiles) {
         return;
     }
-    if (tile_counts[2u * i + 1u] > 0u && (params.every_tile != 0u
+    if (tile_counts[2u * i + 1u] > 0u && !frame_decided(tiles[i]) && (params.every_tile != 0u
             || tile_counts[params.pair_offset + tiles[i].info.w] == 0u)) {
         atomicAdd(&counters[C_AGAIN], 1u);
     }

@@ -42,8 +42,9 @@ fn surface_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
     let listed = pixels[3u * pixel];
     let tile_index = pixels[3u * pixel + 2u] - 1u;
     let t = tiles[tile_index];
-    if ((t.info.z & FLAG_SKIP_IF_HIT) != 0u
-            && atomicLoad(&tile_counts[params.pair_offset + t.info.w]) != 0u) {
+    if (((t.info.z & FLAG_SKIP_IF_HIT) != 0u
+            && atomicLoad(&tile_counts[params.pair_offset + t.info.w]) != 0u)
+            || frame_decided(t)) {
         return;
     }
     let cap = params.capacity;
