@@ -9,7 +9,8 @@ from pycinder import broadphase
 from pycinder.broadphase import sweep_and_prune
 from pycinder.scene import prepare_scene
 from pycinder.testing import random_rotation, random_scene
-from pycinder.tiles import FLAG_SKIP_IF_HIT, MAX_TILE, PROBE, PROBE_FACES, PROBE_PLAN, plan_tiles
+from pycinder.tiles import (FLAG_SKIP_IF_HIT, MAX_TILE, PROBE, PROBE_FACES, PROBE_PLAN,
+                            likely_pairs, plan_tiles)
 
 
 def brute(lo, hi):
@@ -123,6 +124,49 @@ def test_atlas_tiles_never_overlap_and_cover_their_windows(budget):
     assert (w[probes] <= PROBE[0]).all() and (h[probes] <= PROBE[1]).all()
     assert not (probes[1:] & ~probes[:-1]).any(), "a probe comes after a skippable piece"
     assert plan.round[probes].max() <= plan.round[~probes].min()
+
+
+def test_lead_pairs_come_first_with_the_same_windows():
+    """Pairs planned first (a query that stops at its first pair) get rounds of their own before
+    every other tile; each pair keeps the pixels it had, and tiles of one round never overlap."""
+    meshes, transforms = random_scene(80, 8)
+    scene = prepare_scene(meshes, transforms)
+    lo, hi = scene.world_boxes()
+    pairs = sweep_and_prune(lo, hi)
+    tol = np.full(len(pairs), 0.004)
+    args = (pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms)
+    lead = likely_pairs(lo, hi, pairs, 10)
+    faces = scene.face_counts  # whether a pair is probed must not depend on the split
+    plain = plan_tiles(*args, budget_pixels=2**20, faces=faces)
+    led = plan_tiles(*args, budget_pixels=2**20, faces=faces, lead=lead)
+    first = np.isin(led.pair, lead)
+    assert first.any() and (~first).any()
+    assert led.round[first].max() < led.round[~first].min()
+    for plan in (plain, led):
+        for r, rows in enumerate(plan.round_rows):
+            sel = np.flatnonzero(plan.round == r)
+            grid = np.zeros((rows, plan.atlas_width), dtype=np.int32)
+            for x, y, ww, hh in plan.window[sel].tolist():
+                grid[y:y + hh, x:x + ww] += 1
+            assert grid.max() == 1, f"round {r}: tiles overlap"
+    pixels = {}
+    for plan in (plain, led):
+        per_pair = np.bincount(plan.pair, weights=plan.window[:, 2] * plan.window[:, 3],
+                               minlength=len(pairs))
+        pixels[id(plan)] = per_pair
+    assert np.array_equal(pixels[id(plain)], pixels[id(led)]) and led.separated == plain.separated
+
+
+def test_likely_pairs_are_the_deepest_box_overlaps():
+    lo = np.array([[0, 0, 0], [0.9, 0, 0], [0.2, 0, 0], [0.5, 0.5, 0.5], [5, 5, 5]], float)
+    hi = lo + 1.0
+    pairs = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [3, 4]])
+    # shares of the smaller box: 0.1, 0.8, 0.125, 0.3, 0
+    assert sorted(likely_pairs(lo, hi, pairs, 2).tolist()) == [1, 3]
+    assert sorted(likely_pairs(lo, hi, pairs, 9).tolist()) == [0, 1, 2, 3, 4]
+    flat = hi.copy()
+    flat[:, 2] = lo[:, 2]  # boxes of no volume score nothing, without dividing by zero
+    assert len(likely_pairs(lo, flat, pairs, 2)) == 2
 
 
 def test_apart_oriented_boxes_need_no_tile():

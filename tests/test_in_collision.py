@@ -113,3 +113,57 @@ def test_prepared_bodies_and_the_scene_strategy():
     scene = pycinder.Detector(strategy="scene", resolution=256)
     assert scene.in_collision(meshes, transforms) == bool(len(
         scene.find_collisions(meshes, transforms).pairs))
+
+
+def test_the_likeliest_pairs_first_then_the_rest(monkeypatch):
+    """The pairs whose boxes overlap most run first; when they do not collide, the rest still
+    runs. Two rods through rings (boxes overlapping broadly, surfaces apart) and two cubes
+    overlapping by 2.5 tolerances at a corner of their boxes."""
+    from pycinder import focused
+
+    monkeypatch.setattr(focused, "LEAD_PAIRS", 1)
+    monkeypatch.setattr(focused, "LEAD_FROM", 3)
+    meshes, transforms = [], []
+    for x in (10.0, 20.0):
+        ring = np.eye(4)
+        ring[:3, 3] = (x, 0, 0)
+        meshes += [trimesh.creation.torus(major_radius=1.0, minor_radius=0.25),
+                   trimesh.creation.cylinder(radius=0.3, height=3.0)]
+        transforms += [ring, ring]
+    cube = np.eye(4)
+    cube[:3, 3] = (1.0 - 2.5 * TOL, 0, 0)
+    meshes += [trimesh.creation.box((1, 1, 1)), trimesh.creation.box((1, 1, 1))]
+    transforms += [np.eye(4), cube]
+    transforms = np.array(transforms)
+    truth = ground_truth(meshes, list(transforms), tolerance=TOL)
+    assert truth.overlap.tolist() == [[4, 5]] and len(truth.ambiguous) == 0
+    det = pycinder.Detector(tolerance=TOL, records="none")
+    stopped = det._pending(meshes, transforms, None, None, None, "none",
+                           stop_at_first=True).result()
+    assert stopped.stats.candidates == 3 and stopped.pairs.tolist() == [[4, 5]]
+    assert det.in_collision(meshes, transforms) is True
+    assert det.in_collision(meshes[:4], transforms[:4]) is False
+
+
+def test_a_dense_scene_stops_after_its_likeliest_pairs():
+    """A scene of many candidates where most pairs collide stops after the rounds of the
+    likeliest ones: the rest's faces are never clipped or drawn."""
+    rng = np.random.default_rng(5)
+    n = 120
+    meshes = [trimesh.creation.icosphere(subdivisions=1, radius=0.5) for _ in range(n)]
+    transforms = np.tile(np.eye(4), (n, 1, 1))
+    transforms[:, :3, 3] = rng.uniform(0, 4.5, (n, 3))
+    # The exact geometry of the closest two: a pair that must be found.
+    d = np.linalg.norm(transforms[:, None, :3, 3] - transforms[None, :, :3, 3], axis=2)
+    d[np.diag_indices(n)] = np.inf
+    i, j = np.unravel_index(np.argmin(d), d.shape)
+    assert len(ground_truth([meshes[i], meshes[j]], [transforms[i], transforms[j]],
+                            tolerance=0.02).overlap) == 1
+    det = pycinder.Detector(tolerance=0.02, records="none")
+    whole = det.find_collisions(meshes, transforms)
+    assert whole.stats.candidates > 4 * pycinder.tiles.LEAD_PAIRS and len(whole.pairs) > 100
+    stopped = det._pending(meshes, transforms, None, None, None, "none",
+                           stop_at_first=True).result()
+    assert len(stopped.pairs) >= 1
+    assert stopped.stats.triangles < whole.stats.triangles / 2
+    assert det.in_collision(meshes, transforms) is True

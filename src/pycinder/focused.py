@@ -34,8 +34,8 @@ from .request import CollisionRequest, RecordMode, body_sizes, pair_tolerance, r
 from .result import CollisionResult, Stats
 from .scene import Scene
 from .scene.pack import ShapePack, pack_shapes, shape_layout
-from .tiles import (MAX_TILE, TilePlan, concat_plans, plan_tiles, repack,
-                    split_depth)
+from .tiles import (LEAD_FROM, LEAD_PAIRS, MAX_TILE, TilePlan, concat_plans, likely_pairs, plan_tiles,
+                    repack, split_depth)
 
 RETRIES = 5
 """Times undecided tiles are run again: first with longer lists, then with thinner boxes."""
@@ -150,15 +150,20 @@ class FocusedStrategy:
             return PendingFocused(self, CollisionResult.empty(stats))
         tol = self.tolerances(scene, pairs, tolerance)
         stats.tolerance = (float(tol.min()), float(tol.max()))
+        if stop_at_first and mode.read:
+            raise ValueError("stop_at_first answers whether anything collides: records 'none' "
+                             "only")
+        # A query that stops at its first pair runs the likeliest pairs first, in rounds of
+        # their own: in a dense scene the rest is then skipped.
+        lead = None
+        if stop_at_first and len(pairs) >= LEAD_FROM:
+            lead = likely_pairs(lo, hi, pairs, min(LEAD_PAIRS, max(len(pairs) // 4, 1)))
         plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
                           budget_pixels=self.budget_pixels, probe=mode.probe,
                           open_bodies=scene.open, max_pixels=self.request.max_pixels,
-                          faces=scene.face_counts)
+                          faces=scene.face_counts, lead=lead)
         stats.separated = plan.separated
         if stop_at_first:
-            if mode.read:
-                raise ValueError("stop_at_first answers whether anything collides: records "
-                                 "'none' only")
             plan.flags |= FLAG_STOP_AT_FIRST
         t2 = time.perf_counter()
         stats.add_ms("tiles", (t2 - t1) * 1e3)

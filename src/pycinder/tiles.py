@@ -65,6 +65,15 @@ probe spares the rest of the window's faces, which dense meshes make worth a rou
 of 56k faces in one 3,825-pixel window: 19.6 ms with a probe, 24.0 ms without)."""
 
 
+LEAD_PAIRS = 64
+"""Most pairs planned into rounds of their own, first, when a query stops at its first pair
+found (:func:`likely_pairs`; a quarter of the candidates up to this): a dense scene then often
+stops after them. On lavapipe, 1000 bodies answered in 57 ms instead of 248 with them, a probe
+against 200 objects (56 candidates) in 16.5 ms instead of 27.7."""
+LEAD_FROM = 16
+"""Fewest candidate pairs from which a query that stops at its first pair runs the likeliest
+first (the rounds of their own cost a frame their passes' fixed cost)."""
+
 PARALLEL_PAIRS = 1024
 """Fewest candidate pairs per thread when planning is shared among threads (measured on two cores:
 the 19,276 pairs of 4,000 bodies planned in 60 ms on one thread, 40 ms on two)."""
@@ -181,7 +190,8 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
                local_hi: np.ndarray, world_lo: np.ndarray, world_hi: np.ndarray,
                transforms: np.ndarray, *, budget_pixels: int, probe: bool = True,
                open_bodies: np.ndarray | None = None, max_pixels: float = float("inf"),
-               faces: np.ndarray | None = None, chunk: int = 16384) -> TilePlan:
+               faces: np.ndarray | None = None, chunk: int = 16384,
+               lead: np.ndarray | None = None) -> TilePlan:
     """Tiles for candidate pairs.
 
     Parameters
@@ -212,6 +222,8 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     chunk : int
         Most pairs one thread plans at once (temporary memory grows with it, times the
         threads of :mod:`pycinder.threads`).
+    lead : (L,) int, optional
+        Pairs (indices into ``pairs``) whose tiles come first, in rounds of their own.
 
     Returns
     -------
@@ -243,12 +255,46 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     _check_pixels(cat, pairs, tolerance, max_pixels)
     cat["w"] = cat["w"].astype(np.int64)
     cat["h"] = cat["h"].astype(np.int64)
-    dense = np.ones(len(cat["w"]), dtype=bool) if faces is None else \
+    cat["dense"] = np.ones(len(cat["w"]), dtype=bool) if faces is None else \
         faces[cat["bodies"][:, 0]] + faces[cat["bodies"][:, 1]] >= PROBE_FACES
-    phases = [p for p in _phases(cat, probe, dense) if len(p["w"])]
+    plan_pixels = float((cat["w"] * cat["h"]).sum())
+    groups = [cat]
+    if lead is not None:
+        first = np.isin(cat["pair"], lead)
+        groups = [{k: v[first] for k, v in cat.items()}, {k: v[~first] for k, v in cat.items()}]
+    phases = []
+    for group in groups:
+        dense = group.pop("dense")
+        phases += [p for p in _phases(group, probe, dense, plan_pixels) if len(p["w"])]
     width = fitted_width(np.concatenate([p["w"] for p in phases]),
                          np.concatenate([p["h"] for p in phases]))
     return concat_plans([_pack(p, budget_pixels, separated, width) for p in phases])
+
+
+def likely_pairs(lo: np.ndarray, hi: np.ndarray, pairs: np.ndarray, count: int) -> np.ndarray:
+    """The ``count`` candidate pairs likeliest to collide: those whose world boxes overlap most,
+    as a share of the smaller box's volume.
+
+    Parameters
+    ----------
+    lo, hi : (N, 3) float
+        World boxes.
+    pairs : (K, 2) int
+    count : int
+
+    Returns
+    -------
+    (min(count, K),) int64
+        Indices into ``pairs``.
+    """
+    a, b = pairs[:, 0], pairs[:, 1]
+    overlap = np.prod(np.clip(np.minimum(hi[a], hi[b]) - np.maximum(lo[a], lo[b]), 0, None),
+                      axis=1)
+    smaller = np.minimum(np.prod(hi[a] - lo[a], axis=1), np.prod(hi[b] - lo[b], axis=1))
+    share = np.divide(overlap, smaller, out=np.zeros(len(pairs)), where=smaller > 0)
+    if count >= len(pairs):
+        return np.arange(len(pairs))
+    return np.argpartition(-share, count)[:count].astype(np.int64)
 
 
 def fitted_width(w: np.ndarray, h: np.ndarray) -> int:
@@ -475,15 +521,15 @@ def _pieces(t: dict, which: np.ndarray, extra_flags: int = 0) -> dict:
                         np.minimum(h[rep] - v0, MAX_TILE[1]), extra_flags)
 
 
-def _phases(t: dict, probe: bool, dense: np.ndarray) -> list[dict]:
+def _phases(t: dict, probe: bool, dense: np.ndarray, plan_pixels: float) -> list[dict]:
     """The tiles of each phase. Without probes, one phase of every window's pieces. With probes,
     windows larger than :data:`PROBE` first get a probe at their centre (phase 0, with the small
     windows), and their pieces come in phase 1, skipped on the GPU once the pair has a hit. In a
-    plan of fewer than :data:`PROBE_PLAN` pixels only the windows of ``dense`` pairs (T,) are
-    probed."""
+    plan of fewer than :data:`PROBE_PLAN` pixels (``plan_pixels``, of every window of the plan)
+    only the windows of ``dense`` pairs (T,) are probed."""
     everything = np.arange(len(t["w"]))
     big = (t["w"] > PROBE[0]) | (t["h"] > PROBE[1])
-    if (t["w"] * t["h"]).sum() < PROBE_PLAN:
+    if plan_pixels < PROBE_PLAN:
         big &= dense
     if not probe or not big.any():
         return [_pieces(t, everything)]
