@@ -95,6 +95,16 @@ def test_world_boxes_hold_every_vertex():
     assert np.all(hi - lo <= 2.0 * 1.01)
 
 
+def assert_tiles_never_overlap(plan):
+    """No atlas pixel holds two tiles of one round."""
+    for r, rows in enumerate(plan.round_rows):
+        sel = np.flatnonzero(plan.round == r)
+        grid = np.zeros((rows, plan.atlas_width), dtype=np.int32)
+        for x, y, ww, hh in plan.window[sel].tolist():
+            grid[y:y + hh, x:x + ww] += 1
+        assert grid.max() == 1, f"round {r}: tiles overlap"
+
+
 @pytest.mark.parametrize("budget", [2**20, 2**24])
 def test_atlas_tiles_never_overlap_and_cover_their_windows(budget):
     meshes, transforms = random_scene(80, 8)
@@ -107,12 +117,7 @@ def test_atlas_tiles_never_overlap_and_cover_their_windows(budget):
     assert len(plan) and plan.separated >= 0
     w, h = plan.window[:, 2], plan.window[:, 3]
     assert (w <= MAX_TILE[0]).all() and (h <= MAX_TILE[1]).all() and (w > 0).all()
-    for r, rows in enumerate(plan.round_rows):
-        sel = np.flatnonzero(plan.round == r)
-        grid = np.zeros((rows, plan.atlas_width), dtype=np.int32)
-        for x, y, ww, hh in plan.window[sel].tolist():
-            grid[y:y + hh, x:x + ww] += 1
-        assert grid.max() == 1, f"round {r}: tiles overlap"
+    assert_tiles_never_overlap(plan)
     # Axes are orthonormal and right-handed; pixels are the tolerance.
     gram = plan.axes @ np.transpose(plan.axes, (0, 2, 1))
     assert np.allclose(gram, np.eye(3), atol=1e-9)
@@ -143,12 +148,7 @@ def test_lead_pairs_come_first_with_the_same_windows():
     assert first.any() and (~first).any()
     assert led.round[first].max() < led.round[~first].min()
     for plan in (plain, led):
-        for r, rows in enumerate(plan.round_rows):
-            sel = np.flatnonzero(plan.round == r)
-            grid = np.zeros((rows, plan.atlas_width), dtype=np.int32)
-            for x, y, ww, hh in plan.window[sel].tolist():
-                grid[y:y + hh, x:x + ww] += 1
-            assert grid.max() == 1, f"round {r}: tiles overlap"
+        assert_tiles_never_overlap(plan)
     pixels = {}
     for plan in (plain, led):
         per_pair = np.bincount(plan.pair, weights=plan.window[:, 2] * plan.window[:, 3],
