@@ -177,8 +177,8 @@ class Detector:
         Returns
         -------
         bool
-            True exactly when :meth:`find_collisions` would report a pair: the contract's
-            promises hold for the answer (see :mod:`pycinder.request`).
+            Whether a pair was found, each tile tested as :meth:`find_collisions` tests it: the
+            contract's promises hold for the answer (see :mod:`pycinder.request`).
         """
         if self.request.strategy != "focused":
             return bool(len(self.find_collisions(bodies, transforms, names=names,
