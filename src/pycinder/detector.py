@@ -23,6 +23,7 @@ from .gpu.device import get_gpu
 from .request import CollisionRequest, record_mode
 from .result import CollisionResult, Stats, remember_query
 from .scene import PreparedBodies, ShapeCache, prepare_scene
+from .scene.prepared import check_body_count
 from .view import View
 from .wholescene import SceneStrategy
 
@@ -243,10 +244,8 @@ class Detector:
                 raise ValueError("records per call applies to strategy='focused'")
             record_mode(records)  # a ValueError naming the modes for any other value
         if isinstance(bodies, PreparedBodies):
-            if len(bodies) > self.request.max_bodies:
-                raise ValueError(f"{len(bodies)} bodies is more than the "
-                                 f"{self.request.max_bodies} one query can hold; split the scene "
-                                 "into several queries")
+            # Bodies prepared by a detector that holds more are checked against this one.
+            check_body_count(len(bodies), self.request.max_bodies)
             scene = bodies.scene(transforms)
         else:
             scene = prepare_scene(bodies, transforms, names=names, strict=self.request.strict,

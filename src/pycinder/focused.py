@@ -34,8 +34,8 @@ from .request import CollisionRequest, RecordMode, body_sizes, pair_tolerance, r
 from .result import CollisionResult, Stats
 from .scene import Scene
 from .scene.pack import ShapePack, pack_shapes, shape_layout
-from .tiles import (LEAD_FROM, LEAD_PAIRS, MAX_TILE, TilePlan, concat_plans, likely_pairs, plan_tiles,
-                    repack, split_depth)
+from .tiles import (LEAD_FROM, LEAD_PAIRS, MAX_TILE, TilePlan, concat_plans, likely_pairs,
+                    plan_tiles, repack, split_depth)
 
 RETRIES = 5
 """Times undecided tiles are run again: first with longer lists, then with thinner boxes."""
@@ -138,6 +138,9 @@ class FocusedStrategy:
         once a pair is found, and the host runs nothing again once one is (records "none":
         the pairs are then those found before the GPU stopped, at least one)."""
         mode = record_mode(records or self.request.records)
+        if stop_at_first and mode.read:
+            raise ValueError("stop_at_first answers whether anything collides: records 'none' "
+                             "only")
         t0 = time.perf_counter()
         if len(scene) < 2:
             return PendingFocused(self, CollisionResult.empty(stats))
@@ -150,9 +153,6 @@ class FocusedStrategy:
             return PendingFocused(self, CollisionResult.empty(stats))
         tol = self.tolerances(scene, pairs, tolerance)
         stats.tolerance = (float(tol.min()), float(tol.max()))
-        if stop_at_first and mode.read:
-            raise ValueError("stop_at_first answers whether anything collides: records 'none' "
-                             "only")
         # A query that stops at its first pair runs the likeliest pairs first, in rounds of
         # their own: in a dense scene the rest is then skipped.
         lead = None

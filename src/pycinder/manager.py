@@ -267,9 +267,10 @@ class CollisionManager:
         """Whether any two objects collide; optionally the set of sorted name pairs and the
         contacts."""
         names = list(self._objs)
+        objs = list(self._objs.values())
         if not return_names and not return_data:
-            return self._any([self._objs[n] for n in names], names, None)
-        result = self._query([self._objs[n] for n in names], names, None, return_data)
+            return self._any(objs, names, None)
+        result = self._query(objs, names, None, return_data)
         pairs = {tuple(sorted((names[i], names[j]))) for i, j in result.pairs.tolist()}
         data = self._contacts(result) if return_data else []
         return _answer(bool(pairs), pairs, data, return_names, return_data)
@@ -301,11 +302,10 @@ class CollisionManager:
         names = list(self._objs)
         probe = CollisionObject(EXTERNAL, mesh, _transform(transform))
         groups = np.r_[np.zeros(len(names), np.int64), 1]
+        objs, labels = [*self._objs.values(), probe], [*names, EXTERNAL]
         if not return_names and not return_data:
-            return self._any([self._objs[n] for n in names] + [probe], names + [EXTERNAL],
-                             groups)
-        result = self._query([self._objs[n] for n in names] + [probe], names + [EXTERNAL],
-                             groups, return_data)
+            return self._any(objs, labels, groups)
+        result = self._query(objs, labels, groups, return_data)
         found = {names[i] for i, j in result.pairs.tolist()}
         data = self._contacts(result) if return_data else []
         return _answer(bool(found), found, data, return_names, return_data)

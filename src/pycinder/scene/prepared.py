@@ -198,12 +198,17 @@ def prepare_scene(bodies: Sequence[Any], transforms: Any = None, *,
     return prepared._scene(checked)
 
 
-def _checked_names(n: int, names: Sequence[str | None] | None, max_bodies: int | None
-                   ) -> list[str | None]:
-    """A name (or None) per body, once the number of bodies is known to be allowed."""
+def check_body_count(n: int, max_bodies: int | None) -> None:
+    """Raise ``ValueError`` when ``n`` bodies are more than one query holds."""
     if max_bodies is not None and n > max_bodies:
         raise ValueError(f"{n} bodies is more than the {max_bodies} one query can hold; split "
                          "the scene into several queries")
+
+
+def _checked_names(n: int, names: Sequence[str | None] | None, max_bodies: int | None
+                   ) -> list[str | None]:
+    """A name (or None) per body, once the number of bodies is known to be allowed."""
+    check_body_count(n, max_bodies)
     out = list(names) if names is not None else [None] * n
     if len(out) != n:
         raise ValueError(f"names must give one name per body: {len(out)} names, {n} bodies")
