@@ -90,14 +90,17 @@ def test_a_mesh_larger_than_the_cache_is_kept_while_it_is_used():
     assert det.shapes.topologies.nbytes > det.shapes.topologies.max_bytes
 
 
-def test_bodies_are_measured_on_threads_and_in_a_forked_child():
+def test_bodies_are_measured_on_threads_and_in_a_forked_child(monkeypatch):
     """Large bodies are hashed and measured on a thread pool; the answer is the one-thread
     answer, an edited body is seen, and a process forked after a query still answers (its pool
-    is made anew)."""
+    is made anew). Two threads at least, whatever the machine and its environment allow (a
+    single CPU, or OMP_NUM_THREADS=1, would have no pool)."""
     import multiprocessing
 
     from pycinder import threads
     from pycinder.scene import bodies
+
+    monkeypatch.setattr(threads, "WORKERS", max(threads.WORKERS, 2))
 
     ball = trimesh.creation.icosphere(subdivisions=5)          # 10,242 vertices, 240 kB
     verts = [np.array(ball.vertices) * (1 + 0.01 * k) for k in range(8)]
