@@ -1,14 +1,18 @@
 """The ``pycinder`` command (also ``python -m pycinder``).
 
-    pycinder check FILE... [--tolerance T] [--strict] [--json] [--max-file-size SIZE]
+    pycinder check FILE... [--tolerance T] [--strict] [--json] [--split] [--max-file-size SIZE]
                    [--max-triangles N] [--strategy scene [--resolution N]]
-    pycinder debug-buffers [FILE...] --out DIR
+    pycinder debug-buffers [FILE...] --out DIR [--resolution N] [--self-interference MODE]
     pycinder demo {stairs,snow-bunny,normals} [--frames N] [--out FILE.mp4|FILE.gif|DIR]
     pycinder bench [SCENE...] [--repeat N] [--peers ...] [--out DIR]
-    pycinder example [--out DIR]
+    pycinder example [--out DIR] [--resolution N]
 
-``check`` exits 0 when nothing collides, 1 when something does and 2 on an error; every error
-names the file or body and what is wrong with it.
+Closed meshes are tested as solids (one inside another collides), open ones as surfaces.
+
+``check`` exits 0 when nothing collides, 1 when something does and 2 on an error. Every file is
+read before an error is reported, so that one run names every bad file (each message names the
+file or body and what is wrong with it); when any file cannot be used nothing is checked and the
+exit status is 2. ``check --json`` prints one object, described in :data:`CHECK_EPILOG`.
 """
 
 from __future__ import annotations
@@ -27,21 +31,49 @@ from typing import Any
 import numpy as np
 
 from . import __version__
-from .files import DEFAULT_MAX_BYTES, DEFAULT_MAX_TRIANGLES, Limits, human_bytes, parse_size
+from .files import (DEFAULT_MAX_BYTES, DEFAULT_MAX_TRIANGLES, FileBody, Limits, human_bytes,
+                    parse_size)
 from .request import CollisionRequest
+from .text import plural
 
 DESCRIPTION = f"""\
-pycinder {__version__}: collision detection on the GPU for closed triangle meshes
-(CInDeR, an image-space interference test, on WebGPU)."""
+pycinder {__version__}: collision detection on the GPU for triangle meshes: closed meshes are
+tested as solids, open ones as surfaces (CInDeR, an image-space interference test, on WebGPU)."""
 
 EPILOG = "Run 'pycinder COMMAND --help' for a command's options."
 
 CHECK_EPILOG = """\
-exit status: 0 no collision, 1 collisions, 2 error.
+exit status: 0 no collision, 1 collisions, 2 error. Every file is read before an error is
+reported, so one run names every bad file; when any file cannot be used, nothing is checked
+and the exit status is 2.
+
+Closed meshes are tested as solids (one inside another collides), open ones as surfaces.
 Files are checked before they are loaded: at most --max-file-size bytes (also what a 3MF
 package unpacks to, or a glTF file's buffers) and --max-triangles triangles (as a header claims
 them). Coordinates are used as they are in each file: no unit conversion; --tolerance is in the
 files' units.
+
+bodies are named after their files: FILE; FILE:NODE for the parts of a scene file (glTF, 3MF,
+OBJ objects); FILE#1, FILE#2 for a file given twice; FILE[0], FILE[1] for the disconnected
+components of a body with --split. One body is never tested against itself: without --split,
+a body whose components overlap each other gets an OverlappingComponentsWarning.
+
+--json prints one object:
+  collision   true or false; null after an error
+  pairs       the colliding pairs, [{"a": BODY, "b": BODY, "samples": N}]; samples: the
+              records of interfering edge samples read back for the pair
+  bodies      the bodies' names, in order
+  strategy    "focused" or "scene"
+  tolerance   focused only: [smallest, largest] tolerance in world units over the candidate
+              pairs; with no candidate pair, what the pairs would have had (--tolerance, or 1%
+              of the smaller body's size); null with fewer than two bodies
+  candidates  focused only: the pairs the broad phase passed on to the image test
+  resolution  scene only: the image's width and height in pixels
+  adapter     the GPU adapter that ran the query
+  warnings    [{"category": CLASS, "message": TEXT}], e.g. OpenMeshWarning,
+              OverlappingComponentsWarning
+  errors      [TEXT], one per bad file or other error; [] when the check ran
+After an error, only collision (null), pairs ([]), warnings and errors are there.
 """
 
 
@@ -91,12 +123,14 @@ def _limits(args: argparse.Namespace) -> Limits:
     return Limits(max_bytes=args.max_file_size, max_triangles=args.max_triangles)
 
 
-def _load(args: argparse.Namespace, update: Callable[[int, int, str], None]) -> list:
-    from .files import load_bodies
+def _load(args: argparse.Namespace, update: Callable[[int, int, str], None]) -> list[FileBody]:
+    """The files' bodies; with ``--split`` each body's disconnected components as bodies."""
+    from .files import load_bodies, split_components
 
     steps = len(args.files) + 1
-    return load_bodies(args.files, _limits(args),
-                       progress=lambda k, n, label: update(k, steps, f"loading {label}"))
+    bodies = load_bodies(args.files, _limits(args),
+                         progress=lambda k, n, label: update(k, steps, f"loading {label}"))
+    return split_components(bodies) if getattr(args, "split", False) else bodies
 
 
 def _request(args: argparse.Namespace) -> CollisionRequest:
@@ -107,7 +141,18 @@ def _request(args: argparse.Namespace) -> CollisionRequest:
                             tolerance=args.tolerance, resolution=args.resolution)
 
 
+_ERRORS = (ValueError, RuntimeError, OSError, TypeError, ImportError, MemoryError)
+"""What a command reports as an error (exit status 2) rather than a traceback."""
+
+
+def _messages(exc: BaseException) -> list[str]:
+    """An error's messages: one per bad file for :class:`~pycinder.files.FileErrors`."""
+    return list(getattr(exc, "messages", None) or [str(exc) or type(exc).__name__])
+
+
 def cmd_check(args: argparse.Namespace) -> int:
+    """Check the files' bodies for collisions; print the pairs (or JSON) and return 0 (none),
+    1 (some) or 2 (an error)."""
     from .detector import Detector
     from .records import pair_keys
 
@@ -119,13 +164,15 @@ def cmd_check(args: argparse.Namespace) -> int:
                 bodies = _load(args, update)
                 names = [b.name for b in bodies]
                 update(len(args.files), len(args.files) + 1,
-                       f"checking {len(bodies)} bodies")
+                       f"checking {plural(len(bodies), 'body')}")
                 det = Detector(request)
                 result = det.find_collisions([b.mesh for b in bodies],
                                              np.array([b.transform for b in bodies]),
                                              names=names)
-        except (ValueError, RuntimeError, OSError, TypeError, ImportError, MemoryError) as exc:
-            return _fail(args, str(exc), caught)
+                if not args.split:
+                    _warn_overlapping_components(bodies, det)
+        except _ERRORS as exc:
+            return _fail(args, _messages(exc), caught)
     notes = [_warning_entry(w, args.strict) for w in caught]
     pairs = [(names[i], names[j]) for i, j in result.pairs.tolist()]
     st = result.stats
@@ -134,19 +181,20 @@ def cmd_check(args: argparse.Namespace) -> int:
         keys, counts = np.unique(pair_keys(rec["penetrating"], rec["penetrated"]),
                                  return_counts=True)
         per_pair = dict(zip(keys.tolist(), counts.tolist()))
-        print(json.dumps({
+        report: dict[str, Any] = {
             "collision": bool(pairs),
             "pairs": [{"a": names[i], "b": names[j], "samples": per_pair.get(i << 32 | j, 0)}
                       for i, j in result.pairs.tolist()],
             "bodies": names,
             "strategy": st.strategy,
-            "tolerance": list(st.tolerance) if st.strategy == "focused" else None,
-            "resolution": st.resolution[0] if st.strategy == "scene" else None,
-            "candidates": st.candidates if st.strategy == "focused" else None,
-            "adapter": st.adapter,
-            "warnings": notes,
-            "errors": [],
-        }, indent=2))
+        }
+        if st.strategy == "focused":
+            report["tolerance"] = _tolerance_range(bodies, st, request)
+            report["candidates"] = st.candidates
+        else:
+            report["resolution"] = st.resolution[0]
+        report.update(adapter=st.adapter, warnings=notes, errors=[])
+        print(json.dumps(report, indent=2))
     else:
         for note in notes:
             print(f"warning: {note['message']}", file=sys.stderr)
@@ -158,17 +206,100 @@ def cmd_check(args: argparse.Namespace) -> int:
     return 1 if pairs else 0
 
 
-def _fail(args: argparse.Namespace, message: str, caught: list) -> int:
-    """Report an error (with the warnings before it) and return exit status 2."""
-    message = _cli_words(message, args.strict)
+def _tolerance_range(bodies: Sequence[FileBody], st: Any, request: CollisionRequest
+                     ) -> list[float] | None:
+    """``check --json``'s ``tolerance``: [smallest, largest] over the candidate pairs; with no
+    candidate pair, what any pair of the bodies would have had; None with fewer than two."""
+    from .request import body_sizes, pair_tolerance
+
+    if st.candidates:
+        return [float(t) for t in st.tolerance]
+    if len(bodies) < 2:
+        return None
+    lo = np.array([b.mesh.bounds[0] for b in bodies])
+    hi = np.array([b.mesh.bounds[1] for b in bodies])
+    size = np.sort(body_sizes(lo, hi, np.array([b.transform for b in bodies])))
+    # A pair's default tolerance follows its smaller body: the smallest over all pairs is the
+    # smallest body's, the largest the second largest body's.
+    tol = pair_tolerance(size[[0, -2]], size[[1, -1]], request.tolerance)
+    return [float(t) for t in tol]
+
+
+def _boxes_meeting(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(n,) whether each of the boxes ``lo``, ``hi`` ((n, 3) corners) meets another one."""
+    meets = np.zeros(len(lo), dtype=bool)
+    for k in range(len(lo) - 1):  # one row at a time: memory in n, not n * n
+        hit = ((lo[k] <= hi[k + 1:]) & (lo[k + 1:] <= hi[k])).all(axis=1)
+        meets[k] |= hit.any()
+        meets[k + 1:] |= hit
+    return meets
+
+
+def _warn_overlapping_components(bodies: Sequence[FileBody], det: Any) -> None:
+    """Warn (:class:`~pycinder.files.OverlappingComponentsWarning`) about each body whose
+    disconnected components overlap each other, which one query cannot report: one body is
+    never tested against itself.
+
+    Components whose bounding boxes meet are tested as bodies of their own by ``det`` (the
+    query's :class:`~pycinder.Detector`), in one query; inside-out closed components (cavities of
+    a hollow body) are left out.
+    """
+    from .files import OverlappingComponentsWarning, body_components
+
+    parts: list[Any] = []
+    transforms: list[np.ndarray] = []
+    labels: list[tuple[int, int]] = []  # (body, component) of each part tested
+    split = body_components(bodies)
+    for b, (body, pieces) in enumerate(zip(bodies, split)):
+        keep = [k for k, piece in enumerate(pieces)
+                if len(pieces) > 1 and not (piece.is_watertight and piece.volume < 0)]
+        lo = np.array([pieces[k].bounds[0] for k in keep]).reshape(-1, 3)
+        hi = np.array([pieces[k].bounds[1] for k in keep]).reshape(-1, 3)
+        touching = [k for k, meets in zip(keep, _boxes_meeting(lo, hi)) if meets]
+        parts += [pieces[k] for k in touching]
+        transforms += [body.transform] * len(touching)
+        labels += [(b, k) for k in touching]
+    if not parts:
+        return
+    try:
+        with warnings.catch_warnings():  # the bodies' own warnings are given already
+            warnings.simplefilter("ignore")
+            found = det.find_collisions(parts, np.array(transforms)).pairs
+    except _ERRORS as exc:
+        for b in sorted({b for b, _ in labels}):
+            warnings.warn(f"{bodies[b].name}: its disconnected components could not be tested "
+                          f"against each other ({exc}); pass --split to test them as bodies",
+                          OverlappingComponentsWarning, stacklevel=2)
+        return
+    overlaps: dict[int, list[str]] = {}
+    for i, j in found.tolist():
+        (b, k), (c, m) = labels[i], labels[j]
+        if b == c:
+            overlaps.setdefault(b, []).append(f"[{min(k, m)}] and [{max(k, m)}]")
+    for b, which in sorted(overlaps.items()):
+        name, count = bodies[b].name, len(split[b])
+        shown = ", ".join(sorted(which)[:5]) + (", ..." if len(which) > 5 else "")
+        warnings.warn(
+            f"{name}: {plural(count, 'disconnected component')}, of which "
+            f"{plural(len(which), 'pair overlaps', 'pairs overlap')} ({shown}); a body is not "
+            "tested against itself, so this is not reported as a collision: pass --split to "
+            f"test each component as a body of its own ({name}[0], {name}[1], ...)",
+            OverlappingComponentsWarning, stacklevel=2)
+
+
+def _fail(args: argparse.Namespace, messages: Sequence[str], caught: list) -> int:
+    """Report errors, one per bad file or problem (with the warnings before them), and return
+    exit status 2."""
+    errors = [_cli_words(m, args.strict) for m in messages]
     notes = [_warning_entry(w, args.strict) for w in caught]
     if args.json:
         print(json.dumps({"collision": None, "pairs": [], "warnings": notes,
-                          "errors": [message]}, indent=2))
+                          "errors": errors}, indent=2))
     else:
         for note in notes:
             print(f"warning: {note['message']}", file=sys.stderr)
-        print(f"pycinder: error: {message}", file=sys.stderr)
+        for message in errors:
+            print(f"pycinder: error: {message}", file=sys.stderr)
     return 2
 
 
@@ -207,9 +338,9 @@ def cmd_example(args: argparse.Namespace) -> int:
     for i, j in result.pairs.tolist():
         print(f"  {names[i]} <-> {names[j]}")
     st = result.stats
-    print(f"  focused: {st.candidates} candidate pairs, {st.tiles} tiles, {st.pixels} pixels, "
-          f"tolerance {st.tolerance[0]:.3g}, {st.bytes_read} bytes read back, "
-          f"{st.wall_ms['total']:.1f} ms")
+    print(f"  focused: {plural(st.candidates, 'candidate pair')}, {plural(st.tiles, 'tile')}, "
+          f"{plural(st.pixels, 'pixel')}, tolerance {st.tolerance[0]:.3g}, "
+          f"{plural(st.bytes_read, 'byte')} read back, {st.wall_ms['total']:.1f} ms")
     for p in paths:
         print(f"  wrote {p}")
     print(f"  wrote {montage} (Figures 9-13 with a legend)")
@@ -299,6 +430,23 @@ def _add_file_limits(p: argparse.ArgumentParser) -> None:
                    help=f"most triangles a file may hold (default {DEFAULT_MAX_TRIANGLES:,})")
 
 
+def _add_buffer_resolution(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--resolution", type=_count, default=512, metavar="N",
+                   help="width and height in pixels of the scene strategy's image whose buffers "
+                        "are written (default 512)")
+
+
+def _frames_out(text: str) -> str:
+    """``demo --out``: a video or a folder (see :func:`~pycinder.demos.output.output_kind`)."""
+    from .demos.output import output_kind
+
+    try:
+        output_kind(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 def _add_progress(p: argparse.ArgumentParser) -> None:
     p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                    help="show a progress bar on stderr (default: when it is a terminal)")
@@ -331,6 +479,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="print JSON on stdout, warnings and errors included")
     p.add_argument("--strict", action="store_true",
                    help="open, inside-out and zero-area meshes are errors")
+    p.add_argument("--split", action="store_true",
+                   help="test each body's disconnected components (two boxes in one STL) as "
+                        "bodies of their own, named FILE[0], FILE[1], ...")
     _add_file_limits(p)
     _add_progress(p)
     p.set_defaults(func=cmd_check)
@@ -339,25 +490,37 @@ def build_parser() -> argparse.ArgumentParser:
                                              "passes 1-7 (three boxes, or your files)")
     p.add_argument("files", nargs="*", metavar="FILE",
                    help="meshes (default: the paper's three boxes, Figure 7)")
-    p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--resolution", type=int, default=512)
-    p.add_argument("--self-interference", default="filter", choices=["filter", "prevent", "offset"])
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="folder for the PNGs (created; files of the same names are replaced)")
+    _add_buffer_resolution(p)
+    p.add_argument("--self-interference", default="filter",
+                   choices=["filter", "prevent", "offset"],
+                   help="how a body's edges are kept from registering against its own faces "
+                        "(paper 4.3.1): filter (default) lets them, then blanks those pixels "
+                        "before readback; prevent never counts a body's faces in front of its own "
+                        "edges; offset moves edges outwards along their normals by half a pixel")
     _add_file_limits(p)
     _add_progress(p)
     p.set_defaults(func=cmd_debug_buffers, strict=False, json=False)
 
     p = sub.add_parser("demo", help="the paper's demos, as a video or in a window: stairs, "
                                     "snow-bunny, normals")
-    p.add_argument("name", choices=["stairs", "snow-bunny", "normals"])
+    p.add_argument("name", choices=["stairs", "snow-bunny", "normals"],
+                   help="stairs: spheres bounce down stairs (paper 5.1); snow-bunny: snowflakes "
+                        "fall on the Stanford bunny (5.2); normals: spheres bounce off the bunny "
+                        "by the normals read from the collision records (5.3)")
     p.add_argument("--frames", type=int, default=None,
                    help="frames to run (default 120 headless; a window runs until closed)")
-    p.add_argument("--out", metavar="FILE.mp4|FILE.gif|DIR", help="write the frames here")
+    p.add_argument("--out", metavar="FILE.mp4|FILE.gif|DIR", type=_frames_out,
+                   help="write the frames here: an MP4 or GIF video, or a folder of PNGs (a "
+                        "path with no suffix, ending in /, or a folder already)")
     p.add_argument("--window", action="store_true",
                    help="open an interactive window (drag to orbit, scroll to zoom)")
     p.add_argument("--tolerance", type=float, default=None,
                    help="detection tolerance in world units (default: 1%% of the smaller body of "
                         "each pair)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the demo's random placements (default 0)")
     p.add_argument("--spheres", type=int, help="spheres (stairs, normals) or flakes (snow-bunny)")
     p.add_argument("--scan", action="store_true",
                    help="snow-bunny: use the scanned bunny, which is open at the bottom "
@@ -379,15 +542,19 @@ def build_parser() -> argparse.ArgumentParser:
                         "is not installed is left out and named")
     p.add_argument("--soak-frames", type=int, default=100_000,
                    help="frames of the memory soak (scene 'soak')")
-    p.add_argument("--out", default="benchmarks/results", metavar="DIR")
+    p.add_argument("--out", default="benchmarks/results", metavar="DIR",
+                   help="folder for the results' JSON, Markdown and plots (default "
+                        "benchmarks/results)")
     p.add_argument("--stem", default="results", help="file name stem of the JSON and Markdown")
     _add_progress(p)
     p.set_defaults(func=cmd_bench, strict=False, json=False)
 
     p = sub.add_parser("example", help="check the built-in three-box scene and write its buffers "
                                        "and a labelled montage of them (montage.png)")
-    p.add_argument("--out", default="out/buffers", metavar="DIR")
-    p.add_argument("--resolution", type=int, default=512)
+    p.add_argument("--out", default="out/buffers", metavar="DIR",
+                   help="folder for the buffers' PNGs and montage.png (created; default "
+                        "out/buffers)")
+    _add_buffer_resolution(p)
     _add_progress(p)
     p.set_defaults(func=cmd_example, strict=False, json=False)
     from .batch.cli import add_parser as add_batch_parser
@@ -404,8 +571,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # the reader went away (``pycinder check ... | head``)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
-    except (ValueError, RuntimeError, OSError, TypeError, ImportError, MemoryError) as exc:
-        return _fail(args, str(exc) or type(exc).__name__, [])
+    except _ERRORS as exc:
+        return _fail(args, _messages(exc), [])
 
 
 if __name__ == "__main__":

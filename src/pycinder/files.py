@@ -17,8 +17,14 @@
   and handed to trimesh as open files, and names are shown with such bytes escaped.
 * **Units** are not converted: coordinates are used as they are in each file. Files that declare
   different units (3MF and glTF do) get a warning.
+* **Duplicates**: a file given twice (the same path) gives bodies named ``a.stl#1`` and
+  ``a.stl#2``, in the order given.
+* **Components**: a body may hold several disconnected parts (two boxes in one STL file).
+  :func:`split_components` makes each part a body of its own, named ``a.stl[0]``, ``a.stl[1]``,
+  ... in the order of their first triangles in the file.
 
-Every problem raises :class:`FileError` with the file's name and what is wrong with it.
+Every problem raises :class:`FileError` with the file's name and what is wrong with it;
+:func:`load_bodies` reads every file and raises one :class:`FileErrors` naming every bad file.
 """
 
 from __future__ import annotations
@@ -35,6 +41,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from .text import plural
 
 MESH_FORMATS = {"stl": "STL", "obj": "OBJ", "ply": "PLY", "off": "OFF", "glb": "glTF",
                 "gltf": "glTF", "3mf": "3MF"}
@@ -53,8 +61,27 @@ class FileError(ValueError):
     """A file that cannot be used; the message names it and says why."""
 
 
+class FileErrors(FileError):
+    """Several files that cannot be used: one message per file, in :attr:`messages`.
+
+    Parameters
+    ----------
+    messages : list of str
+        One message per bad file, each naming it and saying what is wrong.
+    """
+
+    def __init__(self, messages: Sequence[str]) -> None:
+        self.messages = list(messages)
+        super().__init__("\n".join(self.messages))
+
+
 class FileWarning(UserWarning):
     """Something about a file that the user should know: parts left out, units that differ."""
+
+
+class OverlappingComponentsWarning(FileWarning):
+    """A body whose disconnected components overlap each other: one body is never tested
+    against itself, so such an overlap is not reported as a collision."""
 
 
 @dataclass(frozen=True)
@@ -129,7 +156,7 @@ def human_bytes(n: float) -> str:
     for unit, scale in (("TiB", 2**40), ("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
         if n >= scale:
             return f"{n / scale:.3g} {unit}"
-    return f"{int(n)} bytes"
+    return plural(int(n), "byte")
 
 
 # -- checks before loading ------------------------------------------------------------------
@@ -178,8 +205,9 @@ def _check_stl(c: _Check, head: bytes) -> None:
                          f"triangles ({human_bytes(84 + 50 * claimed)}), but the file holds "
                          f"{human_bytes(c.size)} (truncated, or not an STL file)")
     elif not head.lstrip().lower().startswith(b"solid"):
-        raise c.fail(f"could not parse it as STL: {c.size} bytes are too few for a binary STL "
-                     "and it does not start with 'solid' as a text STL does")
+        raise c.fail(f"could not parse it as STL: {plural(c.size, 'byte')} "
+                     f"{'is' if c.size == 1 else 'are'} too few for a binary STL and it does not "
+                     "start with 'solid' as a text STL does")
     c.triangles(c.count(b"facet normal"), "it has")
 
 
@@ -207,7 +235,7 @@ def _check_ply(c: _Check, head: bytes) -> None:
     end = head.find(b"end_header")
     if not head.startswith(b"ply") or end < 0:
         raise c.fail("could not parse it as PLY: no 'ply' ... 'end_header' header in its first "
-                     f"{len(head)} bytes")
+                     f"{plural(len(head), 'byte')}")
     header_bytes = head.index(b"\n", end) + 1 if b"\n" in head[end:] else len(head)
     lines = head[:end].decode("ascii", "replace").splitlines()
     binary = any(line.startswith("format binary") for line in lines)
@@ -230,7 +258,7 @@ def _check_ply(c: _Check, head: bytes) -> None:
     # Every item takes at least its bytes in a binary file, or two characters in a text file.
     least = header_bytes + sum(count * (size if binary else 2) for _, count, size in elements)
     if least > c.size:
-        claims = ", ".join(f"{count:,} {name}s" for name, count, _ in elements)
+        claims = ", ".join(plural(count, name) for name, count, _ in elements)
         raise c.fail(f"its PLY header claims {claims}, at least {human_bytes(least)}, but the "
                      f"file holds {human_bytes(c.size)}: it is truncated or its header is wrong")
 
@@ -411,7 +439,7 @@ def _load_scene(path: str, ext: str, label: str) -> tuple[Any, list[str]]:
     if ext == "3mf":
         from .optional import require
 
-        require("lxml", "reading 3MF files", "files")
+        require("lxml", f"{label}: reading 3MF files", "files")
     log = logging.getLogger("trimesh")
     handler = _TrimeshLog()
     propagate = log.propagate
@@ -445,7 +473,7 @@ def _nonfinite_message(label: str, ext: str, path: str, vertices: np.ndarray) ->
         return None
     n = int(bad.sum())
     first = int(np.flatnonzero(bad)[0])
-    count = f"1 vertex is" if n == 1 else f"{n:,} vertices are"
+    count = plural(n, "vertex", "vertices") + (" is" if n == 1 else " are")
     if ext == "obj":
         line = _obj_vertex_line(path)
         where = f"vertex {line[0]} on line {line[1]}" if line else f"vertex {first + 1}"
@@ -533,10 +561,29 @@ def load_file(path: str, label: str, limits: Limits = Limits()) -> list[FileBody
                      transform, units) for node, (transform, geometry) in meshes.items()]
 
 
+def file_labels(paths: Sequence[str]) -> list[str]:
+    """How messages and body names call the files at ``paths``: each file's name; the paths as
+    given where two files share a name; and ``#1``, ``#2``, ... after a path given more than once.
+    """
+    labels = [display_name(os.path.basename(p) or p) for p in paths]
+    if len(set(labels)) < len(set(zip(labels, map(os.fsencode, paths)))):
+        labels = [display_name(p) for p in paths]  # different files of one name
+    seen: dict[str, int] = {}
+    numbered = []
+    for label in labels:
+        if labels.count(label) > 1:
+            seen[label] = seen.get(label, 0) + 1
+            label = f"{label}#{seen[label]}"
+        numbered.append(label)
+    return numbered
+
+
 def load_bodies(paths: Sequence[str], limits: Limits = Limits(),
                 progress: Callable[[int, int, str], None] | None = None) -> list[FileBody]:
-    """The bodies of several files, each named after its file (after its path as given where two
-    files share a name), checked and loaded in turn.
+    """The bodies of several files, named by :func:`file_labels`, checked and loaded in turn.
+
+    Every file is read, also after one that cannot be used, so that one error names every bad
+    file.
 
     Parameters
     ----------
@@ -551,17 +598,21 @@ def load_bodies(paths: Sequence[str], limits: Limits = Limits(),
 
     Raises
     ------
-    FileError
-        For the first file that cannot be used.
+    FileErrors
+        Naming every file that cannot be used (also one that needs a package that is not
+        installed), one message per file in its ``messages``, in the order given.
     """
-    labels = [display_name(os.path.basename(p) or p) for p in paths]
-    if len(set(labels)) < len(labels):
-        labels = [display_name(p) for p in paths]
     bodies: list[FileBody] = []
-    for k, (path, label) in enumerate(zip(paths, labels)):
+    errors: list[str] = []
+    for k, (path, label) in enumerate(zip(paths, file_labels(paths))):
         if progress:
             progress(k, len(paths), label)
-        bodies += load_file(path, label, limits)
+        try:
+            bodies += load_file(path, label, limits)
+        except (FileError, ImportError) as exc:
+            errors.append(str(exc))
+    if errors:
+        raise FileErrors(errors)
     units = {b.units for b in bodies if b.units}
     if len(units) > 1:
         declared = ", ".join(sorted({f"{b.name.split(':')[0]} in {b.units}" for b in bodies
@@ -570,3 +621,48 @@ def load_bodies(paths: Sequence[str], limits: Limits = Limits(),
                       "coordinates as they are, without converting them", FileWarning,
                       stacklevel=2)
     return bodies
+
+
+def components(mesh: Any) -> list[Any]:
+    """The disconnected parts of ``mesh`` (sharing no edge), in the order of their first
+    triangles; ``[mesh]`` itself when it is one part."""
+    import trimesh
+
+    labels = trimesh.graph.connected_component_labels(mesh.face_adjacency, len(mesh.faces))
+    found, first, which = np.unique(labels, return_index=True, return_inverse=True)
+    if len(found) < 2:
+        return [mesh]
+    by_part = np.split(np.argsort(which, kind="stable"), np.cumsum(np.bincount(which))[:-1])
+    faces = [by_part[k] for k in np.argsort(first)]
+    return mesh.submesh(faces, only_watertight=False, append=False)
+
+
+def body_components(bodies: Sequence[FileBody]) -> list[list[Any]]:
+    """Each body's :func:`components`; a geometry placed several times is split once."""
+    split: dict[int, list[Any]] = {}
+    for body in bodies:
+        if id(body.mesh) not in split:
+            split[id(body.mesh)] = components(body.mesh)
+    return [split[id(body.mesh)] for body in bodies]
+
+
+def split_components(bodies: Sequence[FileBody]) -> list[FileBody]:
+    """Each body's disconnected parts as bodies of their own, named ``name[0]``, ``name[1]``,
+    ... (in the order of their first triangles); a body of one part is kept as it is.
+
+    Parameters
+    ----------
+    bodies : sequence of FileBody
+
+    Returns
+    -------
+    list of FileBody
+    """
+    out = []
+    for body, pieces in zip(bodies, body_components(bodies)):
+        if len(pieces) == 1:
+            out.append(body)
+        else:
+            out += [FileBody(f"{body.name}[{k}]", piece, body.transform, body.units)
+                    for k, piece in enumerate(pieces)]
+    return out

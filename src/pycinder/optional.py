@@ -14,7 +14,8 @@ def require(module: str, needed_for: str, extra: str, package: str | None = None
     module : str
         The module to import (``"fcl"``, ``"PIL.ImageDraw"``, ...).
     needed_for : str
-        What needs it, to start the message ("CollisionManager.min_distance_*").
+        What needs it, to start the message ("CollisionManager.min_distance_*"; a file's name
+        first where a file needs it: "parts.3mf: reading 3MF files").
     extra : str
         The pycinder extra that brings it (``"distance"``, ``"bench"``, ...).
     package : str, optional

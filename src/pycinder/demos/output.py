@@ -1,5 +1,10 @@
 """Where demo frames go (an MP4 through imageio-ffmpeg, a GIF, or a folder of PNGs), whether a
-window can open, and the one-line summary of a run."""
+window can open, and the one-line summary of a run.
+
+An output path is a video when it ends in one of :data:`VIDEO_SUFFIXES`, and a folder of PNGs
+when it has no suffix, ends in a path separator or is a folder already; any other suffix
+(``st.avi``) is an error that names the suffixes written (see :func:`output_kind`).
+"""
 
 from __future__ import annotations
 
@@ -10,6 +15,31 @@ from typing import Any
 
 import numpy as np
 
+from ..text import plural
+
+VIDEO_SUFFIXES = (".mp4", ".gif")
+"""The video files written: an MP4 (imageio-ffmpeg, H.264) and an animated GIF (Pillow)."""
+
+
+def output_kind(out: str | os.PathLike[str]) -> str:
+    """What ``out`` names: ``".mp4"``, ``".gif"`` or ``"folder"`` (of PNG frames).
+
+    Raises
+    ------
+    ValueError
+        For a suffix that is not a video written here (``st.avi``), naming the suffixes that are.
+    """
+    text = os.fspath(out)
+    path = Path(text)
+    suffix = path.suffix.lower()
+    if suffix in VIDEO_SUFFIXES:
+        return suffix
+    if not suffix or path.is_dir() or text.endswith(("/", os.sep)):
+        return "folder"
+    raise ValueError(f"{text}: cannot write {suffix} videos: give a file ending in "
+                     f"{' or '.join(VIDEO_SUFFIXES)}, or a folder (a path with no suffix or "
+                     "ending in /) for PNG frames")
+
 
 class FrameWriter:
     """Writes frames to an MP4 (imageio-ffmpeg), a GIF, or a folder of PNGs.
@@ -17,23 +47,28 @@ class FrameWriter:
     Parameters
     ----------
     out : str or Path or None
-        ``*.mp4``, ``*.gif``, or a folder (created) for ``frame_0000.png``, ...; None writes
-        nothing.
+        ``*.mp4``, ``*.gif``, or a folder (created) for ``frame_0000.png``, ... (see
+        :func:`output_kind`); None writes nothing.
     fps : int
         Frames per second of the MP4 or GIF.
+
+    Raises
+    ------
+    ValueError
+        For an output path with a suffix that is not a video written here.
     """
 
     def __init__(self, out: str | Path | None, fps: int = 30) -> None:
+        self.kind = output_kind(out) if out else None
         self.out = Path(out) if out else None
         self.fps, self.count, self._writer, self._gif = fps, 0, None, []
         if self.out is None:
             return
-        suffix = self.out.suffix.lower()
-        if suffix in (".mp4", ".gif"):
-            self.out.parent.mkdir(parents=True, exist_ok=True)
-        else:
+        if self.kind == "folder":
             self.out.mkdir(parents=True, exist_ok=True)
-        if suffix == ".mp4":
+        else:
+            self.out.parent.mkdir(parents=True, exist_ok=True)
+        if self.kind == ".mp4":
             import imageio.v2 as imageio
 
             self._writer = imageio.get_writer(self.out, fps=fps, codec="libx264", quality=7,
@@ -43,10 +78,9 @@ class FrameWriter:
         """Append one (H, W, 3) uint8 frame."""
         if self.out is None:
             return
-        suffix = self.out.suffix.lower()
-        if suffix == ".mp4":
+        if self.kind == ".mp4":
             self._writer.append_data(image)
-        elif suffix == ".gif":
+        elif self.kind == ".gif":
             self._gif.append(image)
         else:
             from ..debug import png_bytes
@@ -77,7 +111,7 @@ def display_available() -> bool:
 def summary(name: str, counts: list[int], ms: list[float], extra: dict[str, Any] | None = None
             ) -> str:
     """One line: frames, contacts per frame, median detection time, then ``extra`` items."""
-    parts = [f"{name}: {len(counts)} frames",
+    parts = [f"{name}: {plural(len(counts), 'frame')}",
              f"contacts per frame: mean {np.mean(counts):.1f}, max {max(counts) if counts else 0}",
              f"median detection {np.median(ms):.1f} ms" if ms else "no detections"]
     for k, v in (extra or {}).items():
