@@ -11,7 +11,7 @@ array([[0, 1]])
 from .contacts import Contacts
 from .detector import Detector, find_collisions
 from .errors import ClippedBodyWarning, DegenerateFaceWarning, LossWarning, OpenMeshWarning
-from .gpu.device import NoAdapterError, share_default_device
+from .gpu.device import ForkedProcessError, NoAdapterError, share_default_device
 from .manager import CollisionManager, ContactData, DistanceData, scene_to_collision
 from .records import RECORD_DTYPE
 from .request import DEFAULT_RELATIVE_TOLERANCE, MAX_BODIES, CollisionRequest
@@ -22,13 +22,13 @@ from .view import View
 
 quiet_native_probes()  # before the first query makes wgpu's instance
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 __all__ = [
     "DEFAULT_RELATIVE_TOLERANCE", "MAX_BODIES", "RECORD_DTYPE", "ClippedBodyWarning",
     "CollisionManager", "CollisionRequest", "CollisionResult", "ContactData", "Contacts",
     "DegenerateFaceWarning", "DistanceData",
-    "Detector", "FocusedStats", "LossWarning", "NoAdapterError", "OpenMeshWarning",
+    "Detector", "FocusedStats", "ForkedProcessError", "LossWarning", "NoAdapterError", "OpenMeshWarning",
     "PreparedBodies", "SceneStats", "Stats", "View",
     "find_collisions", "scene_to_collision", "share_default_device",
 ]

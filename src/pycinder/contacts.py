@@ -34,6 +34,7 @@ import numpy as np
 from .focused import edge_normals, face_normals_world
 from .records import pair_keys
 from .result import CollisionResult
+from .text import plural
 
 CELL_TOLERANCES = 4.0
 """Grid cell of the region search, in tolerances: records closer than this join a region."""
@@ -133,7 +134,7 @@ class Contacts:
     def __repr__(self) -> str:
         pairs = len(np.unique(pair_keys(self.pair[:, 0], self.pair[:, 1]))) if len(self) else 0
         deepest = f", deepest {self.depth.max():.4g}" if len(self) else ""
-        return f"Contacts({len(self)} contacts over {pairs} pairs{deepest})"
+        return f"Contacts({plural(len(self), 'contact')} over {plural(pairs, 'pair')}{deepest})"
 
     @classmethod
     def empty(cls) -> Contacts:

@@ -19,7 +19,7 @@ import wgpu
 
 from .errors import GpuError, GpuTimeoutError
 from .focused import FocusedStrategy
-from .gpu.device import get_gpu
+from .gpu.device import check_not_forked, fork_generation, get_gpu, keep_from_parent
 from .request import CollisionRequest, record_mode
 from .result import CollisionResult, Stats, remember_query
 from .scene import PreparedBodies, ShapeCache, prepare_scene
@@ -64,9 +64,24 @@ class Detector:
         self.request = request
         self.gpu = get_gpu()
         self.shapes = ShapeCache()
+        self._generation = fork_generation()
         self._lock = self.gpu.lock  # one query at a time on the device, from any thread
         with self._lock:  # pipelines and buffers are made on the device too
             self.strategy: FocusedStrategy | SceneStrategy = self._make_strategy()
+
+    @property
+    def in_this_process(self) -> bool:
+        """Whether this detector's GPU device belongs to this process: False in a process forked
+        after the detector was made, where using it raises
+        :class:`~pycinder.ForkedProcessError` (make a new detector there)."""
+        return self._generation == fork_generation()
+
+    def _device_lock(self) -> threading.RLock:
+        """The lock that gives one query at a time the device, once this detector is known to
+        belong to this process (checked before taking it: a lock held by a parent's thread at a
+        fork is never released in the child)."""
+        check_not_forked(self._generation, "this Detector")
+        return self._lock
 
     def _make_strategy(self) -> FocusedStrategy | SceneStrategy:
         if self.request.strategy == "focused":
@@ -106,7 +121,7 @@ class Detector:
         ValueError
             Bad bodies, as :meth:`find_collisions` raises them.
         """
-        with self._lock:
+        with self._device_lock():
             return PreparedBodies(bodies, names, cache=self.shapes, strict=self.request.strict,
                                   max_bodies=self.request.max_bodies, lock=self._lock)
 
@@ -197,7 +212,7 @@ class Detector:
         if isinstance(bodies, PreparedBodies) and names is not None:
             raise ValueError("prepared bodies have their names (given to Detector.prepare); "
                              "pass names=None")
-        with self._lock:  # one query at a time: the GPU buffers are the detector's own
+        with self._device_lock():  # one query at a time: the GPU buffers are the detector's own
             t0 = time.perf_counter()
             try:
                 return PendingQuery(self, self._submit(bodies, transforms, names, groups, view,
@@ -213,7 +228,7 @@ class Detector:
         as :meth:`find_collisions` gives it. See :func:`pycinder.batch.find_collisions_batch`."""
         from .batch.query import find_collisions_batch
 
-        with self._lock:
+        with self._device_lock():
             try:
                 return find_collisions_batch(self, scenes, tolerance=tolerance, labels=labels,
                                              records=records)
@@ -305,6 +320,9 @@ def shared_detector(request: CollisionRequest) -> Detector:
     """A detector per distinct request, kept for reuse (the last few only)."""
     with _DETECTORS_LOCK:
         det = _DETECTORS.get(request)
+        if det is not None and not det.in_this_process:  # made by a parent, before a fork
+            keep_from_parent(_DETECTORS.pop(request))
+            det = None
         if det is None:
             if len(_DETECTORS) >= 4:
                 _DETECTORS.pop(next(iter(_DETECTORS)))

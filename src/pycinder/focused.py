@@ -34,6 +34,7 @@ from .request import CollisionRequest, RecordMode, body_sizes, pair_tolerance, r
 from .result import CollisionResult, Stats
 from .scene import Scene
 from .scene.pack import ShapePack, pack_shapes, shape_layout
+from .text import plural
 from .tiles import (LEAD_FROM, LEAD_PAIRS, MAX_TILE, TilePlan, concat_plans, likely_pairs,
                     plan_tiles, repack, split_depth)
 
@@ -94,8 +95,8 @@ class FocusedStrategy:
         if len(bad):
             k = bad[np.argmax(floor[bad])]
             raise ValueError(
-                f"tolerance {tol[k]:g} is too fine for {len(bad)} candidate pairs in single "
-                f"precision (first: {scene.label(int(a[k]))} and {scene.label(int(b[k]))}, "
+                f"tolerance {tol[k]:g} is too fine for {plural(len(bad), 'candidate pair')} in "
+                f"single precision (first: {scene.label(int(a[k]))} and {scene.label(int(b[k]))}, "
                 f"{size[a[k]]:.3g} and {size[b[k]]:.3g} across): the GPU resolves them at "
                 f"{floor[bad].max():.3g} or coarser; use a coarser tolerance, or test those "
                 "bodies in a query of their own scale")
@@ -103,8 +104,8 @@ class FocusedStrategy:
         if len(raised):
             k = raised[np.argmax(floor[raised] / np.maximum(tol[raised], 1e-300))]
             warn_at_caller(
-                f"{len(raised)} candidate pairs are too far apart in size (or too far from the "
-                f"origin) for their default tolerance in single precision: their tolerance was "
+                f"{plural(len(raised), 'candidate pair')} {'is' if len(raised) == 1 else 'are'} "
+                f"too far apart in size (or too far from the origin) for their default tolerance in single precision: their tolerance was "
                 f"raised to what the GPU resolves (first: {scene.label(int(a[k]))} and "
                 f"{scene.label(int(b[k]))}, {size[a[k]]:.3g} and {size[b[k]]:.3g} across, "
                 f"tolerance {tol[k]:.3g} -> {floor[k]:.3g}); see stats.tolerance",
@@ -328,7 +329,8 @@ class FocusedStrategy:
             lost = unique_pairs(bodies[~known, 0], bodies[~known, 1])
             stats.possibly_lost = len(lost)
             warn_at_caller(
-                f"{len(lost)} candidate pairs could not be decided: their tiles hold {why} "
+                f"{plural(len(lost), 'candidate pair')} could not be decided: their tiles hold "
+                f"{why} "
                 f"(first pair: bodies {lost[0].tolist()}); see stats.possibly_lost",
                 LossWarning)
         if known.any():

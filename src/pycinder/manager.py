@@ -38,6 +38,7 @@ import numpy as np
 
 from .contacts import ContactData
 from .detector import Detector
+from .gpu.device import keep_from_parent
 from .optional import require
 from .request import CollisionRequest
 from .result import CollisionResult
@@ -453,7 +454,11 @@ class CollisionManager:
     @property
     def _detector(self) -> Detector:
         """One detector, its pipelines and cached shapes shared by every call, made at first
-        use."""
+        use (and again in a process forked after it was made)."""
+        if self._detector_ is not None and not self._detector_.in_this_process:
+            # This process was forked after the detector was made: it needs one of its own.
+            keep_from_parent(self._detector_)
+            self._detector_, self._prepared = None, None
         if self._detector_ is None:
             self._detector_ = Detector(self._request)
         return self._detector_

@@ -11,6 +11,7 @@ import numpy as np
 
 from .records import RECORD_DTYPE
 from .request import record_mode
+from .text import plural
 
 if TYPE_CHECKING:
     from .contacts import Contacts
@@ -175,7 +176,8 @@ class Query:
 
     Attributes
     ----------
-    detector : Detector
+    detector : Detector or None
+        None once the result was pickled (see :meth:`detached`).
     bodies : sequence
         The bodies as given (vertex arrays are not copied: contacts computed later see them as
         they are then).
@@ -195,9 +197,26 @@ class Query:
     records: str
 
     def run(self, records: str) -> CollisionResult:
-        """The same query again with ``records``."""
+        """The same query again with ``records``.
+
+        Raises
+        ------
+        ValueError
+            For a query without its detector (one of a result that was pickled).
+        """
+        if self.detector is None:
+            raise ValueError(
+                f"this result was pickled (sent from another process, or loaded): it keeps no "
+                f"detector to run its query again with every record, and it kept "
+                f"records={self.records!r}. Call result.contacts() before pickling it (contacts "
+                f"are kept and pickled with the result), or run the query with records='all'")
         return self.detector.find_collisions(self.bodies, self.transforms, names=self.names,
                                              groups=self.groups, records=records)
+
+    def detached(self) -> Query:
+        """This query without its detector, bodies and transforms: what a pickled result keeps
+        (its names, groups and records mode)."""
+        return Query(None, (), None, self.names, self.groups, self.records)
 
 
 def remember_query(result: CollisionResult, detector: Any, bodies: Sequence[Any],
@@ -232,6 +251,12 @@ class CollisionResult:
     query : Query or None
         What made this result (the detector and its inputs), to compute contacts later.
 
+    Notes
+    -----
+    A result pickles (to return it from a process pool, or to store it): its records are decoded
+    first, and the copy keeps no detector, bodies or GPU handle. Contacts computed before pickling
+    travel with it; a copy whose query kept fewer than every record cannot compute them later.
+
     Parameters
     ----------
     records : structured array, or (count, decode)
@@ -256,6 +281,15 @@ class CollisionResult:
             self._count, self._decode = records
         else:
             self._count, self._records = len(records), records
+
+    def __getstate__(self) -> dict[str, Any]:
+        """What a pickled result holds: plain arrays and dataclasses, with its records decoded
+        and its query detached from the detector (no GPU handle crosses a process)."""
+        state = self.__dict__.copy()
+        state["_records"], state["_decode"] = self.records, None
+        if self.query is not None:
+            state["query"] = self.query.detached()
+        return state
 
     @property
     def records(self) -> np.ndarray:
@@ -301,10 +335,10 @@ class CollisionResult:
                 setting = "no candidate pairs"
         else:
             setting = f"resolution {st.resolution[0]}"
-        pairs = f"{len(self.pairs)} pair" + ("" if len(self.pairs) == 1 else "s")
+        pairs = plural(len(self.pairs), "pair")
         return (f"CollisionResult({pairs}" + (f": {', '.join(shown)}" if shown else "") +
-                f"; {self._count} records; {st.strategy} strategy, {setting}; "
-                f"{st.bodies} bodies; on {st.adapter or 'no adapter'})")
+                f"; {plural(self._count, 'record')}; {st.strategy} strategy, {setting}; "
+                f"{plural(st.bodies, 'body')}; on {st.adapter or 'no adapter'})")
 
     def _pair_label(self, i: int, j: int) -> str:
         names = self.names
@@ -347,7 +381,8 @@ class CollisionResult:
         Contacts are reduced from every record of a pair. When this query kept fewer
         (``records="found"``, the default, or ``"none"``), it is run once more through the
         detector that made it with ``records="all"``, on the bodies and transforms it was given
-        (as they are now: call this before changing vertex arrays in place). The answer is kept.
+        (as they are now: call this before changing vertex arrays in place). The answer is kept,
+        and pickled with the result.
 
         Returns
         -------
@@ -359,7 +394,8 @@ class CollisionResult:
         Raises
         ------
         ValueError
-            For a result of the scene strategy, whose image has no tiles to measure contacts in.
+            For a result of the scene strategy, whose image has no tiles to measure contacts in;
+            for a pickled result that kept fewer than every record and no contacts.
         """
         from .contacts import reduce_contacts
 

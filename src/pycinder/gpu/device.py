@@ -26,6 +26,24 @@ class NoAdapterError(RuntimeError):
     """No WebGPU adapter could be found."""
 
 
+class ForkedProcessError(RuntimeError):
+    """The GPU cannot be used in this process: it was forked (``os.fork``, or ``multiprocessing``
+    with the "fork" start method) after its parent used the GPU, and the driver does not work
+    there, or a :class:`~pycinder.Detector` made before the fork was used after it."""
+
+
+FORK_HINT = (
+    "start the worker processes with the 'spawn' or 'forkserver' method instead "
+    "(multiprocessing.get_context('spawn'), or "
+    "concurrent.futures.ProcessPoolExecutor(mp_context=...)), or fork before the parent's first "
+    "query")
+
+FORK_PROBE_SECONDS = 10.0
+"""How long a forked child's first device may take to answer a round trip before pycinder
+decides that the driver does not work after a fork (lavapipe answers in well under a second;
+llvmpipe's OpenGL never does)."""
+
+
 @dataclass(frozen=True)
 class Gpu:
     """The device pycinder renders with, and what it can do."""
@@ -56,6 +74,137 @@ class Gpu:
     def description(self) -> str:
         info = self.adapter.info
         return f"{info['device']} ({info['backend_type']}, {info['adapter_type']})"
+
+
+class _Fork:
+    """What this process knows of forks: how many it has gone through (a detector made before one
+    belongs to the parent's device), and whether the first device of a forked child must still
+    prove that it answers."""
+
+    generation = 0
+    probe_pending = False
+    failure: str | None = None
+    inherited: list[object] = []
+    """The parent's device and detectors, kept from the garbage collector: releasing them in the
+    child would ask the parent's driver state, which the child has only a copy of."""
+
+
+def fork_generation() -> int:
+    """How many forks this process descends from since pycinder was imported (0 in the process
+    that imported it): a GPU object made under another number belongs to a parent's device."""
+    return _Fork.generation
+
+
+def _after_fork_in_child() -> None:
+    """Forget the parent's device and wgpu instance: the child makes its own at its first query
+    (its first round trip is run under a deadline, see :func:`get_gpu`)."""
+    if _get_gpu.cache_info().currsize:
+        _Fork.inherited.append(_get_gpu())
+        _Fork.probe_pending = True
+    _get_gpu.cache_clear()
+    _Fork.generation += 1
+    _Fork.failure = None
+    try:  # wgpu-py keeps one native instance per process; the child needs one of its own
+        from wgpu.backends.wgpu_native import _helpers
+
+        if getattr(_helpers, "_the_instance", None) is not None:
+            _Fork.inherited.append(_helpers._the_instance)
+            _helpers._the_instance = None
+    except ImportError:  # pragma: no cover - another wgpu backend
+        pass
+
+
+os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
+def _probe_after_fork(gpu: Gpu) -> None:
+    """Raise :class:`ForkedProcessError` unless ``gpu`` draws and reads back a triangle within
+    :data:`FORK_PROBE_SECONDS` (run on a thread of its own: a driver that cannot work after a fork
+    blocks inside its native submit, where no deadline reaches)."""
+    done = threading.Event()
+    errors: list[BaseException] = []
+
+    def round_trip() -> None:
+        try:
+            _draw_and_read(gpu.device)
+        except BaseException as exc:  # reported on the caller's thread
+            errors.append(exc)
+        finally:
+            done.set()
+
+    threading.Thread(target=round_trip, name="pycinder-fork-probe", daemon=True).start()
+    if not done.wait(FORK_PROBE_SECONDS):
+        why = f"it did not answer within {FORK_PROBE_SECONDS:g} s"
+    elif errors:
+        why = f"it failed: {errors[0]}"
+    else:
+        return
+    _Fork.failure = (
+        f"this process was forked after its parent used the GPU, and the {gpu.backend} driver "
+        f"({gpu.description}) does not work in the forked child ({why}); {FORK_HINT}")
+    _Fork.inherited.append(gpu)  # a device whose work may still be stuck: never released
+    raise ForkedProcessError(_Fork.failure)
+
+
+def keep_from_parent(obj: object) -> None:
+    """Keep ``obj``, a GPU object of a parent process's device, from being released here (see
+    :attr:`_Fork.inherited`)."""
+    _Fork.inherited.append(obj)
+
+
+_PROBE_SHADER = """
+@vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let p = array<vec2<f32>, 3>(vec2(-1.0, -1.0), vec2(3.0, -1.0), vec2(-1.0, 3.0));
+    return vec4<f32>(p[i], 0.0, 1.0);
+}
+@fragment fn fs() -> @location(0) vec4<f32> { return vec4<f32>(1.0, 0.0, 0.0, 1.0); }
+"""
+
+
+def _draw_and_read(device: wgpu.GPUDevice) -> None:
+    """Draw a triangle over a 4 x 4 target, copy it to a buffer and read it back: the work a
+    query asks of the rasterizer, which a driver that cannot work after a fork never finishes
+    (a copy alone may)."""
+    size = 4
+    target = device.create_texture(
+        size=(size, size, 1), format="rgba8unorm",
+        usage=wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.COPY_SRC)
+    out = device.create_buffer(size=256 * size,
+                               usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
+    module = device.create_shader_module(code=_PROBE_SHADER)
+    pipeline = device.create_render_pipeline(
+        layout="auto", vertex={"module": module, "entry_point": "vs"},
+        fragment={"module": module, "entry_point": "fs",
+                  "targets": [{"format": "rgba8unorm"}]},
+        primitive={"topology": "triangle-list"})
+    encoder = device.create_command_encoder()
+    rp = encoder.begin_render_pass(color_attachments=[{
+        "view": target.create_view(), "load_op": "clear", "store_op": "store",
+        "clear_value": (0, 0, 0, 0)}])
+    rp.set_pipeline(pipeline)
+    rp.draw(3)
+    rp.end()
+    encoder.copy_texture_to_buffer({"texture": target},
+                                   {"buffer": out, "bytes_per_row": 256},
+                                   (size, size, 1))
+    device.queue.submit([encoder.finish()])
+    out.map_sync(wgpu.MapMode.READ)
+    try:
+        first = bytes(out.read_mapped(0, 4))
+    finally:
+        out.unmap()
+    if first != bytes((255, 0, 0, 255)):
+        raise RuntimeError(f"a triangle drawn on the GPU came back as {first!r}")
+
+
+def check_not_forked(generation: int, what: str) -> None:
+    """Raise :class:`ForkedProcessError` when ``what`` (made when :func:`fork_generation` was
+    ``generation``) belongs to a parent process's device."""
+    if generation != _Fork.generation:
+        raise ForkedProcessError(
+            f"{what} was made in a parent process, before this process was forked; its GPU "
+            "device is the parent's and cannot be used here. Make a new one in this process "
+            f"(pycinder.find_collisions and CollisionManager do), or {FORK_HINT}")
 
 
 def _request_adapter() -> wgpu.GPUAdapter:
@@ -110,15 +259,40 @@ def share_default_device() -> None:
     wgpu.preconfigure_default_device("pycinder", adapter=adapter, required_features=wanted,
                                      required_limits=_limits(adapter))
     _share_default = True
-    get_gpu.cache_clear()
+    _get_gpu.cache_clear()
 
 
-@lru_cache(maxsize=1)
 def get_gpu() -> Gpu:
     """The device pycinder renders with, created on first use (see :func:`share_default_device`).
 
     Set ``WGPU_BACKEND_TYPE`` (Vulkan, Metal, D3D12, OpenGL) to choose a backend.
+
+    In a process forked after its parent used the GPU, the first device is new, and must answer
+    a round trip within :data:`FORK_PROBE_SECONDS`.
+
+    Raises
+    ------
+    NoAdapterError
+        No adapter, or one without what pycinder needs.
+    ForkedProcessError
+        This process was forked after its parent used the GPU, and its driver does not work
+        after a fork (llvmpipe's OpenGL, for one).
     """
+    if _Fork.failure is not None:
+        raise ForkedProcessError(_Fork.failure)
+    gpu = _get_gpu()
+    if _Fork.probe_pending:
+        _Fork.probe_pending = False
+        try:
+            _probe_after_fork(gpu)
+        except ForkedProcessError:
+            _get_gpu.cache_clear()
+            raise
+    return gpu
+
+
+@lru_cache(maxsize=1)
+def _get_gpu() -> Gpu:
     if _share_default:
         device = wgpu.get_default_device()
         limits = _limits(device.adapter)

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ..text import plural
 from .bodies import (Scene, Shape, ShapeCache, _shapes_of, body_label, check_transforms,
                      mesh_arrays)
 
@@ -211,5 +212,6 @@ def _checked_names(n: int, names: Sequence[str | None] | None, max_bodies: int |
     check_body_count(n, max_bodies)
     out = list(names) if names is not None else [None] * n
     if len(out) != n:
-        raise ValueError(f"names must give one name per body: {len(out)} names, {n} bodies")
+        raise ValueError(f"names must give one name per body: {plural(len(out), 'name')}, "
+                         f"{plural(n, 'body')}")
     return out

@@ -1,0 +1,198 @@
+"""Results as plain data across processes: pickling, process pools with either start method, and a
+process forked after its parent used the GPU (a working detector of its own, or a clear error
+within seconds: never a hang).
+
+Every pool call waits with a deadline, so a hang fails the test instead of blocking the suite.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import pickle
+import time
+
+import numpy as np
+import pytest
+import trimesh
+
+import pycinder
+from pycinder.gpu.device import FORK_PROBE_SECONDS, get_gpu
+from pycinder.testing import ground_truth
+
+DEADLINE = 120.0
+"""Seconds a pool call may take (a spawned worker imports pycinder and makes its device)."""
+
+BACKEND = get_gpu().backend
+
+
+def scene(gap: float) -> tuple[list[trimesh.Trimesh], np.ndarray]:
+    """A unit box, a ball of radius 0.4 whose centre is 0.9 + ``gap`` from the box's (``gap``
+    apart, or ``-gap`` deep), and a second ball far from both."""
+    box = trimesh.creation.box((1, 1, 1))
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.4)
+    transforms = np.tile(np.eye(4), (3, 1, 1))
+    transforms[1, 0, 3] = 0.9 + gap
+    transforms[2, 0, 3] = 10.0
+    return [box, ball, ball], transforms
+
+
+def query(gap: float) -> pycinder.CollisionResult:
+    """A query with names, every record and its contacts, as a pool worker would return it."""
+    meshes, transforms = scene(gap)
+    result = pycinder.find_collisions(meshes, transforms, names=["box", "ball", "far"],
+                                      tolerance=0.005, records="all")
+    result.contacts()
+    return result
+
+
+def answer(gap: float) -> tuple[int, list, list]:
+    """What a forked worker reports: its process, and its pairs and their names."""
+    result = query(gap)
+    return os.getpid(), result.pairs.tolist(), sorted(result.pair_names())
+
+
+def assert_same_result(a: pycinder.CollisionResult, b: pycinder.CollisionResult) -> None:
+    """The same answer: pairs, names, records, contacts, and what the query did (its times
+    aside)."""
+    np.testing.assert_array_equal(a.pairs, b.pairs)
+    assert a.records.dtype == b.records.dtype
+    for name in a.records.dtype.names:
+        np.testing.assert_array_equal(a.records[name], b.records[name], err_msg=name)
+    ca, cb = a.contacts(), b.contacts()
+    for name in ("pair", "point", "normal", "depth", "face", "deepest", "samples"):
+        np.testing.assert_array_equal(getattr(ca, name), getattr(cb, name), err_msg=name)
+    assert [repr(c) for c in ca] == [repr(c) for c in cb]
+    assert a.names == b.names and a.pair_names() == b.pair_names()
+    assert a.stats.tiles == b.stats.tiles and a.stats.records == b.stats.records
+    assert a.stats.detail.tolerance == b.stats.detail.tolerance
+    assert a.stats.detail.candidates == b.stats.detail.candidates
+    assert repr(a) == repr(b)
+
+
+def test_box_and_ball_truth() -> None:
+    """The scenes these tests send between processes, against exact geometry at their tolerance:
+    0.1 deep must be reported, 0.05 apart never."""
+    for gap, colliding in ((-0.1, True), (0.05, False)):
+        meshes, transforms = scene(gap)
+        truth = ground_truth(meshes, transforms, tolerance=0.005)
+        assert truth.overlap.tolist() == ([[0, 1]] if colliding else [])
+        assert [0, 1] in truth.separate.tolist() or colliding
+
+
+def test_result_pickles_with_records_contacts_and_stats() -> None:
+    result = query(-0.1)
+    assert result.pairs.tolist() == [[0, 1]] and len(result.contacts())
+    copy = pickle.loads(pickle.dumps(result))
+    assert copy.query is not None and copy.query.detector is None
+    assert_same_result(result, copy)
+    assert copy.stats == result.stats and copy.stats.wall_ms == result.stats.wall_ms
+    assert pickle.loads(pickle.dumps(result.stats)) == result.stats
+    contacts = pickle.loads(pickle.dumps(result.contacts()))
+    np.testing.assert_array_equal(contacts.point, result.contacts().point)
+    assert contacts.names == ["box", "ball", "far"]
+
+
+def test_pickled_result_computes_contacts_from_every_record() -> None:
+    """A result that kept every record reduces its contacts in the copy, without a GPU."""
+    meshes, transforms = scene(-0.1)
+    result = pycinder.find_collisions(meshes, transforms, tolerance=0.005, records="all")
+    copy = pickle.loads(pickle.dumps(result))
+    assert copy._contacts is None
+    np.testing.assert_array_equal(copy.contacts().depth, result.contacts().depth)
+
+
+def test_pickled_result_without_every_record_says_how_to_get_contacts() -> None:
+    meshes, transforms = scene(-0.1)
+    result = pycinder.find_collisions(meshes, transforms, tolerance=0.005)  # records="found"
+    copy = pickle.loads(pickle.dumps(result))
+    np.testing.assert_array_equal(copy.records["point"], result.records["point"])
+    with pytest.raises(ValueError, match=r"pickled.*contacts\(\) before pickling"):
+        copy.contacts()
+    assert len(result.contacts())  # the original still runs its query again
+
+
+@pytest.mark.parametrize("method", ["spawn", "forkserver"])
+def test_pool_returns_equal_results(method: str) -> None:
+    """Results come back from a pool whose workers start afresh, equal to the same query here."""
+    here = {gap: query(gap) for gap in (-0.1, 0.05)}
+    with multiprocessing.get_context(method).Pool(2) as pool:
+        there = pool.map_async(query, list(here)).get(DEADLINE)
+    for (gap, mine), theirs in zip(here.items(), there):
+        assert_same_result(mine, theirs)
+    assert there[0].pair_names() == {("ball", "box")} and not there[1]
+
+
+def test_fork_after_the_parent_used_the_gpu() -> None:
+    """Workers forked after this process ran queries answer with devices of their own; where the
+    driver cannot work after a fork, they raise ForkedProcessError naming the fix, within
+    seconds of the probe's deadline."""
+    query(0.05)  # this process has a device, pipelines and a shared detector
+    ctx = multiprocessing.get_context("fork")
+    start = time.perf_counter()
+    with ctx.Pool(2) as pool:
+        try:
+            answers = pool.map_async(answer, [-0.1, 0.05, -0.1]).get(DEADLINE)
+        except pycinder.ForkedProcessError as exc:
+            assert "forked" in str(exc) and "'spawn'" in str(exc)
+            assert time.perf_counter() - start < 3 * FORK_PROBE_SECONDS
+            assert BACKEND != "Vulkan", "lavapipe and Vulkan drivers work after a fork"
+            return
+    assert [a[1:] for a in answers] == [([[0, 1]], [("ball", "box")]), ([], []),
+                                        ([[0, 1]], [("ball", "box")])]
+    assert all(pid != os.getpid() for pid, *_ in answers)
+    assert query(-0.1).pairs.tolist() == [[0, 1]]  # the parent's device still works
+
+
+def _use_inherited(detector: pycinder.Detector, manager: pycinder.CollisionManager,
+                   conn) -> None:
+    """In a forked child: the parent's detector refuses at once; its manager makes a detector of
+    its own."""
+    try:
+        meshes, transforms = scene(-0.1)
+        start = time.perf_counter()
+        try:
+            detector.find_collisions(meshes, transforms)
+            conn.send(("detector answered", None))
+        except pycinder.ForkedProcessError as exc:
+            conn.send(("refused", (str(exc), time.perf_counter() - start)))
+        try:
+            conn.send(("manager", manager.in_collision_internal(return_names=True)))
+        except pycinder.ForkedProcessError as exc:
+            conn.send(("manager refused", str(exc)))
+    finally:
+        conn.close()
+
+
+def test_objects_made_before_a_fork() -> None:
+    meshes, transforms = scene(-0.1)
+    detector = pycinder.Detector()
+    manager = pycinder.CollisionManager()
+    for name, mesh, transform in zip(("box", "ball"), meshes, transforms):
+        manager.add_object(name, mesh, transform)
+    assert detector.find_collisions(meshes, transforms).pairs.tolist() == [[0, 1]]
+    assert manager.in_collision_internal()
+    assert detector.in_this_process
+    ctx = multiprocessing.get_context("fork")
+    parent, child = ctx.Pipe(duplex=False)
+    process = ctx.Process(target=_use_inherited, args=(detector, manager, child))
+    process.start()
+    child.close()
+    try:
+        assert parent.poll(DEADLINE), "the forked child did not answer"
+        kind, (message, seconds) = parent.recv()
+        assert kind == "refused"
+        assert "made in a parent process" in message and "'spawn'" in message
+        assert seconds < 1.0  # refused before any GPU wait
+        assert parent.poll(DEADLINE), "the forked child's manager did not answer"
+        kind, value = parent.recv()
+        if BACKEND == "Vulkan":
+            assert (kind, value) == ("manager", (True, {("ball", "box")}))
+        else:
+            assert kind in ("manager", "manager refused")
+    finally:
+        process.join(DEADLINE)
+        if process.is_alive():
+            process.kill()
+    assert process.exitcode == 0
+    assert detector.find_collisions(meshes, transforms).pairs.tolist() == [[0, 1]]
