@@ -9,6 +9,7 @@ import json
 import math
 import sys
 
+import numpy as np
 import pytest
 import trimesh
 
@@ -323,3 +324,22 @@ def test_components_in_file_order():
     mesh.merge_vertices()
     assert [len(p.faces) for p in components(mesh)] == [12, 320, 12]
     assert components(box())[0].faces.shape == (12, 3)
+
+
+def test_component_labels_need_no_scipy() -> None:
+    """Components in NumPy alone (the base install has no SciPy): by hand, and against SciPy's
+    connected components on random graphs."""
+    import scipy.sparse
+    import scipy.sparse.csgraph
+
+    from pycinder.files import component_labels
+
+    assert component_labels(np.array([[0, 1], [3, 2], [4, 3]]), 6).tolist() == [0, 0, 2, 2, 2, 5]
+    assert component_labels(np.zeros((0, 2), int), 3).tolist() == [0, 1, 2]
+    rng = np.random.default_rng(3)
+    for n, e in ((40, 20), (200, 150), (300, 600)):
+        links = rng.integers(0, n, (e, 2))
+        graph = scipy.sparse.coo_matrix((np.ones(e), links.T), shape=(n, n))
+        count, truth = scipy.sparse.csgraph.connected_components(graph, directed=False)
+        got = component_labels(links, n)
+        assert len(set(zip(got.tolist(), truth.tolist()))) == count == len(np.unique(got))

@@ -623,12 +623,39 @@ def load_bodies(paths: Sequence[str], limits: Limits = Limits(),
     return bodies
 
 
+def component_labels(links: np.ndarray, n: int) -> np.ndarray:
+    """The connected component of each of ``n`` nodes joined by ``links``, in NumPy alone (the
+    base install has neither SciPy nor networkx, which trimesh's graph functions need).
+
+    Parameters
+    ----------
+    links : (E, 2) int
+        Pairs of joined nodes.
+    n : int
+        Nodes.
+
+    Returns
+    -------
+    (n,) int64
+        Each node's component, named by its smallest node.
+    """
+    label = np.arange(n, dtype=np.int64)
+    a, b = np.asarray(links, dtype=np.int64).reshape(-1, 2).T
+    while True:  # the smaller label crosses each link, then labels point at their own labels
+        joined = np.minimum(label[a], label[b])
+        new = label.copy()
+        np.minimum.at(new, a, joined)
+        np.minimum.at(new, b, joined)
+        new = new[new]
+        if np.array_equal(new, label):
+            return label
+        label = new
+
+
 def components(mesh: Any) -> list[Any]:
     """The disconnected parts of ``mesh`` (sharing no edge), in the order of their first
     triangles; ``[mesh]`` itself when it is one part."""
-    import trimesh
-
-    labels = trimesh.graph.connected_component_labels(mesh.face_adjacency, len(mesh.faces))
+    labels = component_labels(np.asarray(mesh.face_adjacency), len(mesh.faces))
     found, first, which = np.unique(labels, return_index=True, return_inverse=True)
     if len(found) < 2:
         return [mesh]
