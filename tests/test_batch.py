@@ -9,7 +9,7 @@ import trimesh
 import pycinder
 from pycinder.batch.manifest import ManifestError, normalize, read_manifest
 from pycinder.batch.sink import JsonLinesSink, open_sink
-from pycinder.batch.worker import BatchWorker
+from pycinder.batch.worker import BatchWorker, error_kind
 from pycinder.broadphase import sweep_and_prune
 from pycinder.testing import ground_truth, random_scene
 
@@ -130,7 +130,10 @@ def test_worker_checks_chunks_like_single_queries(tmp_path, detector):
     out = worker.check(entries)
     want = expected_pairs([e for e in entries if e["id"] != "missing"], detector)
     assert [r["id"] for r in out] == [e["id"] for e in entries]
-    assert "no.stl: no such file" in out[5]["error"]
+    assert out[5]["error"].startswith(
+        f"FileError: scene 'missing' body 0 ('no.stl'): {tmp_path / 'no.stl'}: no such file")
+    assert out[5]["status"] == "error" and out[5]["error_kind"] == "input"
+    assert all(r["status"] == "ok" for r in out if r["id"] != "missing")
     for r in out:
         if r["id"] != "missing":
             assert r["pairs"] == want[r["id"]], r["id"]
@@ -139,6 +142,44 @@ def test_worker_checks_chunks_like_single_queries(tmp_path, detector):
     assert worker.mesh_loads() == len({b["mesh"] for e in entries for b in e["bodies"]}) - 1
     assert [r.get("pairs") for r in worker.check(entries, batch=False)] == \
         [r.get("pairs") for r in out]
+
+
+def test_errors_of_a_scene_s_own_input_are_told_from_others():
+    """Bad input (pycinder's FileError and ManifestError are ValueErrors; a missing file an
+    OSError) can never succeed; anything else may be the device's."""
+    from pycinder.batch.worker import BodyError
+    from pycinder.files import FileError
+
+    assert [error_kind(e) for e in (FileError("x"), ManifestError("x"), FileNotFoundError("x"),
+                                    TypeError("x"), BodyError("b", PermissionError("x")))] \
+        == ["input"] * 5
+    assert [error_kind(e) for e in (RuntimeError("lost"), MemoryError(),
+                                    BodyError("b", RuntimeError("x")))] == ["query"] * 3
+
+
+def test_mesh_warnings_name_each_scene_s_body(tmp_path):
+    """An open mesh file used by two scenes under two names: each scene's warnings name its
+    own body (scene id, place, manifest name), in a chunk of one query or scene by scene; a
+    closed file warns nothing; nothing said about one scene is given to the other."""
+    box = trimesh.creation.box((1, 1, 1))
+    trimesh.Trimesh(box.vertices, box.faces[:-2]).export(tmp_path / "open.stl")
+    box.export(tmp_path / "closed.stl")
+    entries = [normalize({"id": "a", "bodies": [{"mesh": "open.stl", "name": "lid"},
+                                                {"mesh": "closed.stl", "name": "base"}]},
+                         0, tmp_path),
+               normalize({"id": "b", "bodies": [{"mesh": "closed.stl"},
+                                                {"mesh": "open.stl", "name": "cover"}]},
+                         1, tmp_path),
+               normalize({"id": "c", "bodies": [{"mesh": "closed.stl"}]}, 2, tmp_path)]
+    worker = BatchWorker({})
+    for batch in (True, False):
+        out = worker.check(entries, batch)
+        said = [r["stats"].get("warnings", []) for r in out]
+        assert [len(w) for w in said] == [1, 1, 0], said
+        assert said[0][0].startswith(f"scene 'a' body 0 ('lid'): {tmp_path / 'open.stl'} is not "
+                                     "a closed, consistently oriented surface: 4 boundary"), said
+        assert said[1][0].startswith("scene 'b' body 1 ('cover'): "), said
+        assert said[0][0].split(": ", 1)[1] == said[1][0].split(": ", 1)[1]
 
 
 def test_manifest_errors_name_the_line(tmp_path):
@@ -176,8 +217,14 @@ def test_json_lines_resume_drops_torn_and_repeated_lines(tmp_path):
     assert [r["id"] for r in rows] == [0, 1, 2, 9] and rows[1]["pairs"] == []
     # Errors are kept unless they are to be retried.
     out.write_text('{"id": 1, "pairs": []}\n{"id": 2, "error": "E"}\n')
-    assert JsonLinesSink(out).done == {"1", "2"}
-    assert JsonLinesSink(out, retry_errors=True).done == {"1"}
+    sink = JsonLinesSink(out)
+    assert sink.done == {"1", "2"} and sink.failed == {"2"}
+    sink.write({"id": 3, "error": "E"})
+    assert sink.failed == {"2", "3"}
+    sink.close()
+    sink = JsonLinesSink(out, retry_errors=True)
+    assert sink.done == {"1"} and sink.failed == set()
+    sink.close()
     assert out.read_text() == '{"id":1,"pairs":[]}\n'
 
 
@@ -200,6 +247,15 @@ def test_parquet_written_from_its_journal_and_resumed(tmp_path):
     assert [r["id"] for r in rows] == ["a", "b", "c"]
     assert rows[0]["pairs"] == [[0, 1]] and json.loads(rows[0]["stats"]) == {"bodies": 2}
     assert rows[1]["error"] == "ValueError: bad" and rows[1]["pairs"] is None
+    # Rows written without a status (before 0.3) get theirs; error kind and tries are kept.
+    assert [r["status"] for r in rows] == ["ok", "error", "ok"]
+    sink = open_sink(out)
+    assert sink.failed == {'"b"'}
+    sink.write({"id": "d", "status": "error", "error": "FileError: x", "error_kind": "input",
+                "attempts": 1})
+    sink.close()
+    d = pq.read_table(out).to_pylist()[-1]
+    assert (d["status"], d["error_kind"], d["attempts"]) == ("error", "input", 1)
 
 
 def test_missing_ray_and_pyarrow_name_the_cluster_extra(tmp_path, monkeypatch, capsys):
@@ -224,3 +280,45 @@ def test_missing_ray_and_pyarrow_name_the_cluster_extra(tmp_path, monkeypatch, c
     assert "pip install '.[cluster]'" in capsys.readouterr().err
     assert main(["batch", str(manifest), "--out", str(tmp_path / "o.parquet")]) == 2
     assert "Parquet output of pycinder batch needs pyarrow" in capsys.readouterr().err
+
+
+def _out(path, rows: list[dict]) -> None:
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows))
+
+
+def test_resumed_run_reports_earlier_errors_and_exits_1(tmp_path, capsys):
+    """Every scene already in OUT, one of them an error from an earlier run: the run does
+    nothing, says that one failed and how to run it again, and exits 1; with only "ok" rows it
+    exits 0. (No scene runs, so no Ray is needed.)"""
+    from pycinder.cli import main
+
+    manifest = tmp_path / "m.jsonl"
+    manifest.write_text('{"id": 1, "bodies": []}\n{"id": "two", "bodies": []}\n')
+    out = tmp_path / "out.jsonl"
+    _out(out, [{"id": 1, "status": "ok", "pairs": [], "names": [], "stats": {}},
+               {"id": "two", "status": "error", "error": "FileError: gone",
+                "error_kind": "input", "attempts": 1},
+               {"id": "other", "status": "error", "error": "not in this manifest"}])
+    assert main(["batch", str(manifest), "--out", str(out)]) == 1
+    captured = capsys.readouterr()
+    assert "all 2 scenes already there; 1 of them failed before" in captured.out
+    assert "1 scene of the manifest failed in an earlier run" in captured.err
+    assert "--retry-errors" in captured.err
+    _out(out, [{"id": 1, "status": "ok", "pairs": []}, {"id": "two", "pairs": []}])
+    assert main(["batch", str(manifest), "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "nothing to do" in captured.out and captured.err == ""
+
+
+def test_batch_help_documents_rows_and_exit_status(capsys):
+    from pycinder.cli import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["batch", "--help"])
+    assert stop.value.code == 0
+    text = capsys.readouterr().out
+    for needle in ('"status": "ok"', '"status": "error"', '"error_kind": "input" | "query" | '
+                   '"worker"', '"attempts": N', "exit status:", "0    every scene of MANIFEST "
+                   'has an "ok" row', "1    some scenes have error rows in OUT", "2    no run",
+                   "130  interrupted"):
+        assert needle in text, needle

@@ -1,9 +1,15 @@
 """pycinder batch on a local Ray of 2 CPUs: results as single queries give them, a killed
-worker, a resumed run, bad scenes. One Ray instance for the module."""
+worker, a resumed run, bad scenes. One Ray instance for the module (and one more, started by
+the command, in the test of its start)."""
 
 import json
 import os
+import re
+import shutil
 import signal
+import subprocess
+import sys
+import time
 
 import pytest
 
@@ -114,15 +120,19 @@ def test_bad_scenes_are_reported_and_the_rest_complete(data, capsys):
     out = folder / "bad.parquet"
     assert main(["batch", str(manifest), "--out", str(out), "--workers", "1",
                  "--batch-size", "8"]) == 1
-    assert "3 failed" in capsys.readouterr().out
+    assert "3 failed, 0 retried" in capsys.readouterr().out
     import pyarrow.parquet as pq
 
     rows = {r["id"]: r for r in pq.read_table(out).to_pylist()}
     assert list(rows) == [e["id"] for e in mixed]
-    assert "missing.stl: no such file" in rows["no-file"]["error"]
-    assert "failed 2 times" in rows["no-file"]["error"]
+    assert rows["no-file"]["error"] == ("FileError: scene 'no-file' body 0 ('missing.stl'): "
+                                        f"{folder / 'meshes' / 'missing.stl'}: no such file")
     assert "body 1 ('scene flat: part1'): transform is singular" in rows["flat"]["error"]
     assert "scene 'typo' body 0: unknown keys ['transfrom']" in rows["typo"]["error"]
+    # Bad input, every time: written at its first try, none retried.
+    for key in ("no-file", "flat", "typo"):
+        assert (rows[key]["status"], rows[key]["error_kind"], rows[key]["attempts"]) == \
+            ("error", "input", 1), rows[key]
     for e in entries[:16]:
         assert rows[e["id"]]["pairs"] == want[e["id"]] and rows[e["id"]]["error"] is None
 
@@ -133,3 +143,106 @@ def test_workers_that_cannot_be_placed_are_an_error():
         run([], workers=3)
     with pytest.raises(ValueError, match="batch_size must be a whole number"):
         run([], batch_size=0)
+
+
+def _nan_obj(path):
+    """A unit box as OBJ with its first vertex NaN."""
+    v = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+    faces = [(1, 3, 2), (1, 2, 4), (1, 4, 3), (2, 3, 4)]
+    path.write_text("v nan 0 0\n" + "".join(f"v {x} {y} {z}\n" for x, y, z in v[1:])
+                    + "".join(f"f {a} {b} {c}\n" for a, b, c in faces))
+    return path
+
+
+def test_bad_input_is_written_at_once_naming_its_body(data):
+    """A missing file and NaN vertices fail their scenes at the first of 3 tries, with errors
+    naming the scene and the body by its manifest name; the scenes around them are checked."""
+    folder, _, entries, want = data
+    nan = _nan_obj(folder / "nan.obj")
+    scenes = [entries[0],
+              {"id": "gone", "bodies": [{"mesh": "meshes/gone.stl", "name": "ghost"}]},
+              {"id": "nan", "bodies": [entries[0]["bodies"][0], {"mesh": "nan.obj",
+                                                                 "name": "lid"}]},
+              entries[1]]
+    results = run(scenes, workers=1, attempts=3, batch_size=4, base=str(folder))
+    rows = list(results)
+    assert [r["status"] for r in rows] == ["ok", "error", "error", "ok"]
+    assert rows[1]["error"] == ("FileError: scene 'gone' body 0 ('ghost'): "
+                                f"{folder / 'meshes' / 'gone.stl'}: no such file")
+    assert rows[2]["error"].startswith(f"FileError: scene 'nan' body 1 ('lid'): {nan}: 1 vertex "
+                                       "is NaN or infinite"), rows[2]
+    assert all((r["error_kind"], r["attempts"]) == ("input", 1) for r in rows[1:3])
+    assert results.summary["retried"] == 0 and results.summary["failed"] == 2
+    assert [r["pairs"] for r in (rows[0], rows[3])] == [want[e["id"]] for e in entries[:2]]
+
+
+def test_docstring_examples_run():
+    """The examples of ``pycinder.batch`` and ``pycinder.batch.run``, with their output."""
+    import doctest
+
+    import pycinder.batch
+
+    finder, runner = doctest.DocTestFinder(recurse=False), doctest.DocTestRunner()
+    for obj in (pycinder.batch, pycinder.batch.run):
+        for test in finder.find(obj, globs={}):
+            runner.run(test)
+    result = runner.summarize(verbose=False)
+    assert result.attempted >= 10 and result.failed == 0
+
+
+def test_cli_times_the_whole_run_and_retries_errors_when_asked(data, capsys):
+    """The summary's time is the run's wall time (starting the worker included, as measured
+    here around the command); a resumed run keeps an earlier error and exits 1; once the
+    missing file is there, --retry-errors runs its scene again and the run exits 0."""
+    folder, _, entries, want = data
+    late = folder / "meshes" / "late.ply"
+    scenes = entries[:3] + [{"id": "late", "bodies": [{"mesh": "meshes/late.ply"},
+                                                     entries[0]["bodies"][0]]}]
+    manifest = write_manifest(folder / "late.jsonl", scenes)
+    out = folder / "late-out.jsonl"
+    args = ["batch", str(manifest), "--out", str(out), "--workers", "1"]
+    t0 = time.perf_counter()
+    assert main(args) == 1
+    wall = time.perf_counter() - t0
+    printed = capsys.readouterr().out
+    found = re.search(r"4 scenes in ([\d.]+) s, wall time \(([\d.]+) s of it starting Ray and "
+                      r"1 worker on .*\): [\d.]+ scenes/s once ready", printed)
+    assert found, printed
+    seconds, startup = float(found[1]), float(found[2])
+    assert wall - 0.5 <= seconds <= wall + 0.05 and 0 < startup <= seconds, (wall, printed)
+    assert main(args) == 1
+    captured = capsys.readouterr()
+    assert "all 4 scenes already there; 1 of them failed before" in captured.out
+    shutil.copy(folder / "meshes" / "box.ply", late)
+    try:
+        assert main(args + ["--retry-errors"]) == 0
+    finally:
+        late.unlink()
+    captured = capsys.readouterr()
+    assert "1 scene in" in captured.out and "3 already in" in captured.out
+    rows = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["id"] for r in rows] == [e["id"] for e in scenes]
+    assert [r["status"] for r in rows] == ["ok"] * 4
+    assert rows[3]["stats"]["bodies"] == 2 and rows[3]["stats"]["attempt"] == 1
+    assert [r["pairs"] for r in rows[:3]] == [want[e["id"]] for e in entries[:3]]
+
+
+def test_local_ray_starts_without_the_token_warning(tmp_path):
+    """``pycinder batch`` starting its own Ray: no warning about token authentication (Ray
+    2.59 on prints one at every start unless RAY_AUTH_MODE is set), and still Ray's default
+    mode, token authentication, with the token Ray makes."""
+    from importlib.metadata import version
+
+    (tmp_path / "meshes").mkdir()
+    entries = random_entries(mesh_pool(tmp_path / "meshes"), 2, seed=5, relative_to=tmp_path)
+    manifest = write_manifest(tmp_path / "m.jsonl", entries)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
+    env["HOME"] = str(tmp_path)  # no token of the user's
+    proc = subprocess.run([sys.executable, "-m", "pycinder", "batch", str(manifest), "--out",
+                           str(tmp_path / "out.jsonl"), "--workers", "1"], env=env,
+                          cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "2 scenes in" in proc.stdout
+    assert "authentication" not in proc.stderr.lower() + proc.stdout.lower(), proc.stderr
+    if tuple(int(x) for x in version("ray").split(".")[:2]) >= (2, 52):
+        assert (tmp_path / ".ray" / "auth_token").is_file()

@@ -2,11 +2,17 @@
 
     pycinder batch MANIFEST --out OUT [--workers N] [--address ADDR] [--tolerance T]
                    [--batch-size B] [--unordered] [--strict] [--retry-errors]
-        exit 0: every scene checked; 1: some scenes failed (their errors are in OUT); 2: error
 
-MANIFEST is JSON lines, one scene a line (:mod:`.manifest`); OUT gets one result a line, or
-Parquet when it ends in ``.parquet`` (:mod:`.sink`). Run again with the same OUT to resume: the
-ids already there are skipped.
+MANIFEST is JSON lines, one scene a line (:mod:`.manifest`); OUT gets one row a line (the rows
+of :func:`pycinder.batch.run`), or Parquet when it ends in ``.parquet`` (:mod:`.sink`). Run again
+with the same OUT to resume: the ids already there are skipped. A resumed run does not hide the
+errors OUT already holds: it says how many of the manifest's scenes failed before, and its exit
+status counts them; ``--retry-errors`` runs those scenes again. The exit status (:data:`EPILOG`):
+
+- 0: every scene of MANIFEST has an ``"ok"`` row in OUT;
+- 1: some have error rows in OUT, written by this run or by an earlier one;
+- 2: the run could not be made (a bad manifest or option, Ray or pyarrow missing);
+- 130: interrupted (the rows so far are in OUT: the same command goes on).
 """
 
 from __future__ import annotations
@@ -19,12 +25,31 @@ from typing import Any
 
 from .manifest import id_key, read_manifest
 
+EPILOG = """\
+OUT holds one row per scene (JSON lines; in Parquet, one column per key, stats as JSON text):
+  checked:  {"id": ID, "status": "ok", "pairs": [[i, j], ...], "names": [[a, b], ...],
+             "stats": {"bodies", "attempt", "worker", "query_scenes", "query_ms", ...}}
+  failed:   {"id": ID, "status": "error", "error": "Type: message naming the scene and body",
+             "error_kind": "input" | "query" | "worker", "attempts": N}
+A scene's own bad input (error_kind input: a mesh file missing or unreadable, NaN vertices, a
+singular transform) is written at once; a failed query or a dead worker is tried --attempts
+times.
+
+exit status:
+  0    every scene of MANIFEST has an "ok" row in OUT
+  1    some scenes have error rows in OUT: failed in this run, or in an earlier run into the
+       same OUT (a resumed run says how many; --retry-errors runs them again)
+  2    no run: a bad manifest or option, Ray or pyarrow missing
+  130  interrupted: the rows so far are in OUT; the same command goes on"""
+"""The ``batch`` command's help after its options: the rows of OUT and the exit status."""
+
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add the ``batch`` command to the ``pycinder`` command's subparsers."""
     p = subparsers.add_parser(
         "batch", help="check the scenes of a JSON-lines manifest on Ray workers (local by "
-                      "default, a cluster with --address); resumes into the same OUT")
+                      "default, a cluster with --address); resumes into the same OUT",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("manifest", metavar="MANIFEST",
                    help='JSON lines: {"id": ..., "tolerance": t, "bodies": [{"mesh": path, '
                         '"transform": 4x4, "name": ...}, ...]}; paths relative to its folder')
@@ -42,13 +67,15 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--batch-size", type=int, default=64, metavar="B",
                    help="scenes per GPU query (default 64; 1: a query per scene)")
     p.add_argument("--attempts", type=int, default=2,
-                   help="tries per scene before its error is written (default 2)")
+                   help="tries per scene whose worker died or whose query failed, before its "
+                        "error is written (default 2); bad input is written at once")
     p.add_argument("--unordered", action="store_true",
                    help="write results as they complete rather than in manifest order")
     p.add_argument("--strict", action="store_true",
                    help="open, inside-out and zero-area meshes fail their scenes")
     p.add_argument("--retry-errors", action="store_true",
-                   help="run again the scenes whose errors OUT already holds")
+                   help="run again the scenes whose errors OUT already holds (without it, a "
+                        "resumed run keeps them, says so, and exits 1)")
     p.set_defaults(func=cmd_batch, strict=False, json=False)
     return p
 
@@ -65,23 +92,44 @@ def _progress(total: int) -> Any:
                     TimeElapsedColumn(), TimeRemainingColumn())
 
 
+def _count(n: int, word: str) -> str:
+    """``1 worker``, ``2 workers``."""
+    return f"{n} {word}{'' if n == 1 else 's'}"
+
+
 def cmd_batch(args: argparse.Namespace) -> int:
+    """Run ``pycinder batch``: the manifest's scenes not yet in OUT, their rows into OUT.
+
+    Returns
+    -------
+    int
+        The exit status (:data:`EPILOG`): 0 when every scene of the manifest has an ``"ok"`` row
+        in OUT, 1 when some have error rows (this run's or an earlier run's that it kept), 130
+        when interrupted. A run that cannot be made raises (the ``pycinder`` command exits 2).
+    """
     from .ray_run import run
     from .sink import open_sink
 
     manifest = Path(args.manifest)
     sink = open_sink(args.out, retry_errors=args.retry_errors)
     try:
-        total = skipped = 0
+        total = skipped = earlier = 0
         for entry in read_manifest(manifest):  # every line checked before the run starts
             total += 1
-            skipped += id_key(entry["id"]) in sink.done
+            key = id_key(entry["id"])
+            skipped += key in sink.done
+            earlier += key in sink.failed
         if sink.repaired:
             print(f"{args.out}: dropped {sink.repaired} torn, repeated or retried lines",
                   file=sys.stderr)
+        kept = f"; {earlier} of them failed before" if earlier else ""
+        if earlier:
+            print(f"{args.out}: {_count(earlier, 'scene')} of the manifest failed in an earlier "
+                  "run (their errors are in it); run with --retry-errors to run them again",
+                  file=sys.stderr)
         if total == skipped:
-            print(f"{args.out}: all {total} scenes already there, nothing to do")
-            return 0
+            print(f"{args.out}: all {total} scenes already there{kept}, nothing to do")
+            return 1 if earlier else 0
         todo = (e for e in read_manifest(manifest) if id_key(e["id"]) not in sink.done)
         bar = _progress(total - skipped)
         with bar if bar is not None else nullcontext():
@@ -104,8 +152,10 @@ def cmd_batch(args: argparse.Namespace) -> int:
     finally:
         sink.close()
     s = results.summary
-    print(f"{s['scenes']} scenes in {s['seconds']:.1f} s: {s['scenes_per_s']:.1f} scenes/s on "
-          f"{s['workers']} worker{'s' if s['workers'] != 1 else ''} ({s['adapter']}), {s['batch_size']} scenes per query; "
-          f"{s['failed']} failed, {s['retried']} retried, {s['worker_failures']} worker "
-          f"failures; {skipped} already in {args.out}")
-    return 1 if s["failed"] else 0
+    print(f"{_count(s['scenes'], 'scene')} in {s['seconds']:.1f} s, wall time "
+          f"({s['startup_seconds']:.1f} s of it starting Ray and "
+          f"{_count(s['workers'], 'worker')} on {s['adapter']}): {s['scenes_per_s']:.1f} "
+          f"scenes/s once ready, {s['batch_size']} per query; {s['failed']} failed, "
+          f"{s['retried']} retried, {_count(s['worker_failures'], 'worker failure')}; "
+          f"{skipped} already in {args.out}{kept}")
+    return 1 if s["failed"] or earlier else 0

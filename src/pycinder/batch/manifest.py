@@ -149,6 +149,12 @@ def body_name(body: dict, j: int) -> str:
     return f"body {j}"
 
 
+def body_label(scene_id: Any, j: int, name: str) -> str:
+    """A body in messages: its scene's id, its place and its name (:func:`body_name`), as in
+    ``scene 'a-17' body 1 ('bracket')``."""
+    return f"scene {scene_id!r} body {j} ({name!r})"
+
+
 class MeshCache:
     """Meshes by path, each read and checked once (least recently used out, bounded by bytes).
 

@@ -7,16 +7,20 @@
 At most ``depth`` chunks wait per worker, so a manifest of any length is read as the workers
 keep up, and in input order at most a bounded window of finished results is held back. A chunk
 whose worker died (killed, device lost) is retried scene by scene on the restarted worker; a
-scene that fails ``attempts`` times is given back with its error and the run goes on.
+scene that fails ``attempts`` times is given back with its error and the run goes on. A scene
+whose own input is bad (a mesh file missing or unreadable, NaN vertices, a singular transform:
+``error_kind`` ``"input"``) is given back at once: no other try could succeed.
 
 Without an address a local Ray instance is started (``workers`` CPUs) and shut down at the end;
 with one, the run connects to that cluster. Within an already initialised Ray, the run uses it.
+A local instance gets Ray's own default authentication, said explicitly (:func:`_ray`).
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import sys
 import time
 from collections import deque
 from collections.abc import Iterable, Iterator
@@ -32,6 +36,8 @@ DEPTH = 2
 driver."""
 RECOVERY_S = 120.0
 """Seconds a dead worker has to come back (Ray restarts it) before it is given up."""
+AUTH_MODE = "RAY_AUTH_MODE"
+"""Ray's setting of how its cluster authenticates calls (``token`` or ``disabled``)."""
 
 
 @dataclass
@@ -41,27 +47,52 @@ class _Item:
     attempt: int = 1
 
 
-def _ray() -> Any:
+def _ray(local: bool) -> Any:
+    """Ray, imported; for a ``local`` cluster (one this run may start), with its authentication
+    mode said.
+
+    Ray (2.59 on) starts a local cluster with token authentication unless :data:`AUTH_MODE`
+    says otherwise, and warns at every start that it chose so; a mode that is set explicitly
+    it follows without a word. Ray reads the variable when it is imported: where the user set
+    none and Ray is not imported yet, it is set to Ray's own default, ``token`` (Ray makes the
+    token, in ``~/.ray/auth_token``), so that the cluster is the same and the warning goes.
+    Ray before 2.52 has no token authentication and ignores it. A user's own setting, and a Ray
+    imported before (whose settings are read), are left alone; so is a cluster given by
+    address, whose mode its owner chose.
+    """
+    if local and AUTH_MODE not in os.environ and "ray" not in sys.modules:
+        os.environ[AUTH_MODE] = "token"
     return require("ray", "pycinder batch (Ray workers)", "cluster")
 
 
 class BatchRun(Iterator[dict]):
     """An iterator over the results of a batch run (see :func:`run`); ``summary`` says what it
     did, ``pids`` the workers' processes at the start. Close it (or use it in a ``with``) to
-    stop early; it closes itself when the scenes are done."""
+    stop early; it closes itself when the scenes are done.
+
+    ``summary`` holds ``scenes`` (rows given so far), ``failed`` (error rows among them),
+    ``retried`` (tries made again), ``worker_failures`` (worker deaths), ``workers``,
+    ``gpus_per_worker``, ``batch_size``, ``adapter``, ``mesh_loads`` (once done: files each
+    worker read), and the times: ``seconds``, the run's wall time from the call to :func:`run`
+    to its last row (to its end once closed), starting Ray (when the run starts it) and the
+    workers, each up to a first query, included, and so is stopping them;
+    ``startup_seconds``, the part of it spent starting; and ``scenes_per_s``, rows per second
+    since the workers were ready.
+    """
 
     def __init__(self, scenes: Iterable[Any], *, workers: int | None = None,
                  address: str | None = None, gpus_per_worker: float | None = None,
                  tolerance: float | None = None, ordered: bool = True, batch_size: int = 64,
                  attempts: int = 2, strict: bool = False, base: str | None = None,
                  options: dict | None = None) -> None:
+        self._t_start = time.perf_counter()
         for name, value in (("batch_size", batch_size), ("attempts", attempts)):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be a whole number of at least 1, got {value!r}")
         if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                     or workers < 1):
             raise ValueError(f"workers must be a whole number of at least 1, got {workers!r}")
-        ray = self._ray = _ray()
+        ray = self._ray = _ray(local=not address)
         detector = {"tolerance": tolerance, "strict": strict, **(options or {})}
         from ..request import CollisionRequest
 
@@ -114,11 +145,12 @@ class BatchRun(Iterator[dict]):
         self._load = [0] * workers
         self._alive = [True] * workers
         self._probes: dict[Any, tuple[int, float]] = {}  # ready() calls to restarted workers
-        self._t0 = time.perf_counter()
+        self._t_ready = time.perf_counter()
         self.summary: dict[str, Any] = {
             "workers": workers, "gpus_per_worker": gpus_per_worker, "batch_size": batch_size,
             "adapter": self.adapter, "scenes": 0, "failed": 0, "retried": 0,
-            "worker_failures": 0, "seconds": 0.0, "scenes_per_s": 0.0}
+            "worker_failures": 0, "seconds": self._t_ready - self._t_start,
+            "startup_seconds": self._t_ready - self._t_start, "scenes_per_s": 0.0}
 
     # -- iteration -------------------------------------------------------------------------
 
@@ -167,9 +199,10 @@ class BatchRun(Iterator[dict]):
             self._emitted += 1
             self.summary["scenes"] += 1
             self.summary["failed"] += "error" in out
-            elapsed = time.perf_counter() - self._t0
-            self.summary["seconds"] = elapsed
-            self.summary["scenes_per_s"] = self.summary["scenes"] / max(elapsed, 1e-9)
+            now = time.perf_counter()
+            self.summary["seconds"] = now - self._t_start
+            self.summary["scenes_per_s"] = self.summary["scenes"] / max(now - self._t_ready,
+                                                                        1e-9)
         return out
 
     # -- dispatch --------------------------------------------------------------------------
@@ -216,15 +249,18 @@ class BatchRun(Iterator[dict]):
             self.summary["worker_failures"] += 1
             why = f"worker {k} failed while checking it ({type(exc).__name__})"
             for item in items:
-                self._fail(item, why)
+                self._fail(item, why, "worker")
             if self._alive[k]:
                 # Calls sent while Ray restarts it would fail too: wait until it answers.
                 self._alive[k] = False
                 self._probe(k, time.perf_counter())
             return
         for item, result in zip(items, results):
-            if "error" in result:
-                self._fail(item, result["error"])
+            if "error" in result and result["error_kind"] == "input":
+                result["attempts"] = item.attempt  # no other try can succeed: given back now
+                self._finish(item.seq, result)
+            elif "error" in result:
+                self._fail(item, result["error"], result["error_kind"])
             else:
                 result["stats"]["attempt"] = item.attempt
                 self._finish(item.seq, result)
@@ -242,13 +278,16 @@ class BatchRun(Iterator[dict]):
                 time.sleep(0.2)
                 self._probe(k, since)
 
-    def _fail(self, item: _Item, why: str) -> None:
+    def _fail(self, item: _Item, why: str, kind: str) -> None:
+        """A scene that failed for a reason another try may not meet (``kind`` ``"worker"``: its
+        worker died; ``"query"``: its query raised): tried again, alone, or given back with
+        its error after ``attempts`` tries."""
         if item.attempt < self._attempts:
             self.summary["retried"] += 1
             self._retry.append(_Item(item.seq, item.entry, item.attempt + 1))
         else:
             self._finish(item.seq, error_result(
-                item.entry["id"], f"{why} (failed {item.attempt} times)"))
+                item.entry["id"], f"{why} (failed {item.attempt} times)", kind, item.attempt))
 
     def _finish(self, seq: int, result: dict) -> None:
         if self._ordered:
@@ -279,6 +318,8 @@ class BatchRun(Iterator[dict]):
                 self._ray.kill(w)
             if self._started:
                 self._ray.shutdown()
+        if hasattr(self, "summary"):
+            self.summary["seconds"] = time.perf_counter() - self._t_start
 
     def __enter__(self) -> BatchRun:
         return self
@@ -324,8 +365,65 @@ def run(scenes: Iterable[Any], *, workers: int | None = None, address: str | Non
     Returns
     -------
     BatchRun
-        Yields ``{"id", "pairs": [[i, j], ...], "names": [[a, b], ...], "stats": {...}}``, or
-        ``{"id", "error"}`` for a scene that could not be checked.
+        An iterator of one row per scene (see Notes); its ``summary`` says what the run did.
+
+    Raises
+    ------
+    ValueError
+        A bad option, or workers the cluster cannot place. A bad scene raises nothing: its
+        row is an error row.
+
+    Notes
+    -----
+    A row is a dict of plain JSON data. Every row has ``id`` (the scene's) and ``status``,
+    ``"ok"`` or ``"error"``. A scene that was checked::
+
+        {"id": "a-17", "status": "ok",
+         "pairs": [[0, 2]],                  # colliding bodies: indices into its bodies, i < j
+         "names": [["bracket", "base"]],     # the same pairs by body name
+         "stats": {"bodies": 3, "attempt": 1, "worker": 0, "query_scenes": 64,
+                   "query_ms": 41.2, "candidates_in_query": 310,
+                   "warnings": ["scene 'a-17' body 0 ('bracket'): ..."]}}
+
+    A body's name is its ``name``, else its mesh file's name, else ``body J``. In ``stats``:
+    ``attempt`` is the try that gave the row, ``worker`` the worker's number,
+    ``query_scenes``, ``query_ms`` and ``candidates_in_query`` describe the query the scene
+    shared with others; ``warnings`` (open, inside-out or zero-area meshes, each naming the
+    scene and the body) and ``possibly_lost_in_query`` appear only when there are some.
+
+    A scene that could not be checked has no ``pairs``, ``names`` or ``stats``::
+
+        {"id": "a-18", "status": "error",
+         "error": "FileError: scene 'a-18' body 0 ('bracket'): /data/b.stl: no such file",
+         "error_kind": "input", "attempts": 1}
+
+    ``error`` is the exception's type and message, naming the scene and, where one is at
+    fault, the body. ``error_kind`` says what failed, and ``attempts`` how many tries were made:
+
+    - ``"input"``: the scene's own input (a mesh file missing or unreadable, NaN vertices, a
+      singular transform, an entry with unknown keys). No other try can succeed, so it is
+      given back at once, without a retry: fix the input and run the scene again.
+    - ``"query"``: its query raised another error on a worker that still answers; given
+      back after ``attempts`` tries.
+    - ``"worker"``: its worker died while checking it (killed, out of memory, device lost),
+      ``attempts`` times; Ray restarts a dead worker and the run goes on.
+
+    Test ``"error" in row`` (or ``row["status"] == "error"``) before reading a row's pairs.
+
+    Examples
+    --------
+    A scene whose mesh file is missing fails alone, at its first try, naming its body:
+
+    >>> import pycinder.batch
+    >>> scenes = [{"id": 7, "bodies": [{"mesh": "lid.stl", "name": "lid"}]}]
+    >>> results = pycinder.batch.run(scenes, workers=1, base="/no")
+    >>> rows = list(results)
+    >>> for row in rows:
+    ...     if "error" in row:
+    ...         print(f"scene {row['id']} failed ({row['error_kind']}): {row['error']}")
+    scene 7 failed (input): FileError: scene 7 body 0 ('lid'): /no/lid.stl: no such file
+    >>> rows[0]["attempts"], results.summary["failed"], results.summary["retried"]
+    (1, 1, 0)
     """
     return BatchRun(scenes, workers=workers, address=address, gpus_per_worker=gpus_per_worker,
                     tolerance=tolerance, ordered=ordered, batch_size=batch_size,

@@ -4,11 +4,14 @@ JSON lines: one result a line, each written whole with a single ``write`` on a f
 appending, as soon as it arrives. A run that is stopped (killed, interrupted) loses no line it
 wrote; a line torn by a crash is dropped when the file is opened again, and its scene is run
 again. On opening, ids already written are read back (a repeated id keeps its first line), and
-the run skips them.
+the run skips them; ``failed`` holds those whose line is an error, so that a resumed run can
+say that they failed (or, with ``retry_errors``, drops their lines and runs them again).
 
 Parquet (an OUT ending in ``.parquet``) cannot be appended to: results go to a JSON-lines
 journal beside it (``OUT.partial.jsonl``), and the Parquet file is written, whole and atomically,
-from its previous rows and the journal when the run ends or is interrupted.
+from its previous rows and the journal when the run ends or is interrupted. Its columns are the
+rows' keys (:mod:`pycinder.batch`): ``id``, ``pairs``, ``names``, ``stats`` (JSON text),
+``status``, ``error``, ``error_kind`` and ``attempts``, null where a row has no such key.
 """
 
 from __future__ import annotations
@@ -57,6 +60,11 @@ def _dedupe(rows: list[dict], retry_errors: bool) -> tuple[list[dict], int]:
     return out, len(rows) - len(out)
 
 
+def failed_keys(rows: list[dict]) -> set[str]:
+    """The id keys of the error rows among ``rows``."""
+    return {id_key(r["id"]) for r in rows if "error" in r}
+
+
 def _dump(row: dict) -> bytes:
     return (json.dumps(row, separators=(",", ":")) + "\n").encode()
 
@@ -68,7 +76,8 @@ def _replace(path: Path, rows: list[dict]) -> None:
 
 
 class JsonLinesSink:
-    """Appends results to a JSON-lines file; ``done`` holds the id keys already in it.
+    """Appends results to a JSON-lines file; ``done`` holds the id keys already in it, ``failed``
+    those of them whose row is an error.
 
     Parameters
     ----------
@@ -86,6 +95,7 @@ class JsonLinesSink:
         if self.repaired or not whole:  # a last line that is whole but lacks its newline stays
             _replace(self.path, kept)
         self.done = {id_key(r["id"]) for r in kept}
+        self.failed = failed_keys(kept)
         self.previous = len(kept)
         self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
 
@@ -96,6 +106,8 @@ class JsonLinesSink:
         while written < len(data):  # only on a full disk or a signal: finish the line
             written += os.write(self._fd, data[written:])
         self.done.add(id_key(result["id"]))
+        if "error" in result:
+            self.failed.add(id_key(result["id"]))
 
     def close(self) -> None:
         if self._fd >= 0:
@@ -117,6 +129,7 @@ class ParquetSink:
         self.rows, removed = _dedupe(self.rows, retry_errors)
         self.repaired = self.journal.repaired + removed
         self.done = self.journal.done | {id_key(r["id"]) for r in self.rows}
+        self.failed = self.journal.failed | failed_keys(self.rows)
         self.previous = len(self.done)
         self._kind: type | None = None
         for row in self.rows:
@@ -145,6 +158,7 @@ class ParquetSink:
         self._check_id(result["id"])
         self.journal.write(result)
         self.done = self.journal.done | self.done
+        self.failed = self.journal.failed | self.failed
 
     def close(self) -> None:
         """Write the Parquet file from its previous rows and the journal; remove the journal."""
@@ -163,12 +177,17 @@ class ParquetSink:
             ("pairs", pa.list_(pa.list_(pa.int64()))),
             ("names", pa.list_(pa.list_(pa.string()))),
             ("stats", pa.string()),
+            ("status", pa.string()),
             ("error", pa.string()),
+            ("error_kind", pa.string()),
+            ("attempts", pa.int64()),
         ])
         table = pa.Table.from_pylist([{
             "id": r["id"], "pairs": r.get("pairs"), "names": r.get("names"),
             "stats": json.dumps(r["stats"]) if r.get("stats") is not None else None,
-            "error": r.get("error")} for r in rows], schema=schema)
+            "status": r.get("status", "error" if "error" in r else "ok"),  # rows before 0.3
+            "error": r.get("error"), "error_kind": r.get("error_kind"),
+            "attempts": r.get("attempts")} for r in rows], schema=schema)
         tmp = self.path.with_name(self.path.name + ".tmp")
         pq.write_table(table, tmp)
         os.replace(tmp, self.path)

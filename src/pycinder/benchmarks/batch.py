@@ -113,7 +113,7 @@ def ray_rates(entries: list[dict], workers: Sequence[int], batch: int, unbatched
                 pairs = {r["id"]: r.get("pairs") for r in results}
                 s = results.summary
                 rows.append({"workers": w, "batch_size": size, "scenes": s["scenes"],
-                             "seconds": s["seconds"], "scenes_per_s": s["scenes_per_s"],
+                             "seconds": s["seconds"] - s["startup_seconds"], "scenes_per_s": s["scenes_per_s"],
                              "startup_s": start, "failed": s["failed"],
                              "mesh_loads": s.get("mesh_loads"), "pairs": pairs})
     finally:
