@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 export PYTHONUNBUFFERED := 1
 
-.PHONY: demo test venv lint bench clean
+.PHONY: demo test pytest docs wheel check-wheel venv lint bench clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -21,11 +21,25 @@ venv: $(VENV)/.deps-all
 demo: $(VENV)/.deps-demo
 	$(VENV)/bin/pycinder demo stairs --frames 120 --out out/stairs.mp4
 
-test: $(VENV)/.deps-test
+# The suite, then the docs built with warnings as errors, then the wheel built and checked in a
+# fresh virtual environment of its own (not editable, no source tree on the path).
+test: pytest docs check-wheel
+
+pytest: $(VENV)/.deps-test
 	$(PY) -m pytest -q
+
+docs: $(VENV)/.deps-test
+	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
+
+wheel: $(VENV)/.deps-test
+	rm -rf dist
+	$(PY) -m build --outdir dist .
+
+check-wheel: wheel
+	./scripts/check-wheel.sh $(PY) dist
 
 bench: $(VENV)/.deps-bench
 	$(VENV)/bin/pycinder bench --out benchmarks/results
 
 clean:
-	rm -rf $(VENV) out .pytest_cache .hypothesis
+	rm -rf $(VENV) out .pytest_cache .hypothesis dist docs/_build

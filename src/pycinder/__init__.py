@@ -2,8 +2,7 @@
 
 >>> import trimesh, pycinder
 >>> a = trimesh.creation.box((1, 1, 1))
->>> b = trimesh.creation.icosphere(radius=0.4)
->>> b.apply_translation((0.6, 0, 0))
+>>> b = trimesh.creation.icosphere(radius=0.4).apply_translation((0.6, 0, 0))
 >>> pycinder.find_collisions([a, b]).pairs
 array([[0, 1]])
 """

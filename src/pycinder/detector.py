@@ -41,15 +41,24 @@ class Detector:
 
     Examples
     --------
+    A ball moving along a box, one query per frame on one detector:
+
+    >>> import numpy as np, trimesh, pycinder
+    >>> meshes = [trimesh.creation.box((1, 1, 1)), trimesh.creation.icosphere(radius=0.4)]
+    >>> frames = np.tile(np.eye(4), (3, 2, 1, 1))     # (frames, N, 4, 4) world from body
+    >>> frames[:, 1, 0, 3] = [0.6, 1.0, 2.0]           # the ball's x in each frame
     >>> det = pycinder.Detector(tolerance=1e-3)
-    >>> for frame in frames:
-    ...     result = det.find_collisions(meshes, transforms)   # transforms: (N, 4, 4)
+    >>> for transforms in frames:
+    ...     print(det.find_collisions(meshes, transforms).pairs.tolist())
+    [[0, 1]]
+    []
+    []
 
     Meshes that only move can be checked once (:meth:`prepare`):
 
-    >>> bodies = det.prepare(meshes)
-    >>> for frame in frames:
-    ...     result = det.find_collisions(bodies, transforms)
+    >>> bodies = det.prepare(meshes, names=["box", "ball"])
+    >>> [det.find_collisions(bodies, transforms).pair_names() for transforms in frames]
+    [{('ball', 'box')}, set(), set()]
     """
 
     def __init__(self, request: CollisionRequest | None = None, /, **options: Any) -> None:
@@ -175,11 +184,20 @@ class Detector:
 
         Examples
         --------
-        >>> pending = det.submit(meshes, transforms[0])
-        >>> for k in range(1, frames):
-        ...     following = det.submit(meshes, transforms[k])   # the GPU still runs frame k-1
-        ...     handle(pending.result())
+        >>> import numpy as np, trimesh, pycinder
+        >>> meshes = [trimesh.creation.box((1, 1, 1)), trimesh.creation.icosphere(radius=0.4)]
+        >>> frames = np.tile(np.eye(4), (3, 2, 1, 1))
+        >>> frames[:, 1, 0, 3] = [0.6, 1.0, 2.0]
+        >>> det = pycinder.Detector(tolerance=1e-3)
+        >>> pending = det.submit(meshes, frames[0])
+        >>> for transforms in frames[1:]:
+        ...     following = det.submit(meshes, transforms)  # the GPU may still run the last one
+        ...     print(len(pending.result().pairs))
         ...     pending = following
+        1
+        0
+        >>> len(pending.result().pairs)
+        0
         """
         return self._pending(bodies, transforms, names, groups, view, records)
 
