@@ -27,7 +27,7 @@ def test_repr_is_short_and_names_the_pairs(detector):
     assert len(result.records) > 100
     text = repr(result)
     assert len(text) < 300 and "\n" not in text, text
-    assert "1 pair: (box, ball)" in text and f"{len(result.records)} records" in text
+    assert "1 pair: (box, ball)" in text and f"{len(result.records):,} records" in text
     assert "tolerance" in text and result.stats.adapter in text
     assert "point" not in text  # no record array
     stats = repr(result.stats)
@@ -50,7 +50,7 @@ def test_records_are_decoded_when_first_read(detector, monkeypatch):
     result = detector.find_collisions([box, ball], records="all")
     count = result.stats.records
     assert count > 100 and result.pairs.tolist() == [[0, 1]]
-    assert f"{count} records" in repr(result) and not calls  # not decoded by the query
+    assert f"{count:,} records" in repr(result) and not calls  # not decoded by the query
     readers = [threading.Thread(target=lambda: result.records) for _ in range(4)]
     for t in readers:
         t.start()

@@ -112,6 +112,20 @@ def _after_fork_in_child() -> None:
             _helpers._the_instance = None
     except ImportError:  # pragma: no cover - another wgpu backend
         pass
+    _forget_default_device()
+
+
+def _forget_default_device() -> None:
+    """After a fork: wgpu's default device (shared with pygfx, see
+    :func:`share_default_device`) is the parent's too. The child drops it, and pycinder makes a
+    device of its own there (the default device's configuration was used up by the parent)."""
+    global _share_default
+    helper = getattr(getattr(wgpu, "utils", None), "device", None)
+    helper = getattr(helper, "helper", None)
+    if getattr(helper, "_the_device", None) is not None:
+        _Fork.inherited.append(helper._the_device)
+        helper._the_device = None
+    _share_default = False
 
 
 os.register_at_fork(after_in_child=_after_fork_in_child)
