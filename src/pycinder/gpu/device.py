@@ -85,8 +85,9 @@ class _Fork:
     probe_pending = False
     failure: str | None = None
     inherited: list[object] = []
-    """The parent's device and detectors, kept from the garbage collector: releasing them in the
-    child would ask the parent's driver state, which the child has only a copy of."""
+    """The parent's device, instance and detectors (and a device that failed the probe), kept
+    from the garbage collector: releasing them in the child would ask the parent's driver state,
+    which the child has only a copy of."""
 
 
 def fork_generation() -> int:
@@ -99,7 +100,7 @@ def _after_fork_in_child() -> None:
     """Forget the parent's device and wgpu instance: the child makes its own at its first query
     (its first round trip is run under a deadline, see :func:`get_gpu`)."""
     if _get_gpu.cache_info().currsize:
-        _Fork.inherited.append(_get_gpu())
+        keep_from_parent(_get_gpu())
         _Fork.probe_pending = True
     _get_gpu.cache_clear()
     _Fork.generation += 1
@@ -108,7 +109,7 @@ def _after_fork_in_child() -> None:
         from wgpu.backends.wgpu_native import _helpers
 
         if getattr(_helpers, "_the_instance", None) is not None:
-            _Fork.inherited.append(_helpers._the_instance)
+            keep_from_parent(_helpers._the_instance)
             _helpers._the_instance = None
     except ImportError:  # pragma: no cover - another wgpu backend
         pass
@@ -123,7 +124,7 @@ def _forget_default_device() -> None:
     helper = getattr(getattr(wgpu, "utils", None), "device", None)
     helper = getattr(helper, "helper", None)
     if getattr(helper, "_the_device", None) is not None:
-        _Fork.inherited.append(helper._the_device)
+        keep_from_parent(helper._the_device)
         helper._the_device = None
     _share_default = False
 
@@ -156,14 +157,14 @@ def _probe_after_fork(gpu: Gpu) -> None:
     _Fork.failure = (
         f"this process was forked after its parent used the GPU, and the {gpu.backend} driver "
         f"({gpu.description}) does not work in the forked child ({why}); {FORK_HINT}")
-    _Fork.inherited.append(gpu)  # a device whose work may still be stuck: never released
+    keep_from_parent(gpu)  # a device whose work may still be stuck: never released
     raise ForkedProcessError(_Fork.failure)
 
 
 def keep_from_parent(obj: object) -> None:
     """Keep ``obj``, a GPU object of a parent process's device, from being released here (see
     :attr:`_Fork.inherited`)."""
-    _Fork.inherited.append(obj)
+    _Fork.inherited.append(obj)  # the one place that adds to it
 
 
 _PROBE_SHADER = """
