@@ -226,12 +226,12 @@ def _tolerance_range(bodies: Sequence[FileBody], st: Any, request: CollisionRequ
 
 
 def _boxes_meeting(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """(n,) whether each of the boxes ``lo``, ``hi`` ((n, 3) corners) meets another one."""
+    """(n,) whether each of the boxes ``lo``, ``hi`` ((n, 3) corners) meets another one (the
+    broad phase's sweep, touching included)."""
+    from .broadphase import sweep_and_prune
+
     meets = np.zeros(len(lo), dtype=bool)
-    for k in range(len(lo) - 1):  # one row at a time: memory in n, not n * n
-        hit = ((lo[k] <= hi[k + 1:]) & (lo[k + 1:] <= hi[k])).all(axis=1)
-        meets[k] |= hit.any()
-        meets[k + 1:] |= hit
+    meets[sweep_and_prune(lo, hi).ravel()] = True
     return meets
 
 
