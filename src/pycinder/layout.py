@@ -1,11 +1,14 @@
 """Everything the focused passes' shaders share with Python, declared once.
 
 The WGSL prelude (``//!include layout`` in a shader) is generated from this module by
-:func:`wgsl_prelude`, so a counter index, a flag bit or a workgroup size can never differ between
-the host and the GPU.
+:func:`wgsl_prelude`, so a counter index, a flag bit, a workgroup size or a field of a shared
+struct can never differ between the host and the GPU. The structs here are those several passes
+share (tiles, clusters, the indirect arguments); each pass declares its own parameters beside it.
 """
 
 from __future__ import annotations
+
+from .gpu.structs import Struct
 
 WORKGROUP = 64
 """Threads per workgroup of the focused compute passes."""
@@ -17,8 +20,35 @@ CLUSTER_FACES = 64
 """Faces per culling cluster. Pass F2 clips one face per thread of a workgroup, so a cluster has at
 most :data:`WORKGROUP` faces; its edges (about twice as many) are strided over by pass F4."""
 
-TILE_WORDS = 36
-"""32-bit words of one ``Tile`` (``tiles.wgsl``)."""
+TILE = Struct("Tile", [
+    ("m0", "array<vec4f, 3>", "tile-from-body rows (u, v, z) for body a"),
+    ("m1", "array<vec4f, 3>", "tile-from-body rows for body b"),
+    ("window", "vec4u", "atlas column, atlas row (in this round), width, height"),
+    ("slab", "vec4f", "z0, z1: depth range of the box, in pixels; zw unused"),
+    ("bodies", "vec2u", "body a, body b"),
+    ("flags", "u32", "FLAG_* bits"),
+    ("pair", "u32", "the candidate pair's index"),
+], doc="An orthographic view of one candidate pair (a, b) over the box where they can touch.")
+
+CLUSTER = Struct("Cluster", [
+    ("face_start", "u32", ""),
+    ("face_count", "u32", ""),
+    ("edge_start", "u32", ""),
+    ("edge_count", "u32", ""),
+], doc="Up to CLUSTER_FACES faces and the edges they own, contiguous in the packed arrays.")
+
+INDIRECT_ARGS = Struct("IndirectArgs", [
+    ("clip", "array<u32, 3>", "F2 clip: one workgroup per kept cluster"),
+    ("edges", "array<u32, 3>", "F4 edge list and F6: one workgroup per kept edge cluster"),
+    ("draw", "array<u32, 4>", "F3: vertices, instances, first vertex, first instance"),
+    ("surface", "array<u32, 3>", "F5 surface test: WORKGROUP active pixels per workgroup"),
+    ("retry_cull", "array<u32, 3>", "F1 cull of a retry round"),
+    ("cut", "array<u32, 3>", "F2 cuts: WORKGROUP listed faces per workgroup"),
+    ("edge_test", "array<u32, 3>", "F4 edge test: WORKGROUP listed edges per workgroup"),
+], doc="Indirect dispatch and draw arguments, written on the GPU by the passes' decisions.")
+
+SHARED_STRUCTS = (TILE, CLUSTER, INDIRECT_ARGS)
+"""The structs generated into every shader that includes the layout."""
 
 # Tile flags.
 FLAG_COUNT_BACK = 1
@@ -103,6 +133,7 @@ def wgsl_prelude() -> str:
     const("RECORD_CROSSING", RECORD_CROSSING)
     const("RECORD_SIDE_BIT", RECORD_SIDE_BIT)
     const("UNDECIDED_BUDGET_BIT", UNDECIDED_BUDGET_BIT)
+    lines += [s.wgsl() for s in SHARED_STRUCTS]
     return "\n".join(lines) + "\n"
 
 

@@ -3,7 +3,8 @@
 A shader declares its bindings once (``@group(0) @binding(N) var<...> name``); :class:`Stage`
 reads those declarations, so a pass binds ``{"tiles": ..., "counters": ...}`` by the names the
 WGSL uses and never repeats a binding number. Bind groups are cached and rebuilt only when a
-buffer behind them was replaced.
+buffer behind them was replaced. The structs a stage's host writes (its parameters) are declared
+in Python (:class:`~pycinder.gpu.structs.Struct`) and generated into its source.
 """
 
 from __future__ import annotations
@@ -16,11 +17,22 @@ import wgpu
 
 from ..gpu.buffers import GrowableBuffer
 from ..gpu.device import Gpu, shader_source
+from ..gpu.structs import Struct, declarations
+from ..layout import ROW
 
 Resource = Union[wgpu.GPUBuffer, GrowableBuffer, tuple]
 """A buffer, a growable buffer (its current buffer), or ``(buffer, offset, size)``."""
 
 _BINDING = re.compile(r"@group\(0\)\s*@binding\((\d+)\)\s*var(?:<[^>]*>)?\s+(\w+)")
+
+PARAM_STRIDE = 256
+"""Bytes between parameter blocks of one uniform buffer (WebGPU's uniform offset alignment)."""
+
+
+def workgroup_grid(n: int) -> tuple[int, int]:
+    """Workgroup grid (x, y) for ``n`` workgroups laid out in rows of :data:`ROW` (under
+    WebGPU's 65,535 per dimension); a shader finds its workgroup as ``wg.y * ROW + wg.x``."""
+    return min(n, ROW), -(-n // ROW)
 
 
 def binding_numbers(source: str) -> dict[str, int]:
@@ -43,17 +55,23 @@ class Stage:
         entry points are ``vs`` and ``fs``.
     label : str
         What profiles and errors call it.
+    structs : sequence of Struct
+        Structs the shader uses that are declared with the pass (its parameters): their WGSL
+        declarations are generated in front of the shader's source. Every stage of one shader
+        file gives the same ones.
     """
 
-    _modules: dict[tuple[int, str], wgpu.GPUShaderModule] = {}
+    _modules: dict[tuple[int, str, tuple[str, ...]], wgpu.GPUShaderModule] = {}
 
     def __init__(self, gpu: Gpu, shader: str, entry: str = "", *, render: dict | None = None,
-                 label: str = "") -> None:
+                 label: str = "", structs: tuple[Struct, ...] = ()) -> None:
         self.device = gpu.device
         self.label = label or f"{shader}: {entry}"
         source = shader_source(shader)
+        if structs:
+            source = declarations(structs) + source
         self.numbers = binding_numbers(source)
-        key = (id(self.device), shader)
+        key = (id(self.device), shader, tuple(s.wgsl() for s in structs))
         module = self._modules.get(key)
         if module is None:
             module = self._modules[key] = self.device.create_shader_module(label=shader,
@@ -98,6 +116,18 @@ class Stage:
                                               entries=entries)
         self._groups[key] = (ident, group)
         return group
+
+
+def dispatch(cpass: wgpu.GPUComputePassEncoder, stage: Stage, group: wgpu.GPUBindGroup,
+             workgroups: int | None = None, *, indirect: tuple | None = None) -> None:
+    """One dispatch of ``stage``: ``workgroups`` workgroups (laid out by
+    :func:`workgroup_grid`), or the indirect arguments ``(buffer, offset)``."""
+    cpass.set_pipeline(stage.pipeline)
+    cpass.set_bind_group(0, group)
+    if indirect is not None:
+        cpass.dispatch_workgroups_indirect(*indirect)
+    else:
+        cpass.dispatch_workgroups(*workgroup_grid(workgroups))
 
 
 class Profiler:
@@ -170,4 +200,4 @@ class Profiler:
         return out
 
 
-__all__ = ["Profiler", "Stage", "binding_numbers"]
+__all__ = ["PARAM_STRIDE", "Profiler", "Stage", "binding_numbers", "dispatch", "workgroup_grid"]

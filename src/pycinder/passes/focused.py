@@ -31,7 +31,7 @@ from ..gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ..gpu.device import Gpu
 from ..layout import (C_AGAIN, C_CUTS, C_EDGES, C_MAX_EDGES, C_MAX_TRIS, C_RECORDS,
                       C_RETRY_TILES, C_UNDECIDED, COUNTERS, FLAG_OPEN, ROUND_COUNTERS, ROW,
-                      TILE_WORDS, WORKGROUP)
+                      TILE, WORKGROUP)
 from ..request import RecordMode
 from ..scene.pack import ShapePack
 from ..tiles import TilePlan
@@ -89,17 +89,16 @@ def tile_words(plan: TilePlan, matrices: np.ndarray) -> np.ndarray:
 
     Returns
     -------
-    (T, 36) uint32
+    (T,) structured array of :data:`~pycinder.layout.TILE`
     """
-    t = len(plan)
-    out = np.zeros((t, TILE_WORDS), dtype=np.uint32)
-    f = out.view(np.float32)
-    f[:, 0:24] = matrices.reshape(t, 24)
-    out[:, 24:28] = plan.window
-    f[:, 28:30] = plan.slab
-    out[:, 32:34] = plan.bodies
-    out[:, 34] = plan.flags
-    out[:, 35] = plan.pair
+    out = TILE.zeros(len(plan))
+    out["m0"] = matrices[:, 0]
+    out["m1"] = matrices[:, 1]
+    out["window"] = plan.window
+    out["slab"][:, :2] = plan.slab
+    out["bodies"] = plan.bodies
+    out["flags"] = plan.flags
+    out["pair"] = plan.pair
     return out
 
 

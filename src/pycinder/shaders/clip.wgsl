@@ -115,7 +115,7 @@ fn tile_face(item_index: u32, lid: u32) -> TileFace {
     // Tile coordinates are right-handed with z pointing away from the viewer, so the outward
     // normal of a counter-clockwise face has z component `area`: negative when it faces the viewer.
     let front = (out.area < 0.0) != mirrored(t, side);
-    let back = (t.info.z & FLAG_COUNT_BACK) != 0u;
+    let back = (t.flags & FLAG_COUNT_BACK) != 0u;
     out.flags = (item.x << 3u) | (select(0u, 4u, back)) | (select(0u, 2u, front)) | side;
     return out;
 }
@@ -140,7 +140,7 @@ fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     if (hi.x <= 0.0 || lo.x >= w || hi.y <= 0.0 || lo.y >= h) {
         return;
     }
-    let back = (t.info.z & FLAG_COUNT_BACK) != 0u;
+    let back = (t.flags & FLAG_COUNT_BACK) != 0u;
     if ((!back && lo.z > t.slab.y) || (back && hi.z < t.slab.x)) {
         return;  // wholly on the far side of the box: crosses no ray the count looks along
     }

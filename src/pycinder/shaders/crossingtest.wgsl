@@ -105,7 +105,7 @@ fn crossing_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_ind
     let t = tiles[item.x];
     if (lid == 0u) {
         let items = min(atomicLoad(&counters[C_EDGE_ITEMS]), params.item_cap);
-        let found = atomicLoad(&tile_counts[params.pair_offset + t.info.w]) != 0u;
+        let found = atomicLoad(&tile_counts[params.pair_offset + t.pair]) != 0u;
         let neither_open = !is_open(t, 0u) && !is_open(t, 1u);
         stop = select(0u, 1u, item_index >= items || neither_open
                                   || (params.early_out != 0u && found) || frame_decided(t));

@@ -62,7 +62,7 @@ fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
         return;  // the retry round runs only the tiles chosen for it
     }
     let t = tiles[tile_index];
-    if ((t.info.z & FLAG_SKIP_IF_HIT) != 0u && counts[params.pair_offset + t.info.w] != 0u) {
+    if ((t.flags & FLAG_SKIP_IF_HIT) != 0u && counts[params.pair_offset + t.pair] != 0u) {
         return;  // another tile of this pair already found it colliding
     }
     if (frame_decided(t)) {
@@ -78,7 +78,7 @@ fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     if (mid_p.x + ext.x < 0.0 || mid_p.x - ext.x > w || mid_p.y + ext.y < 0.0 || mid_p.y - ext.y > h) {
         return;
     }
-    let back = (t.info.z & FLAG_COUNT_BACK) != 0u;
+    let back = (t.flags & FLAG_COUNT_BACK) != 0u;
     let z_lo = mid_p.z - ext.z;
     let z_hi = mid_p.z + ext.z;
     // Faces serve the ray counts, which only a solid needs; two open bodies are tested by their

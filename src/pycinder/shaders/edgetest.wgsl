@@ -115,7 +115,7 @@ fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32, segment: u32, steps: u
     let first = segment * SEGMENT_SAMPLES;
     let last = min(first + SEGMENT_SAMPLES - 1u, steps);
     let other = 1u - side;
-    let back = (t.info.z & FLAG_COUNT_BACK) != 0u;
+    let back = (t.flags & FLAG_COUNT_BACK) != 0u;
     let cap = params.capacity;
     let w = t.window.z;
     let h = t.window.w;
@@ -151,7 +151,7 @@ fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32, segment: u32, steps: u
 
 fn pair_found(t: Tile) -> bool {
     return (params.early_out != 0u
-            && atomicLoad(&tile_counts[params.pair_offset + t.info.w]) != 0u)
+            && atomicLoad(&tile_counts[params.pair_offset + t.pair]) != 0u)
         || frame_decided(t);
 }
 

@@ -11,7 +11,7 @@ fn append_record(t: Tile, row: vec4u) {
     if (params.record_cap == 0u) {
         return;  // records "none": the per-tile counts say everything
     }
-    let pair = params.pair_offset + t.info.w;
+    let pair = params.pair_offset + t.pair;
     if (atomicLoad(&tile_counts[pair]) >= params.pair_records) {
         return;
     }
@@ -27,6 +27,6 @@ fn append_record(t: Tile, row: vec4u) {
 // Mark the pair of tile `t` found (its count stays as it is when records were kept), and the
 // frame as having found something.
 fn mark_found(t: Tile) {
-    atomicMax(&tile_counts[params.pair_offset + t.info.w], 1u);
+    atomicMax(&tile_counts[params.pair_offset + t.pair], 1u);
     atomicMax(&counters[C_FOUND], 1u);
 }

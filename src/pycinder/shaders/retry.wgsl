@@ -44,7 +44,7 @@ fn select_retry(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
     }
     let undecided = tile_counts[2u * i + 1u];
     let again = undecided > 0u && (undecided & UNDECIDED_BUDGET_BIT) == 0u
-        && tile_counts[params.pair_offset + tiles[i].info.w] == 0u && !frame_decided(tiles[i]);
+        && tile_counts[params.pair_offset + tiles[i].pair] == 0u && !frame_decided(tiles[i]);
     tile_counts[params.retry_offset + i] = select(0u, 1u, again);
     if (again) {
         tile_counts[2u * i + 1u] = 0u;
@@ -73,7 +73,7 @@ fn count_again(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index
         return;
     }
     if (tile_counts[2u * i + 1u] > 0u && !frame_decided(tiles[i]) && (params.every_tile != 0u
-            || tile_counts[params.pair_offset + tiles[i].info.w] == 0u)) {
+            || tile_counts[params.pair_offset + tiles[i].pair] == 0u)) {
         atomicAdd(&counters[C_AGAIN], 1u);
     }
 }

@@ -3,5 +3,5 @@
 
 // Whether tile `t` is of such a frame, and a pair of it was found.
 fn frame_decided(t: Tile) -> bool {
-    return (t.info.z & FLAG_STOP_AT_FIRST) != 0u && atomicLoad(&counters[C_FOUND]) != 0u;
+    return (t.flags & FLAG_STOP_AT_FIRST) != 0u && atomicLoad(&counters[C_FOUND]) != 0u;
 }

@@ -42,8 +42,8 @@ fn surface_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
     let listed = pixels[3u * pixel];
     let tile_index = pixels[3u * pixel + 2u] - 1u;
     let t = tiles[tile_index];
-    if (((t.info.z & FLAG_SKIP_IF_HIT) != 0u
-            && atomicLoad(&tile_counts[params.pair_offset + t.info.w]) != 0u)
+    if (((t.flags & FLAG_SKIP_IF_HIT) != 0u
+            && atomicLoad(&tile_counts[params.pair_offset + t.pair]) != 0u)
             || frame_decided(t)) {
         return;
     }
@@ -53,7 +53,7 @@ fn surface_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
         atomicAdd(&counters[C_UNDECIDED], 1u);
         return;
     }
-    let back = (t.info.z & FLAG_COUNT_BACK) != 0u;
+    let back = (t.flags & FLAG_COUNT_BACK) != 0u;
     var found = 0u;
     for (var k = 0u; k < listed; k++) {
         let entry = crossings[pixel * cap + k];

@@ -5,21 +5,7 @@
 // direction from the middle of the box. Side 0 is body a, side 1 is body b.
 //!include layout
 
-struct Tile {
-    m0: array<vec4f, 3>,   // tile-from-body rows (u, v, z) for body a
-    m1: array<vec4f, 3>,   // tile-from-body rows for body b
-    window: vec4u,         // atlas column, atlas row (in this round), width, height
-    slab: vec4f,           // z0, z1: depth range of the box, in pixels; zw unused
-    info: vec4u,           // body a, body b, flags (FLAG_* in layout.py), pair index
-};
-
-// A cluster: up to CLUSTER_FACES faces and the edges they own, contiguous in the packed arrays.
-struct Cluster {
-    face_start: u32,
-    face_count: u32,
-    edge_start: u32,
-    edge_count: u32,
-};
+// Tile and Cluster are declared in pycinder/layout.py (generated into the layout prelude).
 
 fn tile_point(t: Tile, side: u32, p: vec3f) -> vec3f {
     let q = vec4f(p, 1.0);
@@ -52,9 +38,9 @@ fn tile_row(t: Tile, side: u32, k: u32) -> vec4f {
 }
 
 fn mirrored(t: Tile, side: u32) -> bool {
-    return (t.info.z & select(FLAG_MIRROR0, FLAG_MIRROR1, side == 1u)) != 0u;
+    return (t.flags & select(FLAG_MIRROR0, FLAG_MIRROR1, side == 1u)) != 0u;
 }
 
 fn is_open(t: Tile, side: u32) -> bool {
-    return (t.info.z & select(FLAG_OPEN0, FLAG_OPEN1, side == 1u)) != 0u;
+    return (t.flags & select(FLAG_OPEN0, FLAG_OPEN1, side == 1u)) != 0u;
 }
