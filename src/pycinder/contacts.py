@@ -31,8 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from .focused import edge_normals, face_normals_world
 from .records import pair_keys
+from .scene.normals import world_edge_normals, world_face_normals
 from .result import CollisionResult
 from .text import plural
 
@@ -284,8 +284,8 @@ def reduce_contacts(result: CollisionResult) -> Contacts:
     # Outward normal of the penetrating body at each record, in world space.
     normal = np.zeros((len(rec), 3))
     surface = rec["face"] >= 0
-    normal[surface] = face_normals_world(scene, rec["penetrating"][surface], rec["face"][surface])
-    normal[~surface] = edge_normals(scene, rec["penetrating"][~surface], rec["edge"][~surface])
+    normal[surface] = world_face_normals(scene, rec["penetrating"][surface], rec["face"][surface])
+    normal[~surface] = world_edge_normals(scene, rec["penetrating"][~surface], rec["edge"][~surface])
     signed = np.where(from_a[:, None], normal, -normal)
     # A surface record stands for one pixel of the tile's screen: its area on the surface is a
     # pixel over the cosine of the face's angle to the view. Edge records carry no area.

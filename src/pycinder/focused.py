@@ -433,33 +433,6 @@ def resolvable_tolerance(scene: Scene, pairs: np.ndarray, size: np.ndarray | Non
                               np.full(len(pairs), SMALLEST_TOLERANCE)])
 
 
-def edge_normals(scene: Scene, body: np.ndarray, edge: np.ndarray) -> np.ndarray:
-    """World-space unit normals (n, 3) of edges given by body and edge index, from the bodies'
-    current vertices."""
-    return _world_normals(scene, body, lambda shape, sel: shape.normals()[1][edge[sel]])
-
-
-def face_normals_world(scene: Scene, body: np.ndarray, face: np.ndarray) -> np.ndarray:
-    """World-space unit normals (n, 3) of faces given by body and face index."""
-    return _world_normals(scene, body, lambda shape, sel: shape.face_normals()[face[sel]])
-
-
-def _world_normals(scene: Scene, body: np.ndarray, local_of) -> np.ndarray:
-    out = np.zeros((len(body), 3), dtype=np.float32)
-    if len(body) == 0:
-        return out
-    # Normals transform with the inverse transpose of the linear part: once per body.
-    bodies, which = np.unique(body, return_inverse=True)
-    inv_t = np.linalg.inv(scene.transforms[bodies, :3, :3]).transpose(0, 2, 1)
-    shape = scene.body_shape[body]
-    for k in np.unique(shape):
-        sel = shape == k
-        local = np.asarray(local_of(scene.shapes[k], sel), dtype=np.float64)
-        world = np.einsum("nij,nj->ni", inv_t[which[sel]], local)
-        out[sel] = world / np.maximum(np.linalg.norm(world, axis=1, keepdims=True), 1e-30)
-    return out
-
-
 def _member(bodies: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     """(T,) whether each tile's pair is among ``pairs`` (K, 2), both sorted i < j."""
     if len(pairs) == 0:
