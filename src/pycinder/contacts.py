@@ -285,7 +285,8 @@ def reduce_contacts(result: CollisionResult) -> Contacts:
     normal = np.zeros((len(rec), 3))
     surface = rec["face"] >= 0
     normal[surface] = world_face_normals(scene, rec["penetrating"][surface], rec["face"][surface])
-    normal[~surface] = world_edge_normals(scene, rec["penetrating"][~surface], rec["edge"][~surface])
+    edge = ~surface
+    normal[edge] = world_edge_normals(scene, rec["penetrating"][edge], rec["edge"][edge])
     signed = np.where(from_a[:, None], normal, -normal)
     # A surface record stands for one pixel of the tile's screen: its area on the surface is a
     # pixel over the cosine of the face's angle to the view. Edge records carry no area.

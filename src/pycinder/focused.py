@@ -33,6 +33,7 @@ from .records import RECORD_DTYPE, empty_records, pair_keys, unique_pairs
 from .request import CollisionRequest, RecordMode, body_sizes, pair_tolerance, record_mode
 from .result import CollisionResult, Stats
 from .scene import Scene
+from .scene.normals import world_edge_normals, world_face_normals
 from .scene.pack import ShapePack, pack_shapes, shape_layout
 from .text import plural
 from .tiles import (LEAD_FROM, LEAD_PAIRS, MAX_TILE, TilePlan, concat_plans, likely_pairs,
@@ -401,8 +402,8 @@ def _decode(scene: Scene, plan: TilePlan, edge_original: np.ndarray, face_origin
     rec["normal"] = np.nan
     if encode == "normal":
         e = ~surface
-        rec["normal"][e] = edge_normals(scene, rec["penetrating"][e], rec["edge"][e])
-        rec["normal"][surface] = face_normals_world(scene, rec["penetrating"][surface],
+        rec["normal"][e] = world_edge_normals(scene, rec["penetrating"][e], rec["edge"][e])
+        rec["normal"][surface] = world_face_normals(scene, rec["penetrating"][surface],
                                                     rec["face"][surface])
     return rec
 
