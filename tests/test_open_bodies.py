@@ -12,8 +12,8 @@ import pytest
 import trimesh
 
 import pycinder
-from pycinder.testing import (disc, grid_plate, open_body_cases, open_cup, open_tube,
-                              random_rotation, surface_distance)
+from pycinder.testing import (crosses_deeply, disc, grid_plate, open_body_cases, open_cup,
+                              open_tube, random_rotation, surface_distance)
 
 
 T = 0.01
@@ -127,28 +127,7 @@ def test_open_primitives_never_reported_apart(seed):
             if d >= t:
                 apart += 1
                 assert (i, j) not in found, (i, j, d)
-            elif d <= 0 and _crosses_deeply(worlds[i], worlds[j], 2 * t):
+            elif d <= 0 and crosses_deeply(worlds[i], worlds[j], 2 * t):
                 crossing += 1
                 assert (i, j) in found, (i, j)
     assert apart > 10 and crossing > 0, (apart, crossing)
-
-
-def _crosses_deeply(a: trimesh.Trimesh, b: trimesh.Trimesh, depth: float) -> bool:
-    """Whether some edge of one mesh passes through a face of the other with both of its ends at
-    least ``depth`` from that face's plane (a crossing no rounding can hide)."""
-    for p, q in ((a, b), (b, a)):
-        edges = p.vertices[p.edges_unique]
-        origins, ends = edges[:, 0], edges[:, 1]
-        direction = ends - origins
-        length = np.linalg.norm(direction, axis=1)
-        hits, rays, _ = q.ray.intersects_location(origins, direction / length[:, None])
-        if not len(hits):
-            continue
-        along = np.einsum("ij,ij->i", hits - origins[rays], direction[rays] / length[rays, None])
-        inside = (along > 0) & (along < length[rays])
-        for h, r in zip(hits[inside], rays[inside]):
-            tri = q.nearest.on_surface([h])[2][0]
-            n = q.face_normals[tri]
-            if min(abs(np.dot(origins[r] - h, n)), abs(np.dot(ends[r] - h, n))) >= depth:
-                return True
-    return False

@@ -302,6 +302,27 @@ def surface_distance(a: Any, b: Any, transforms: Any = None) -> float:
     return float(fcl.distance(oa, ob, fcl.DistanceRequest(), fcl.DistanceResult()))
 
 
+def crosses_deeply(a: trimesh.Trimesh, b: trimesh.Trimesh, depth: float) -> bool:
+    """Whether some edge of one mesh passes through a face of the other with both of its ends at
+    least ``depth`` from that face's plane (a crossing no rounding can hide)."""
+    for p, q in ((a, b), (b, a)):
+        edges = p.vertices[p.edges_unique]
+        origins, ends = edges[:, 0], edges[:, 1]
+        direction = ends - origins
+        length = np.linalg.norm(direction, axis=1)
+        hits, rays, _ = q.ray.intersects_location(origins, direction / length[:, None])
+        if not len(hits):
+            continue
+        along = np.einsum("ij,ij->i", hits - origins[rays], direction[rays] / length[rays, None])
+        inside = (along > 0) & (along < length[rays])
+        for h, r in zip(hits[inside], rays[inside]):
+            tri = q.nearest.on_surface([h])[2][0]
+            n = q.face_normals[tri]
+            if min(abs(np.dot(origins[r] - h, n)), abs(np.dot(ends[r] - h, n))) >= depth:
+                return True
+    return False
+
+
 def first_contact(a: trimesh.Trimesh, b: trimesh.Trimesh, direction: np.ndarray,
                   gap: float = 0.0, iterations: int = 60) -> float:
     """How far to move ``b`` along ``direction`` (from where it is) so that, coming in from far

@@ -3,7 +3,9 @@
     pycinder batch MANIFEST --out OUT [--workers N] [--address ADDR] [--tolerance T]
                    [--batch-size B] [--unordered] [--strict] [--retry-errors]
 
-MANIFEST is JSON lines, one scene a line (:mod:`.manifest`); OUT gets one row a line (the rows
+MANIFEST is JSON lines, one scene a line (:mod:`.manifest`), or a robot manifest: one JSON object
+naming a URDF, an SRDF and a configurations file (:mod:`.robot_run`: one row per configuration,
+checked in this process); OUT gets one row a line (the rows
 of :func:`pycinder.batch.run`), or Parquet when it ends in ``.parquet`` (:mod:`.sink`). Run again
 with the same OUT to resume: the ids already there are skipped. A resumed run does not hide the
 errors OUT already holds: it says how many of the manifest's scenes failed before, and its exit
@@ -52,7 +54,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("manifest", metavar="MANIFEST",
                    help='JSON lines: {"id": ..., "tolerance": t, "bodies": [{"mesh": path, '
-                        '"transform": 4x4, "name": ...}, ...]}; paths relative to its folder')
+                        '"transform": 4x4, "name": ...}, ...]}; or a robot manifest (a .json '
+                        'object): {"robot": URDF, "srdf": SRDF, "configurations": NPY or '
+                        'Parquet, "environment": [...]}; paths relative to its folder')
+    p.add_argument("--robot-batch", type=int, default=None, metavar="C",
+                   help="a robot manifest's configurations per query (default: sized by "
+                        "pycinder.robot)")
     p.add_argument("--out", required=True, metavar="OUT",
                    help="results as JSON lines, or Parquet when OUT ends in .parquet")
     p.add_argument("--workers", type=int, default=None, metavar="N",
@@ -108,9 +115,13 @@ def cmd_batch(args: argparse.Namespace) -> int:
         when interrupted. A run that cannot be made raises (the ``pycinder`` command exits 2).
     """
     from .ray_run import run
+    from .robot_run import is_robot_manifest, run_robot
     from .sink import open_sink
 
     manifest = Path(args.manifest)
+    if is_robot_manifest(manifest):  # one JSON object naming a URDF and its configurations
+        return run_robot(manifest, args.out, batch=args.robot_batch,
+                         retry_errors=args.retry_errors)
     sink = open_sink(args.out, retry_errors=args.retry_errors)
     try:
         total = skipped = earlier = 0

@@ -11,7 +11,8 @@ Parquet (an OUT ending in ``.parquet``) cannot be appended to: results go to a J
 journal beside it (``OUT.partial.jsonl``), and the Parquet file is written, whole and atomically,
 from its previous rows and the journal when the run ends or is interrupted. Its columns are the
 rows' keys (:mod:`pycinder.batch`): ``id``, ``pairs``, ``names``, ``stats`` (JSON text),
-``status``, ``error``, ``error_kind`` and ``attempts``, null where a row has no such key.
+``status``, ``error``, ``error_kind``, ``attempts`` and ``collides`` (a robot manifest's rows,
+:mod:`.robot_run`), null where a row has no such key.
 """
 
 from __future__ import annotations
@@ -181,13 +182,15 @@ class ParquetSink:
             ("error", pa.string()),
             ("error_kind", pa.string()),
             ("attempts", pa.int64()),
+            ("collides", pa.bool_()),
         ])
         table = pa.Table.from_pylist([{
             "id": r["id"], "pairs": r.get("pairs"), "names": r.get("names"),
             "stats": json.dumps(r["stats"]) if r.get("stats") is not None else None,
             "status": r.get("status", "error" if "error" in r else "ok"),  # rows before 0.3
             "error": r.get("error"), "error_kind": r.get("error_kind"),
-            "attempts": r.get("attempts")} for r in rows], schema=schema)
+            "attempts": r.get("attempts"), "collides": r.get("collides")} for r in rows],
+            schema=schema)
         tmp = self.path.with_name(self.path.name + ".tmp")
         pq.write_table(table, tmp)
         os.replace(tmp, self.path)

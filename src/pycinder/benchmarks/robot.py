@@ -1,237 +1,245 @@
-"""A robot arm from its URDF: collision meshes and forward kinematics, for batches of poses.
+"""Robots of the benchmarks and tests: pybullet_data's arms and a quadruped with their
+environments, python-fcl's answers with the same allowed-collision matrix, and exact scoring.
 
-A small URDF reader (links' collision geometry, joints: fixed, revolute, continuous, prismatic,
-with mimic joints) and forward kinematics vectorised over configurations:
-
-    urdf -> links (collision meshes, closed) + joints (tree order)
-    configurations (C, J) -> world transform of every collision body (C, B, 4, 4)
-
-The arm of the benchmarks is the Franka Emika Panda as pybullet ships it (``pybullet_data``,
-the ``bench`` extra): 11 collision meshes of 32 to 1,308 triangles. One of them, ``link6.obj``,
-is open (586 boundary edges); it is replaced by its convex hull, for every system alike.
+* :func:`load`: the Franka Panda, KUKA iiwa, xArm 6 and Unitree A1 of ``pybullet_data`` (the
+  ``bench`` extra brings pybullet) as :class:`pycinder.robot.Robot`, meshes as they are (open
+  ones tested as surfaces);
+* :func:`environment`: pybullet_data's table (and tray, for the arms) placed around each;
+* :class:`FclRobot`: python-fcl's ``DynamicAABBTreeCollisionManager`` over the same bodies, its
+  broad phase's candidates filtered by the same pairs to check before the narrow phase (as
+  MoveIt's FCL checker consults its matrix);
+* :func:`exact_verdict`: where two answers differ, what exact geometry says of the pair in the
+  terms of the tolerance contract.
 """
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import trimesh
 
 from ..optional import require
+from ..robot import Body, Environment, Robot
+from ..testing import crosses_deeply, ground_truth, pair_tolerances, surface_distance
 
-JOINT_TYPES = ("fixed", "revolute", "continuous", "prismatic")
+ROBOTS = {
+    "panda": "franka_panda/panda.urdf",
+    "kuka": "kuka_iiwa/model.urdf",
+    "xarm": "xarm/xarm6_robot.urdf",
+    "a1": "a1/a1.urdf",
+}
+"""The benchmark's robots: name -> URDF under ``pybullet_data.getDataPath()``."""
 
-
-def _floats(text: str | None, default: tuple[float, ...]) -> np.ndarray:
-    return np.array([float(x) for x in text.split()] if text else default, dtype=np.float64)
-
-
-def origin_matrix(element: ET.Element | None) -> np.ndarray:
-    """(4, 4) transform of a URDF ``<origin xyz=".." rpy=".."/>`` (identity when absent)."""
-    if element is None:
-        return np.eye(4)
-    x, y, z = _floats(element.get("xyz"), (0.0, 0.0, 0.0))
-    roll, pitch, yaw = _floats(element.get("rpy"), (0.0, 0.0, 0.0))
-    m = trimesh.transformations.euler_matrix(roll, pitch, yaw, "sxyz")
-    m[:3, 3] = (x, y, z)
-    return m
+TABLE_TOP = {"panda": -0.01, "kuka": -0.01, "xarm": -0.01, "a1": -0.3}
+"""Height of the table's top below each robot's root (the arms stand on it, 1 cm clear; the
+quadruped's trunk is held 30 cm above it, its legs reaching down into it)."""
 
 
-@dataclass
-class Joint:
-    name: str
-    type: str
-    parent: str
-    child: str
-    origin: np.ndarray
-    axis: np.ndarray
-    lower: float = 0.0
-    upper: float = 0.0
-    mimic: tuple[str, float, float] | None = None
-    """(joint, multiplier, offset): this joint's value follows another's."""
+def data_path() -> Path:
+    """pybullet_data's folder (the ``bench`` extra)."""
+    data = require("pybullet_data", "the robot benchmark's robots", "bench", "pybullet")
+    return Path(data.getDataPath())
 
 
-@dataclass
-class Body:
-    """One collision element: a closed mesh in its link's frame."""
-
-    link: str
-    mesh: trimesh.Trimesh
-    origin: np.ndarray
-    source: str
-    repaired: str = ""
+def load(name: str, **options: Any) -> Robot:
+    """One of :data:`ROBOTS` as a :class:`~pycinder.robot.Robot` (``options``: those of
+    :meth:`~pycinder.robot.Robot.from_urdf`)."""
+    if name not in ROBOTS:
+        raise ValueError(f"robot must be one of {', '.join(ROBOTS)}; got {name!r}")
+    return Robot.from_urdf(data_path() / ROBOTS[name], **options)
 
 
-@dataclass
-class Robot:
-    """Links, joints in tree order from the root, and collision bodies."""
-
-    name: str
-    root: str
-    joints: list[Joint]
-    bodies: list[Body]
-    actuated: list[str] = field(default_factory=list)
-
-    @property
-    def limits(self) -> np.ndarray:
-        """(J, 2) lower and upper limits of the actuated joints."""
-        by_name = {j.name: j for j in self.joints}
-        return np.array([(by_name[n].lower, by_name[n].upper) for n in self.actuated])
-
-    def random_configurations(self, count: int, seed: int = 0) -> np.ndarray:
-        """(count, J) configurations drawn uniformly within the joint limits."""
-        lim = self.limits
-        return np.random.default_rng(seed).uniform(lim[:, 0], lim[:, 1], (count, len(lim)))
-
-    def link_transforms(self, q: np.ndarray) -> dict[str, np.ndarray]:
-        """World from link, (C, 4, 4) for each link, for configurations ``q`` (C, J)."""
-        q = np.atleast_2d(np.asarray(q, dtype=np.float64))
-        if q.shape[1] != len(self.actuated):
-            raise ValueError(f"{self.name}: configurations need {len(self.actuated)} joint "
-                             f"values ({', '.join(self.actuated)}), got {q.shape[1]}")
-        values = {n: q[:, k] for k, n in enumerate(self.actuated)}
-        world = {self.root: np.tile(np.eye(4), (len(q), 1, 1))}
-        for j in self.joints:
-            if j.mimic is not None:
-                other, multiplier, offset = j.mimic
-                value = values[other] * multiplier + offset
-            else:
-                value = values.get(j.name, np.zeros(len(q)))
-            motion = np.tile(np.eye(4), (len(q), 1, 1))
-            if j.type in ("revolute", "continuous"):
-                motion[:, :3, :3] = _axis_rotations(j.axis, value)
-            elif j.type == "prismatic":
-                motion[:, :3, 3] = value[:, None] * j.axis
-            world[j.child] = world[j.parent] @ j.origin @ motion
-        return world
-
-    def poses(self, q: np.ndarray) -> np.ndarray:
-        """(C, B, 4, 4) world transform of every collision body for configurations (C, J)."""
-        links = self.link_transforms(q)
-        return np.stack([links[b.link] @ b.origin for b in self.bodies], axis=1)
+def environment(name: str) -> Environment:
+    """pybullet_data's table under robot ``name``, its top :data:`TABLE_TOP` below the root,
+    and for the arms its tray on the table 0.55 m in front."""
+    data = data_path()
+    top = TABLE_TOP[name]
+    place = np.eye(4)
+    place[:3, 3] = (0.35, 0.0, top - 0.625)  # the table's top is 0.625 above its origin
+    env = Environment.from_urdf(data / "table" / "table.urdf", place, prefix="table")
+    if name != "a1":
+        tray = np.eye(4)
+        tray[:3, 3] = (0.55, 0.0, top)
+        for b in Environment.from_urdf(data / "tray" / "traybox.urdf", tray,
+                                       prefix="tray").bodies:
+            env.add(b.name, b.mesh, b.origin)
+    return env
 
 
-def _axis_rotations(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """(C, 3, 3) rotations by ``angle`` (C,) about the unit ``axis`` (Rodrigues)."""
-    k = axis / np.linalg.norm(axis)
-    cross = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
-    return np.eye(3) + s * cross + (1 - c) * (cross @ cross)
+class FclRobot:
+    """python-fcl's answers for a robot: one BVH per body, a dynamic AABB tree manager over the
+    robot's bodies and the environment's, transforms set and the tree updated per
+    configuration; each candidate pair of the broad phase is checked only when the robot checks
+    it (:meth:`~pycinder.robot.Robot.checked_pairs`), with ``fcl.collide``."""
+
+    def __init__(self, robot: Robot, environment: Environment | None = None, *,
+                 self_collision: bool = True) -> None:
+        fcl = self.fcl = require("fcl", "python-fcl", "bench", "python-fcl")
+        self.robot, self.environment = robot, environment
+        self.bodies: list[Body] = robot._all_bodies(environment)
+        self.owner = [b.name if b.source == "attached" else b.link for b in self.bodies]
+        pairs = robot._pair_list(environment, self_collision)
+        self.checked = np.zeros((len(self.bodies),) * 2, dtype=bool)
+        for i, j in pairs:
+            self.checked[i, j] = self.checked[j, i] = True
+        self.pairs_checked = len(pairs)
+        self.geoms, self.objs = [], []
+        for b in self.bodies:
+            g = fcl.BVHModel()
+            g.beginModel(len(b.mesh.vertices), len(b.mesh.faces))
+            g.addSubModel(np.asarray(b.mesh.vertices, np.float64),
+                          np.asarray(b.mesh.faces, np.int32))
+            g.endModel()
+            self.geoms.append(g)
+            self.objs.append(fcl.CollisionObject(g, fcl.Transform()))
+        self.index = {id(g): i for i, g in enumerate(self.geoms)}
+        self.request = fcl.CollisionRequest(num_max_contacts=1, enable_contact=False)
+        self.manager = fcl.DynamicAABBTreeCollisionManager()
+        self.manager.registerObjects(self.objs)
+        self.manager.setup()
+        self.env_poses = np.array([b.origin for b in environment.bodies]).reshape(-1, 4, 4) \
+            if environment is not None else np.zeros((0, 4, 4))
+
+    def poses(self, qs: np.ndarray) -> np.ndarray:
+        """(C, B, 4, 4) every body's pose (robot, attached, environment)."""
+        poses = self.robot.poses(qs)
+        env = np.broadcast_to(self.env_poses, (len(poses), *self.env_poses.shape))
+        return np.concatenate([poses, env], axis=1)
+
+    def check(self, qs: np.ndarray, poses: np.ndarray | None = None
+              ) -> list[set[tuple[str, str]]]:
+        """Colliding pairs of names per configuration (names sorted in each pair)."""
+        fcl = self.fcl
+        poses = self.poses(qs) if poses is None else poses
+        out = []
+        for pose in poses:
+            key: dict[bytes, list[int]] = {}
+            for i, (o, t) in enumerate(zip(self.objs, pose)):
+                o.setTransform(fcl.Transform(t[:3, :3], t[:3, 3]))
+                key.setdefault(_key(o), []).append(i)
+            self.manager.update()
+            found: set[tuple[str, str]] = set()
+            checked, request, index, owner = self.checked, self.request, self.index, self.owner
+
+            def callback(o1: Any, o2: Any, cdata: Any) -> bool:
+                a, b = key.get(_key(o1), ()), key.get(_key(o2), ())
+                if not any(checked[i, j] for i in a for j in b):
+                    return False
+                result = fcl.CollisionResult()
+                if fcl.collide(o1, o2, request, result):
+                    c = result.contacts[0]
+                    i, j = index[id(c.o1)], index[id(c.o2)]
+                    if checked[i, j]:
+                        found.add(tuple(sorted((owner[i], owner[j]))))
+                return False
+
+            self.manager.collide(fcl.CollisionData(), callback)
+            out.append(found)
+        return out
 
 
-def closed_mesh(path: Path, scale: np.ndarray | None = None) -> tuple[trimesh.Trimesh, str]:
-    """A mesh file read as one closed solid: vertices merged (OBJ files split them by normal
-    and texture coordinate); a mesh that is still open is replaced by its convex hull, and
-    the second value says so."""
-    mesh = trimesh.load(path, force="mesh", process=False)
-    mesh = trimesh.Trimesh(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces))
-    mesh.merge_vertices(merge_tex=True, merge_norm=True)
-    if scale is not None:
-        mesh.apply_scale(scale)
-    if mesh.is_volume:
-        return mesh, ""
-    return mesh.convex_hull, "open mesh replaced by its convex hull"
+def _key(o: Any) -> bytes:
+    """A collision object's pose as bytes: which body a broad-phase callback is given (python-fcl
+    hands new wrappers to callbacks; bodies at one pose are told apart after the narrow phase)."""
+    return o.getTranslation().tobytes() + o.getRotation().tobytes()
 
 
-def _mesh_path(filename: str, base: Path) -> Path:
-    """A URDF mesh file name resolved against the URDF's folder (``package://`` URIs by their
-    path, dropping leading folders until the file is found)."""
-    rel = filename.split("://", 1)[1] if "://" in filename else filename
-    parts = Path(rel).parts
-    for k in range(len(parts)):
-        candidate = base.joinpath(*parts[k:])
-        if candidate.exists():
-            return candidate
-    raise FileNotFoundError(f"{filename}: not found under {base}")
+def world_meshes(robot: Robot, environment: Environment | None, pose: np.ndarray
+                 ) -> dict[str, trimesh.Trimesh]:
+    """Each name's bodies (a link's, an attached object's, an environment body's) in world
+    coordinates at one configuration's poses (B, 4, 4) (as :meth:`FclRobot.poses` gives them),
+    several bodies of one name joined."""
+    bodies = robot._all_bodies(environment)
+    parts: dict[str, list[trimesh.Trimesh]] = {}
+    for b, t in zip(bodies, pose):
+        name = b.name if b.source == "attached" else b.link
+        m = b.mesh.copy()
+        m.apply_transform(t)
+        parts.setdefault(name, []).append(m)
+    return {k: v[0] if len(v) == 1 else trimesh.util.concatenate(v) for k, v in parts.items()}
 
 
-def load_urdf(path: str | Path) -> Robot:
-    """Read a URDF's links (collision meshes, boxes, spheres, cylinders) and joints."""
-    path = Path(path)
-    root_el = ET.parse(path).getroot()
-    joints, children = [], set()
-    for el in root_el.findall("joint"):
-        kind = el.get("type", "")
-        if kind not in JOINT_TYPES:
-            raise ValueError(f"{path.name}: joint {el.get('name')!r} is {kind!r}; supported: "
-                             f"{', '.join(JOINT_TYPES)}")
-        limit = el.find("limit")
-        mimic = el.find("mimic")
-        axis = el.find("axis")
-        joints.append(Joint(
-            el.get("name", ""), kind, el.find("parent").get("link"), el.find("child").get("link"),
-            origin_matrix(el.find("origin")),
-            _floats(axis.get("xyz") if axis is not None else None, (1.0, 0.0, 0.0)),
-            float(limit.get("lower", 0.0)) if limit is not None else -np.pi,
-            float(limit.get("upper", 0.0)) if limit is not None else np.pi,
-            (mimic.get("joint"), float(mimic.get("multiplier", 1.0)),
-             float(mimic.get("offset", 0.0))) if mimic is not None else None))
-        children.add(joints[-1].child)
-    links = [el.get("name") for el in root_el.findall("link")]
-    roots = [n for n in links if n not in children]
-    if len(roots) != 1:
-        raise ValueError(f"{path.name}: expected one root link, found {roots}")
-    # Joints in tree order: a joint after the joint that places its parent.
-    ordered, placed, rest = [], {roots[0]}, list(joints)
-    while rest:
-        ready = [j for j in rest if j.parent in placed]
-        if not ready:
-            raise ValueError(f"{path.name}: joints not connected to the root: "
-                             f"{[j.name for j in rest]}")
-        for j in ready:
-            ordered.append(j)
-            placed.add(j.child)
-            rest.remove(j)
-    bodies, meshes = [], {}
-    for el in root_el.findall("link"):
-        for col in el.findall("collision"):
-            body = _collision_body(col, el.get("name"), path.parent, meshes)
-            if body is not None:
-                bodies.append(body)
-    actuated = [j.name for j in ordered if j.type != "fixed" and j.mimic is None]
-    return Robot(root_el.get("name", path.stem), roots[0], ordered, bodies, actuated)
+def exact_verdict(a: trimesh.Trimesh, b: trimesh.Trimesh, tolerance: float | None) -> str:
+    """What exact geometry says of two world meshes, in the contract's terms (see
+    :mod:`pycinder.request`) for the pair's tolerance (``tolerance``, or the documented default
+    of :func:`pycinder.testing.pair_tolerances`):
+
+    * ``"apart"``: at least one tolerance apart (manifold3d for two solids; python-fcl's surface
+      distance where one is open): never to be reported;
+    * ``"deep"``: penetrating by two tolerances (a surface point of one 2 t inside the other
+      solid; an edge crossing the other's surface with both ends 2 t from its face, where one is
+      open): always to be reported;
+    * ``"band"``: in between, where either answer keeps the contract.
+    """
+    t = float(pair_tolerances([a, b], None, np.array([[0, 1]]), tolerance)[0])
+    if a.is_volume and b.is_volume:
+        truth = ground_truth([a, b], None, tolerance=t)
+        return "deep" if len(truth.overlap) else "apart" if len(truth.separate) else "band"
+    d = surface_distance(a, b)
+    if d >= t:
+        return "apart"
+    if d <= 0 and crosses_deeply(a, b, 2 * t):
+        return "deep"
+    return "band"
 
 
-def _collision_body(col: ET.Element, link: str, base: Path,
-                    meshes: dict[tuple, tuple[trimesh.Trimesh, str]]) -> Body | None:
-    """A link's collision element as a closed mesh; mesh files read once (``meshes``)."""
-    geom = col.find("geometry")
-    origin = origin_matrix(col.find("origin"))
-    if geom is None or len(geom) == 0:
-        return None
-    g = geom[0]
-    if g.tag == "mesh":
-        scale = _floats(g.get("scale"), (1.0, 1.0, 1.0))
-        file = _mesh_path(g.get("filename", ""), base)
-        key = (str(file), tuple(scale))
-        if key not in meshes:
-            meshes[key] = closed_mesh(file, scale)
-        mesh, repaired = meshes[key]
-        return Body(link, mesh, origin, str(file), repaired)
-    if g.tag == "box":
-        mesh = trimesh.creation.box(_floats(g.get("size"), (1.0, 1.0, 1.0)))
-    elif g.tag == "sphere":
-        mesh = trimesh.creation.icosphere(subdivisions=3, radius=float(g.get("radius")))
-    elif g.tag == "cylinder":
-        mesh = trimesh.creation.cylinder(radius=float(g.get("radius")),
-                                         height=float(g.get("length")), sections=32)
-    else:
-        raise ValueError(f"link {link!r}: unsupported collision geometry <{g.tag}>")
-    return Body(link, mesh, origin, g.tag)
+def score(robot: Robot, environment: Environment | None, poses: np.ndarray,
+          ours: list[set[tuple[str, str]]], theirs: list[set[tuple[str, str]]],
+          limit: int | None = None) -> dict[str, Any]:
+    """Score every pair on which two answers differ against exact geometry.
 
+    Parameters
+    ----------
+    poses : (C, B, 4, 4) float
+        Every body's pose per configuration (:meth:`FclRobot.poses`).
+    ours, theirs : list of set of (str, str)
+        Colliding pairs per configuration, of pycinder and of python-fcl.
+    limit : int, optional
+        Score at most this many differing pairs.
 
-def panda() -> Robot:
-    """The Franka Emika Panda of ``pybullet_data`` (the ``bench`` extra brings pybullet)."""
-    data = require("pybullet_data", "the robot benchmark's Panda arm", "bench", "pybullet")
-    return load_urdf(Path(data.getDataPath()) / "franka_panda" / "panda.urdf")
+    Returns
+    -------
+    dict
+        ``differing``: pairs that differ; ``scored``; ``missed``: deep pairs pycinder did not
+        report; ``false``: apart pairs pycinder reported (both break the contract: 0 expected);
+        ``band``: pairs in between; ``fcl_missed``, ``fcl_false``: python-fcl's own (it tests
+        surfaces only: a body wholly inside another is apart to it); ``examples``: the
+        configuration and pair of each miss and false.
+    """
+    out = {"differing": 0, "scored": 0, "missed": 0, "false": 0, "band": 0,
+           "fcl_missed": 0, "fcl_false": 0, "examples": []}
+    for c, (mine, other) in enumerate(zip(ours, theirs)):
+        diff = sorted(set(mine) ^ set(other))
+        out["differing"] += len(diff)
+        if not diff:
+            continue
+        meshes = world_meshes(robot, environment, poses[c])
+        for pair in diff:
+            if limit is not None and out["scored"] >= limit:
+                continue
+            verdict = exact_verdict(meshes[pair[0]], meshes[pair[1]], robot.tolerance)
+            out["scored"] += 1
+            if verdict == "band":
+                out["band"] += 1
+            elif pair in mine and verdict == "apart":
+                out["false"] += 1
+                out["fcl_missed"] += 0
+                out["examples"].append((c, pair, "false"))
+            elif pair in other and verdict == "deep":
+                out["missed"] += 1
+                out["examples"].append((c, pair, "missed"))
+            elif pair in other and verdict == "apart":
+                out["fcl_false"] += 1
+            elif pair in mine and verdict == "deep":
+                out["fcl_missed"] += 1
+    return out
 
 
 def write_meshes(robot: Robot, folder: str | Path) -> list[str]:
-    """Each collision body's closed mesh as a PLY file in ``folder``; paths in body order (bodies
-    sharing a mesh file share one output)."""
+    """Each collision body's mesh as a PLY file in ``folder``; paths in body order (bodies
+    sharing a mesh share one file)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     paths, written = [], {}

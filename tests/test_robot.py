@@ -1,0 +1,302 @@
+"""pycinder.robot: URDF robots from pybullet_data, the allowed-collision matrix, and checks
+against python-fcl's exact answers, disagreements scored by exact geometry."""
+
+import os
+import warnings
+
+import numpy as np
+import pytest
+import trimesh
+
+pytest.importorskip("yourdfpy", reason="pycinder.robot needs yourdfpy (the robot extra)")
+pytest.importorskip("pybullet_data", reason="the robots come from pybullet_data (pybullet)")
+pytest.importorskip("fcl", reason="answers are compared with python-fcl's")
+
+from pycinder.benchmarks import robot as R  # noqa: E402
+from pycinder.robot import (AllowedCollisionMatrix, Environment, Robot,  # noqa: E402
+                            matrix_from_samples)
+
+CONFIGURATIONS = {"panda": 100, "kuka": 25, "xarm": 100, "a1": 100}
+"""Random configurations per robot here (the benchmark runs 1,000; the KUKA's open meshes of
+1,100 to 3,000 triangles are tested as surfaces, the slowest on lavapipe)."""
+
+PANDA_ADJACENT = sorted([
+    ("panda_link0", "panda_link1"), ("panda_link1", "panda_link2"),
+    ("panda_link2", "panda_link3"), ("panda_link3", "panda_link4"),
+    ("panda_link4", "panda_link5"), ("panda_link5", "panda_link6"),
+    ("panda_link6", "panda_link7"), ("panda_hand", "panda_link7"),  # through panda_link8
+    ("panda_hand", "panda_leftfinger"), ("panda_hand", "panda_rightfinger")])
+"""The Panda's adjacent links by hand: its chain, the hand joined to link7 through link8
+(which has no collision geometry), and the fingers on the hand."""
+
+
+@pytest.fixture(autouse=True)
+def _quiet():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # open meshes, yourdfpy's notes on table.urdf
+        yield
+
+
+@pytest.fixture(scope="module")
+def robots():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return {name: R.load(name) for name in R.ROBOTS}
+
+
+def adjacent_only(robot: Robot) -> AllowedCollisionMatrix:
+    return AllowedCollisionMatrix((a, b, "Adjacent") for a, b in robot.adjacent_links())
+
+
+def test_robots_load_with_open_meshes_as_they_are(robots):
+    yourdfpy = pytest.importorskip("yourdfpy")
+    panda = robots["panda"]
+    assert panda.dof == 8 and len(panda.bodies) == 11  # the second finger mimics the first
+    by_link = {b.link: b for b in panda.bodies}
+    assert not by_link["panda_link6"].mesh.is_volume  # open: kept, tested as a surface
+    assert len(by_link["panda_link6"].mesh.faces) == 1308
+    assert {b.source for b in robots["a1"].bodies} == {"box", "cylinder", "sphere"}
+    assert (robots["kuka"].dof, robots["xarm"].dof, robots["a1"].dof) == (7, 6, 12)
+    for name, robot in robots.items():
+        u = yourdfpy.URDF.load(str(R.data_path() / R.ROBOTS[name]), load_meshes=False,
+                               load_collision_meshes=False)
+        q = robot.random_configurations(3, seed=1)
+        world = robot.link_transforms(q)
+        assert world.shape == (3, len(robot.links), 4, 4)
+        for c in range(3):
+            u.update_cfg(dict(zip(robot.joint_names, q[c])))
+            for k, link in enumerate(robot.links):
+                np.testing.assert_allclose(world[c, k], u.get_transform(link, robot.root),
+                                           atol=1e-12, err_msg=f"{name} {link}")
+        poses = robot.poses(q)
+        assert poses.shape == (3, len(robot.bodies), 4, 4)
+
+
+def test_errors_name_the_link_and_the_file(tmp_path):
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text("""<robot name="arm">
+      <link name="base"><collision><geometry><mesh filename="package://arm/gone.stl"/>
+      </geometry></collision></link></robot>""")
+    with pytest.raises(FileNotFoundError, match=r"arm\.urdf: link 'base': mesh .*gone\.stl"):
+        Robot.from_urdf(urdf)
+    urdf.write_text("""<robot name="arm"><link name="base"/><link name="tip">
+      <collision><geometry><box size="1 -1 1"/></geometry></collision></link>
+      <joint name="j" type="revolute"><parent link="base"/><child link="tip"/>
+      <limit lower="0" upper="1"/></joint></robot>""")
+    with pytest.raises(ValueError, match=r"arm\.urdf: link 'tip': box size"):
+        Robot.from_urdf(urdf)
+    urdf.write_text("""<robot name="arm"><link name="base"/><link name="tip"/>
+      <joint name="j" type="floating"><parent link="base"/><child link="tip"/></joint>
+      </robot>""")
+    with pytest.raises(ValueError, match=r"arm\.urdf: joint 'j' is 'floating'"):
+        Robot.from_urdf(urdf)
+
+
+def test_options_checked(robots):
+    panda = robots["panda"]
+    with pytest.raises(NotImplementedError, match="padding needs the clearance mode"):
+        panda.check(np.zeros((1, 8)), padding=0.01)
+    with pytest.raises(ValueError, match=r"\(C, 8\) joint values"):
+        panda.check(np.zeros((2, 7)))
+    with pytest.raises(ValueError, match="batch must be a positive"):
+        panda.check(np.zeros((1, 8)), batch=0)
+    with pytest.raises(ValueError, match="no such link"):
+        panda.attach("cup", trimesh.creation.box((0.1, 0.1, 0.1)), "panda_link99")
+
+
+def test_moveit_rules_on_the_panda_and_srdf_round_trip(robots, tmp_path):
+    """Adjacent links by hand; Default, Always and Never from pycinder's checks equal those of
+    python-fcl's exact checks on the same 150 samples, except for pairs whose only differing
+    answers lie inside the tolerance band; the matrix written as SRDF reads back equal and
+    makes a robot honour it."""
+    panda = robots["panda"]
+    assert panda.adjacent_links() == PANDA_ADJACENT
+    samples = 150
+    acm = panda.compute_allowed_collisions(samples, seed=3)
+    assert sorted((a, b) for a, b, _ in acm.pairs("Adjacent")) == PANDA_ADJACENT
+    assert acm.pairs("Never") and len(acm) < 55
+
+    # The same rules from python-fcl's answers on the same configurations.
+    q = panda.random_configurations(max(samples, 100), seed=3)
+    default = panda.default_configuration()[None]
+    everything = AllowedCollisionMatrix()
+    fcl = R.FclRobot(Robot(panda.name, panda.root, panda.links, panda.joints, panda.bodies,
+                           panda.joint_names, panda.limits, everything))
+    theirs = fcl.check(q)
+    saved = panda.allowed
+    panda.allowed = everything
+    try:
+        _, ours = panda.check(q, return_pairs=True)
+        _, ours_default = panda.check(default, return_pairs=True)
+    finally:
+        panda.allowed = saved
+    links = sorted({b.link for b in panda.bodies})
+    fcl_acm = matrix_from_samples(PANDA_ADJACENT, fcl.check(default)[0], theirs, links,
+                                  samples=samples)
+    ours_acm = matrix_from_samples(PANDA_ADJACENT, ours_default[0], ours, links,
+                                   samples=samples)
+    assert ours_acm == acm  # compute_allowed_collisions is these rules on these samples
+    s = R.score(panda, None, fcl.poses(q), [set(p) for p in ours], theirs)
+    assert s["missed"] == 0 and s["false"] == 0, s["examples"]
+    differ = {(a, b) for a, b, r in acm.pairs() if fcl_acm.reason(a, b) != r} | \
+        {(a, b) for a, b, r in fcl_acm.pairs() if acm.reason(a, b) != r}
+    banded = {p for c in range(len(q)) for p in set(ours[c]) ^ theirs[c]}
+    assert differ <= banded, differ - banded
+
+    path = tmp_path / "panda.srdf"
+    panda.allowed = acm
+    try:
+        panda.write_srdf(path)
+    finally:
+        panda.allowed = saved
+    assert AllowedCollisionMatrix.from_srdf(path) == acm
+    text = path.read_text()
+    assert '<disable_collisions link1="panda_hand" link2="panda_leftfinger" reason="Adjacent"' \
+        in text
+    again = Robot.from_urdf(R.data_path() / R.ROBOTS["panda"], srdf=path)
+    assert again.allowed == acm
+    assert len(again.checked_pairs()) == 55 - len(acm)
+    bad = tmp_path / "bad.srdf"
+    bad.write_text('<robot name="x"><disable_collisions link1="panda_link1" link2="elbow" '
+                   'reason="User"/></robot>')
+    with pytest.raises(ValueError, match=r"bad\.srdf: .*'elbow'"):
+        Robot.from_urdf(R.data_path() / R.ROBOTS["panda"], srdf=bad)
+
+
+@pytest.mark.parametrize("name", list(R.ROBOTS))
+def test_agrees_with_python_fcl(robots, name):
+    """Random configurations with the environment, adjacent links allowed: every pair on which
+    pycinder and python-fcl differ is scored by exact geometry; none is a miss (2 t deep) or a
+    false report (t apart)."""
+    robot = robots[name]
+    robot.allowed = adjacent_only(robot)
+    env = R.environment(name)
+    q = robot.random_configurations(CONFIGURATIONS[name], seed=11)
+    collides, ours = robot.check(q, environment=env, return_pairs=True)
+    assert collides.tolist() == [bool(p) for p in ours]
+    fcl = R.FclRobot(robot, env)
+    theirs = fcl.check(q)
+    s = R.score(robot, env, fcl.poses(q), [set(p) for p in ours], theirs)
+    assert s["missed"] == 0 and s["false"] == 0, s["examples"]
+    assert collides.any() and not collides.all() or name == "a1"
+    same = sum(set(a) == b for a, b in zip(ours, theirs))
+    assert same >= 0.9 * len(q), (same, s)
+    # One configuration alone answers as in the batch.
+    c = int(np.flatnonzero(collides)[0])
+    assert robot.in_collision(q[c], environment=env)
+
+
+def test_environment_only_and_self_only(robots):
+    panda = robots["panda"]
+    panda.allowed = adjacent_only(panda)
+    env = R.environment("panda")
+    q = panda.random_configurations(40, seed=5)
+    _, both = panda.check(q, environment=env, return_pairs=True)
+    _, env_only = panda.check(q, environment=env, self_collision=False, return_pairs=True)
+    _, self_only = panda.check(q, return_pairs=True)
+    names = set(env.names)
+    for b, e, s in zip(both, env_only, self_only):
+        assert set(e) == {p for p in b if names & set(p)}
+        assert set(s) == {p for p in b if not names & set(p)}
+
+
+def test_attached_object_in_both_checks(robots):
+    """A box held between the fingers: allowed to touch the hand and fingers, checked against
+    the other links and the environment, as python-fcl checks it."""
+    panda = robots["panda"]
+    panda.allowed = adjacent_only(panda)
+    env = R.environment("panda")
+    held = np.eye(4)
+    held[2, 3] = 0.1
+    panda.attach("box", trimesh.creation.box((0.05, 0.05, 0.12)), "panda_hand", held,
+                 touch_links=["panda_leftfinger", "panda_rightfinger"])
+    try:
+        assert "box" in panda.attached
+        pairs = panda.checked_pairs(env)
+        assert ("box", "panda_link0") in pairs and ("box", "table/baseLink") in pairs
+        assert ("box", "panda_hand") not in pairs and ("box", "panda_leftfinger") not in pairs
+        q = panda.random_configurations(60, seed=8)
+        _, ours = panda.check(q, environment=env, return_pairs=True)
+        fcl = R.FclRobot(panda, env)
+        theirs = fcl.check(q)
+        s = R.score(panda, env, fcl.poses(q), [set(p) for p in ours], theirs)
+        assert s["missed"] == 0 and s["false"] == 0, s["examples"]
+        held_hits = {p for per in ours for p in per if "box" in p}
+        assert held_hits, "the held box never collided: the test shows nothing"
+    finally:
+        panda.detach("box")
+    assert "box" not in panda.attached
+
+
+def test_check_path_finds_the_first_colliding_index(robots):
+    """A scripted path from above the table down into it: the index check_path returns is where
+    the exact checks say the contact starts, up to the tolerance band: no configuration before
+    it penetrates by 2 t, and the one at it is not t apart."""
+    panda = robots["panda"]
+    panda.allowed = adjacent_only(panda)
+    env = R.environment("panda")
+    up = np.array([0.0, -0.3, 0.0, -1.8, 0.0, 1.6, 0.8, 0.02])
+    down = np.array([0.0, 1.6, 0.0, -0.4, 0.0, 1.6, 0.8, 0.02])
+    for resolution in (0.05, 0.02):
+        path = panda.interpolate([up, down], resolution)
+        assert np.allclose(path[0], up) and np.allclose(path[-1], down)
+        assert np.abs(np.diff(path, axis=0)).max() <= resolution + 1e-12
+        index = panda.check_path([up, down], resolution, environment=env, self_collision=False)
+        assert index is not None and 0 < index < len(path) - 1
+        fcl = R.FclRobot(panda, env, self_collision=False)
+        theirs = fcl.check(path)
+        first = next(k for k, p in enumerate(theirs) if p)
+        poses = fcl.poses(path)
+        for k in range(min(index, first), max(index, first) + 1):
+            world = R.world_meshes(panda, env, poses[k])
+            verdicts = [R.exact_verdict(world[a], world[b], panda.tolerance)
+                        for a, b in panda.checked_pairs(env, self_collision=False)]
+            if k < index:
+                assert "deep" not in verdicts, (k, index, first)
+            if k == index:
+                assert any(v != "apart" for v in verdicts), (k, index, first)
+        assert abs(index - first) <= 2
+    assert panda.check_path([up, up], 0.1, environment=env, self_collision=False) is None
+
+
+def test_batch_runs_a_robot_manifest_with_resume(robots, tmp_path, capsys):
+    """``pycinder batch ROBOT.json``: one row per configuration, as Robot.check answers; a run
+    cut short goes on from where it stopped."""
+    import json
+
+    from pycinder.cli import main
+
+    panda = robots["panda"]
+    panda.allowed = adjacent_only(panda)
+    srdf = tmp_path / "panda.srdf"
+    panda.write_srdf(srdf)
+    q = panda.random_configurations(12, seed=21)
+    np.save(tmp_path / "q.npy", q)
+    table = trimesh.creation.box((1.5, 1.0, 0.05))
+    table.export(tmp_path / "table.stl")
+    place = np.eye(4)
+    place[:3, 3] = (0.35, 0.0, -0.035)
+    manifest = tmp_path / "robot.json"
+    manifest.write_text(json.dumps({
+        "robot": str(R.data_path() / R.ROBOTS["panda"]), "srdf": "panda.srdf",
+        "configurations": "q.npy",
+        "environment": [{"mesh": "table.stl", "transform": place.tolist(), "name": "table"}]}))
+    out = tmp_path / "out.jsonl"
+    assert main(["batch", str(manifest), "--out", str(out), "--robot-batch", "5"]) == 0
+    rows = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["id"] for r in rows] == list(range(12))
+    env = Environment([("table", table, place)])
+    collides, pairs = panda.check(q, environment=env, return_pairs=True)
+    assert [r["collides"] for r in rows] == collides.tolist()
+    assert [[tuple(p) for p in r["names"]] for r in rows] == pairs
+    assert collides.any()
+    out.write_text("".join(line + "\n" for line in out.read_text().splitlines()[:7]))
+    capsys.readouterr()
+    assert main(["batch", str(manifest), "--out", str(out)]) == 0
+    assert "5 configurations" in capsys.readouterr().out
+    again = [json.loads(line) for line in out.read_text().splitlines()]
+    assert again == rows
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"robot": "x.urdf", "configurations": "q.npy", "speed": 2}))
+    assert main(["batch", str(bad), "--out", str(tmp_path / "o.jsonl")]) == 2
+    assert "unknown keys ['speed']" in capsys.readouterr().err
