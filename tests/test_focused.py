@@ -9,7 +9,7 @@ from scipy.spatial import cKDTree
 import pycinder
 from pycinder.benchmarks.scenes import ManyBodies
 from pycinder.contacts import reduce_contacts
-from pycinder.passes.focused import FocusedPasses
+from pycinder.passes.frames import FocusedFrames
 from pycinder.testing import bunny as load_bunny
 from pycinder.testing import ground_truth, nested_scene, random_scene
 from pycinder.tiles import FLAG_SKIP_IF_HIT
@@ -186,7 +186,7 @@ def test_full_pixel_lists_are_retried_in_thinner_boxes():
     meshes, transforms = random_scene(20, 21)
     normal = pycinder.Detector(records="all").find_collisions(meshes, transforms)
     det = pycinder.Detector(records="all")
-    det.strategy.passes = FocusedPasses(det.gpu, list_capacity=2)
+    det.strategy.frames = FocusedFrames(det.gpu, list_capacity=2)
     det.strategy.budget_pixels //= 4
     squeezed = det.find_collisions(meshes, transforms)
     assert squeezed.stats.undecided > 0 and squeezed.stats.retries > 0

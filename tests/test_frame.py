@@ -115,14 +115,14 @@ def test_undecided_tiles_are_retried_inside_the_submission(monkeypatch, records,
     submission; where even those overflow (lists of 2, then 8), the host cuts the boxes. The
     answers are those of exact geometry: teeth 0.02 apart (4 t) are apart, teeth 0.03 deep (6 t)
     collide."""
-    from pycinder.passes.focused import FocusedPasses
+    from pycinder.passes.frames import FocusedFrames
     from pycinder.testing import ground_truth, surface_distance
 
     t = 0.005
     base = comb_of(6, 0.0)
     det = pycinder.Detector(tolerance=t, records=records)
     if capacity != 8:
-        det.strategy.passes = FocusedPasses(det.gpu, list_capacity=capacity)
+        det.strategy.frames = FocusedFrames(det.gpu, list_capacity=capacity)
     for shift, apart in ((0.06, True), (0.11, False)):
         other = comb_of(6, shift, width=0.3)
         meshes = [base, other]

@@ -16,7 +16,7 @@ import trimesh
 import pycinder
 from pycinder.errors import GpuMemoryError, GpuTimeoutError, PrecisionWarning
 from pycinder.gpu import buffers as gpu_buffers
-from pycinder.passes.focused import EDGE_ENTRY_BYTES
+from pycinder.passes.atlas import EDGE_ENTRY_BYTES
 
 
 def move(x=0.0, y=0.0, z=0.0) -> np.ndarray:
@@ -89,11 +89,11 @@ def test_rounds_shrink_when_the_device_holds_fewer_triangles(monkeypatch):
     wide = pycinder.Detector(tolerance=0.01).find_collisions(*scene)
     det = pycinder.Detector(tolerance=0.01)
     limit = int(0.75 * wide.stats.triangles)  # fewer than the largest round clips
-    monkeypatch.setattr(det.strategy.passes.tris, "limit", 48 * limit)
+    monkeypatch.setattr(det.strategy.frames.buffers.tris, "limit", 48 * limit)
     narrow = det.find_collisions(*scene)
     assert narrow.pairs.tolist() == wide.pairs.tolist() == [[k, k + 1] for k in range(29)]
     assert narrow.stats.rounds > wide.stats.rounds
-    monkeypatch.setattr(det.strategy.passes.tris, "limit", 48 * 10)
+    monkeypatch.setattr(det.strategy.frames.buffers.tris, "limit", 48 * 10)
     with pytest.raises(GpuMemoryError, match="has .* clipped triangles, more than this device.s"):
         det.find_collisions(*scene)
     monkeypatch.undo()
@@ -107,12 +107,12 @@ def test_rounds_shrink_when_the_device_holds_fewer_edges_to_sample(monkeypatch):
     det = pycinder.Detector(tolerance=0.01, records="all")   # every edge of every tile listed
     wide = det.find_collisions(*scene)
     # The frame lists about 7,000 edges in its one round, and at most about 1,000 per atlas band.
-    monkeypatch.setattr(det.strategy.passes.edge_list, "limit", EDGE_ENTRY_BYTES * 4000)
+    monkeypatch.setattr(det.strategy.frames.buffers.edge_list, "limit", EDGE_ENTRY_BYTES * 4000)
     narrow = det.find_collisions(*scene)
     assert narrow.pairs.tolist() == wide.pairs.tolist() == [[k, k + 1] for k in range(29)]
     assert narrow.stats.rounds > wide.stats.rounds
     assert len(narrow.records) == len(wide.records)
-    monkeypatch.setattr(det.strategy.passes.edge_list, "limit", EDGE_ENTRY_BYTES * 4)
+    monkeypatch.setattr(det.strategy.frames.buffers.edge_list, "limit", EDGE_ENTRY_BYTES * 4)
     with pytest.raises(GpuMemoryError, match="edges to sample, more than this device's"):
         det.find_collisions(*scene)
 
@@ -120,8 +120,8 @@ def test_rounds_shrink_when_the_device_holds_fewer_edges_to_sample(monkeypatch):
 def test_records_over_the_device_limit_are_dropped_and_counted(monkeypatch):
     det = pycinder.Detector(tolerance=0.01, records="all")
     full = det.find_collisions([BOX, BALL], [move(), move(0.6)])
-    monkeypatch.setattr(det.strategy.passes.records, "limit", 16 * 100)
-    det.strategy.passes.caps["records"] = 64
+    monkeypatch.setattr(det.strategy.frames.buffers.records(), "limit", 16 * 100)
+    det.strategy.frames.buffers.caps.records = 64
     with pytest.warns(pycinder.LossWarning, match="records were dropped.*every pair is reported"):
         cut = det.find_collisions([BOX, BALL], [move(), move(0.6)])
     assert cut.pairs.tolist() == full.pairs.tolist() == [[0, 1]]
@@ -229,6 +229,6 @@ def test_profiling_times_every_round_without_records():
     assert result.pairs.tolist() == [[k, k + 1] for k in range(15)]
     assert result.stats.rounds > 8
     if det.gpu.timestamps:
-        profiler = det.strategy.passes.profiler
+        profiler = det.strategy.frames.profiler
         assert sum(name == "F3 crossings" for name in profiler.names) == result.stats.rounds
         assert result.stats.gpu_ms["F3 crossings"] > 0

@@ -16,7 +16,7 @@ import pytest
 import trimesh
 
 import pycinder
-import pycinder.passes.focused as focused_passes
+import pycinder.passes.crossingtest as crossing_test
 from pycinder.testing import grid_plate, surface_distance
 from pycinder.tiles import TILT
 
@@ -99,7 +99,7 @@ def _wavy(mesh: trimesh.Trimesh, lift: float) -> trimesh.Trimesh:
 
 def _crossing_test(meshes, transforms, budget, monkeypatch):
     """Find collisions among open bodies with pass F6's step budget lowered to ``budget``."""
-    monkeypatch.setattr(focused_passes, "CROSSING_BUDGET", budget)
+    monkeypatch.setattr(crossing_test, "CROSSING_BUDGET", budget)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", pycinder.LossWarning)
         result = pycinder.Detector(tolerance=0.01).find_collisions(meshes, transforms)
@@ -123,19 +123,19 @@ def test_crossing_test_past_its_budget_runs_the_tile_again_with_thinner_boxes(mo
 def test_a_tile_past_the_crossing_budget_goes_straight_to_thinner_boxes(monkeypatch):
     """Longer lists cannot help a tile that pass F6 left unfinished: every retry cuts its box,
     and the next frames get no retry rounds of longer lists on the GPU."""
-    import pycinder.focused as focused
+    import pycinder.again as again
 
     plate = grid_plate(1.0, 40)
     meshes = [_wavy(plate, 0.0), _wavy(plate, 0.021)]
-    monkeypatch.setattr(focused_passes, "CROSSING_BUDGET", 4000)
+    monkeypatch.setattr(crossing_test, "CROSSING_BUDGET", 4000)
     cuts = []
 
     def split_depth(*args, cut=True, **kwargs):
         cuts.append(cut)
         return real(*args, cut=cut, **kwargs)
 
-    real = focused.split_depth
-    monkeypatch.setattr(focused, "split_depth", split_depth)
+    real = again.split_depth
+    monkeypatch.setattr(again, "split_depth", split_depth)
     detector = pycinder.Detector(tolerance=0.01)
     for _ in range(2):
         result = detector.find_collisions(meshes)
@@ -148,7 +148,7 @@ def test_a_tile_past_the_crossing_budget_goes_straight_to_thinner_boxes(monkeypa
 @pytest.mark.filterwarnings("ignore::pycinder.OpenMeshWarning")
 def test_crossing_test_that_never_fits_its_budget_warns(monkeypatch):
     """Two crossing sheets with a budget no cluster fits: the pair is not found, and says so."""
-    default = focused_passes.CROSSING_BUDGET
+    default = crossing_test.CROSSING_BUDGET
     plate = grid_plate(1.0, 40)
     tilt = trimesh.transformations.rotation_matrix(0.05, (1, 0, 0))
     assert surface_distance(plate, plate, (np.eye(4), tilt)) <= 0

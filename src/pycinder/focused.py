@@ -17,18 +17,21 @@ boxes is planned by the host.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
 
+from .again import (LARGER_LISTS, RETRIES, RoundTooLarge, retry_on_gpu, smaller_rounds,
+                    undecided_tiles)
 from .broadphase import sweep_and_prune
 from .errors import GpuMemoryError, LossWarning, PrecisionWarning, warn_at_caller
 from .gpu.device import Gpu
 from .layout import (C_SAMPLES, C_TOTAL_TRIS, FLAG_STOP_AT_FIRST, RECORD_ID_MASK,
-                     RECORD_KIND_SHIFT, RECORD_SIDE_BIT, RECORD_SURFACE, UNDECIDED_BUDGET_BIT)
-from .passes.broadphase import GpuBroadPhase, in_range
-from .passes.focused import (ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS,
-                             FocusedOutput, FocusedPasses, RoundTooLarge, Submitted)
+                     RECORD_KIND_SHIFT, RECORD_SIDE_BIT, RECORD_SURFACE)
+from .passes.atlas import ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS
+from .passes.broad import GpuBroadPhase, in_range
+from .passes.frames import FocusedFrames, FocusedOutput, FrameInputs, Submitted
 from .records import RECORD_DTYPE, empty_records, pair_keys, unique_pairs
 from .request import CollisionRequest, RecordMode, body_sizes, pair_tolerance, record_mode
 from .result import CollisionResult, Stats
@@ -36,13 +39,7 @@ from .scene import Scene
 from .scene.normals import world_edge_normals, world_face_normals
 from .scene.pack import ShapePack, pack_shapes, shape_layout
 from .text import plural
-from .tiles import (LEAD_FROM, LEAD_PAIRS, MAX_TILE, TilePlan, concat_plans, likely_pairs,
-                    plan_tiles, repack, split_depth)
-
-RETRIES = 5
-"""Times undecided tiles are run again: first with longer lists, then with thinner boxes."""
-LARGER_LISTS = 1
-"""Retries that make the lists longer (8 -> 32 entries) before boxes are cut."""
+from .tiles import LEAD_FROM, LEAD_PAIRS, TilePlan, concat_plans, likely_pairs, plan_tiles
 
 
 class FocusedStrategy:
@@ -57,7 +54,7 @@ class FocusedStrategy:
     def __init__(self, gpu: Gpu, request: CollisionRequest) -> None:
         self.gpu = gpu
         self.request = request
-        self.passes = FocusedPasses(gpu, LIST_CAPACITY, profile=request.profile,
+        self.frames = FocusedFrames(gpu, LIST_CAPACITY, profile=request.profile,
                                     timeout=request.timeout)
         per_pixel = PIXEL_BYTES + ENTRY_BYTES * LIST_CAPACITY
         self.budget_pixels = int(min(request.memory_budget // per_pixel,
@@ -70,7 +67,7 @@ class FocusedStrategy:
 
     def _budget(self, capacity: int) -> int:
         """Atlas pixels per round with lists of ``capacity`` crossings."""
-        return self.budget_pixels * self.passes.capacity // capacity
+        return self.budget_pixels * self.frames.capacity // capacity
 
     def tolerances(self, scene: Scene, pairs: np.ndarray, given: np.ndarray | None = None
                    ) -> np.ndarray:
@@ -116,7 +113,7 @@ class FocusedStrategy:
     def _shapes(self, scene: Scene, stats: Stats) -> ShapePack:
         if self._pack is None or self._pack.layout != shape_layout(scene.shapes):
             self._pack = pack_shapes(scene.shapes)
-        stats.uploaded_vertex_bytes = self.passes.upload(self._pack, scene.shapes)
+        stats.uploaded_vertex_bytes = self.frames.upload(self._pack, scene.shapes)
         return self._pack
 
     def run(self, scene: Scene, stats: Stats, groups: np.ndarray | None = None,
@@ -172,14 +169,21 @@ class FocusedStrategy:
         if len(plan) == 0:
             return PendingFocused(self, CollisionResult.empty(stats))
         pack = self._shapes(scene, stats)
-        first = self.passes.submit(plan, plan.tile_from_body(scene.transforms), scene.body_shape,
-                                   pack, len(pairs), shapes=scene.shapes, records=mode,
-                                   retry=self._retry_on_gpu(plan, mode))
+        retry = retry_on_gpu(self.recently_retried, mode, plan,
+                             self._budget(self.frames.capacity * RETRY_LISTS))
+        first = self.frames.submit(self._inputs(plan, scene, pack, len(pairs), mode, None,
+                                                retry))
         t3 = time.perf_counter()
         stats.add_ms("upload", (t3 - t2) * 1e3)
         stats.submitted_ms = (t3 - t0) * 1e3
-        return PendingFocused(self, None, (scene, stats, mode, pairs, plan, pack, first, t3,
-                                           stop_at_first))
+        return PendingFocused(self, None, _Query(scene, stats, mode, pairs, plan, pack, first,
+                                                 t3, stop_at_first))
+
+    @staticmethod
+    def _inputs(plan: TilePlan, scene: Scene, pack: ShapePack, n_pairs: int,
+                records: RecordMode, capacity: int | None, retry: bool = False) -> FrameInputs:
+        return FrameInputs(plan, plan.tile_from_body(scene.transforms), scene.body_shape, pack,
+                           n_pairs, scene.shapes, records, capacity or 0, retry)
 
     def _candidates(self, scene: Scene, lo: np.ndarray, hi: np.ndarray,
                     within: np.ndarray | None, groups: np.ndarray | None
@@ -201,29 +205,18 @@ class FocusedStrategy:
         meet = ((lo[a] <= hi[b]) & (lo[b] <= hi[a])).all(axis=1)
         return pairs[meet], "gpu"
 
-    def _retry_on_gpu(self, plan: TilePlan, records: RecordMode) -> bool:
-        """Whether ``plan``'s frame ends with its own retry rounds (see the module's docstring):
-        the last query ran tiles again (frames of an animation are alike; retry rounds
-        that find nothing to retry still cost a frame their passes' fixed cost, about as much
-        as the frame itself for two small bodies on a CPU adapter), lists of the retry's length
-        fit the memory budget, and not every tile is tested (retry rounds leave out the tiles
-        of pairs already found)."""
-        return self.recently_retried and not records.every_tile \
-            and max(plan.round_rows) * plan.atlas_width \
-            <= self._budget(self.passes.capacity * RETRY_LISTS)
-
-    def _complete(self, scene: Scene, stats: Stats, records: RecordMode, pairs: np.ndarray,
-                  plan: TilePlan, pack: ShapePack, first: Submitted, t3: float,
-                  stop_at_first: bool = False) -> CollisionResult:
-        """The rest of :meth:`run` once the first frame is submitted: its readback, the retries
-        of undecided tiles, and the decoding."""
+    def _complete(self, q: _Query) -> CollisionResult:
+        """The rest of :meth:`run` once the first frame is submitted: its readback, the runs
+        again of undecided tiles (as :mod:`pycinder.again` decides), and the decoding."""
+        scene, stats, records, pairs = q.scene, q.stats, q.records, q.pairs
         found = np.zeros(len(pairs), dtype=bool)
-        rows, plans = [], []
-        current, capacity = plan, self.passes.capacity
+        rows: list[tuple[TilePlan, np.ndarray]] = []
+        current, capacity, submitted = q.plan, self.frames.capacity, q.first
         lists_overflowed = False
-        for attempt in range(RETRIES + 1):
-            current, out = self._run_plan(current, scene, pack, len(pairs), records, capacity,
-                                          first if attempt == 0 else None)
+        for _ in range(RETRIES + 1):
+            current, out = self._run_plan(current, scene, q.pack, len(pairs), records, capacity,
+                                          submitted)
+            submitted = None
             self._count(stats, current, out)
             if out.retried_tiles:
                 # The frame ran its undecided tiles again itself, with longer lists.
@@ -232,89 +225,74 @@ class FocusedStrategy:
                 capacity = out.capacity
             found |= out.pair_found
             rows.append((current, out.records))
-            plans.append(current)
-            if out.tile_counts is None or (stop_at_first and found.any()):
+            if out.tile_counts is None or (q.stop_at_first and found.any()):
                 break  # no tile left undecided whose answer could change
-            decided = pairs[found]
-            # An undecided tile of a pair found elsewhere changes no answer, but with
-            # records="all" its records are wanted too.
-            undecided = out.tile_counts[:, 1] > 0
-            budget = (out.tile_counts[:, 1] & UNDECIDED_BUDGET_BIT) != 0
-            again = undecided if records.every_tile else undecided & ~found[current.pair]
-            if not again.any():
+            again, retry = undecided_tiles(current, out.tile_counts, found, records.every_tile,
+                                           capacity, self.frames.capacity, self._budget)
+            if retry is None:
                 break
             if stats.retries == RETRIES:
-                self._report_loss(stats, current.bodies[again], decided, capacity)
+                self._report_loss(stats, current.bodies[again], pairs[found], capacity)
                 break
             stats.retries += 1
-            # First with longer lists (few tiles overflow, so memory is no concern), then with
-            # the boxes cut in two along the view; at once with both when pass F6 ran out of
-            # loop steps in a tile (longer lists do not help that).
-            which = np.flatnonzero(again)
-            lists_overflowed |= bool((again & ~budget).any())
-            # The retry covers these tiles' whole boxes again: their records from this attempt
+            lists_overflowed |= retry.lists_overflowed
+            # The retry covers these tiles' whole boxes again: their records from this run
             # would come twice.
             done, kept = rows[-1]
-            rows[-1] = (done, kept[~np.isin(kept[:, 0], which)])
-            if capacity == self.passes.capacity:
-                capacity *= RETRY_LISTS
-                current = split_depth(current, which, self._budget(capacity),
-                                      cut=bool(budget[which].any()))
-            else:
-                current = split_depth(current, which, self._budget(capacity))
+            rows[-1] = (done, kept[~np.isin(kept["tile"], retry.tiles)])
+            current, capacity = retry.plan, retry.capacity
         # Retry rounds in the next frames pay only when lists overflowed.
         self.recently_retried = lists_overflowed
         t4 = time.perf_counter()
-        stats.add_ms("gpu", (t4 - t3) * 1e3)
+        stats.add_ms("gpu", (t4 - q.t3) * 1e3)
+        return self._result(q, found, rows, t4)
+
+    def _result(self, q: _Query, found: np.ndarray, rows: list[tuple[TilePlan, np.ndarray]],
+                t4: float) -> CollisionResult:
+        """The result: the pairs found, and the records, decoded when first read."""
+        stats, pairs = q.stats, q.pairs
         result_pairs = unique_pairs(pairs[found, 0], pairs[found, 1])
         stats.records = sum(len(r) for _, r in rows)
-        decode = partial(decode_records, rows, pack.edge_original, pack.face_original, scene,
-                         self.request.encode)
+        decode = partial(decode_records, rows, q.pack.edge_original, q.pack.face_original,
+                         q.scene, self.request.encode)
         # Records are decoded when first read (most callers read only the pairs); normals come
         # from the bodies' vertices, which the caller may change once the query returns.
         records = decode() if self.request.encode == "normal" else (stats.records, decode)
         if stats.dropped_records:
             warn_at_caller(
                 f"{stats.dropped_records} records were dropped: more than one buffer of this "
-                f"device holds ({self.passes.records.limit // 16} records); every pair is "
+                f"device holds ({self.frames.records_limit} records); every pair is "
                 "reported, but contacts come from the records kept; see stats.dropped_records",
                 LossWarning)
         stats.add_ms("decode", (time.perf_counter() - t4) * 1e3)
-        return CollisionResult(result_pairs, records, stats, tiles=concat_plans(plans),
-                               scene=scene)
+        return CollisionResult(result_pairs, records, stats,
+                               tiles=concat_plans([p for p, _ in rows]), scene=q.scene)
 
     def _run_plan(self, plan: TilePlan, scene: Scene, pack: ShapePack, n_pairs: int,
                   records: RecordMode, capacity: int, submitted: Submitted | None = None
                   ) -> tuple[TilePlan, FocusedOutput]:
         """Run ``plan``'s passes (or read ``submitted``, the plan's frame already on the GPU);
-        when a round clips more triangles than the device's buffers hold, plan the same tiles
-        in smaller rounds and run them again. Returns the plan run."""
+        when a round is too large for the device's buffers, plan the same tiles in smaller
+        rounds and run them again (:func:`pycinder.again.smaller_rounds`). Returns the plan
+        run."""
         budget, width = self._budget(capacity), plan.atlas_width
         while True:
             try:
                 if submitted is not None:
-                    return plan, self.passes.finish(submitted)
+                    return plan, self.frames.finish(submitted)
                 # A frame submitted since may have replaced the shapes on the GPU.
                 pack = self._shapes(scene, Stats())
-                return plan, self.passes.run(
-                    plan, plan.tile_from_body(scene.transforms), scene.body_shape, pack,
-                    n_pairs, shapes=scene.shapes, records=records, list_capacity=capacity)
+                return plan, self.frames.run(self._inputs(plan, scene, pack, n_pairs, records,
+                                                          capacity))
             except RoundTooLarge as exc:
                 submitted = None
-                # Fewer atlas pixels per round, down to one band each; then narrower bands
-                # (fewer tiles in each).
-                largest = max(plan.round_rows) * width
-                budget = int(min(budget, largest) * 0.9 * exc.limit / exc.needed)
-                smaller = repack(plan, budget, width)
-                if max(smaller.round_rows) * width >= largest:
-                    if width <= MAX_TILE[0]:
-                        raise GpuMemoryError(
-                            f"one round of tiles has {exc.needed} {exc.what}, more than this "
-                            f"device's buffers hold ({exc.limit}), even in rounds of one atlas "
-                            "band; use a coarser tolerance or split the scene") from None
-                    width = max(MAX_TILE[0], width // 2)
-                    smaller = repack(plan, budget, width)
-                plan = smaller
+                smaller = smaller_rounds(plan, exc, budget, width)
+                if smaller is None:
+                    raise GpuMemoryError(
+                        f"one round of tiles has {exc.needed} {exc.what}, more than this "
+                        f"device's buffers hold ({exc.limit}), even in rounds of one atlas "
+                        "band; use a coarser tolerance or split the scene") from None
+                plan, budget, width = smaller
 
     @staticmethod
     def _report_loss(stats: Stats, bodies: np.ndarray, decided: np.ndarray, capacity: int
@@ -359,8 +337,8 @@ class FocusedStrategy:
 
 def decode_records(rows: list[tuple[TilePlan, np.ndarray]], edge_original: np.ndarray,
                    face_original: np.ndarray, scene: Scene, encode: str) -> np.ndarray:
-    """Records from the rows each plan's passes F4 and F5 found (tile, u | v << 16, z bits,
-    id | kind | side, see :mod:`pycinder.layout`): ``id`` is a packed edge (F4) or face (F5),
+    """Records from the rows each plan's passes F4-F6 found (:data:`~pycinder.layout.RECORD`:
+    tile, u | v << 16, z bits, id | kind | side): ``id`` is a packed face (F4) or edge (F5, F6),
     numbered in its shape's own order by ``edge_original`` and ``face_original`` (of the
     :class:`~pycinder.scene.pack.ShapePack` the frame ran on).
 
@@ -384,13 +362,13 @@ def _decode(scene: Scene, plan: TilePlan, edge_original: np.ndarray, face_origin
     ``plan`` plus ``first_tile``."""
     if len(rows) == 0:
         return empty_records()
-    tile = rows[:, 0].astype(np.int64)
-    u = (rows[:, 1] & 0xFFFF).astype(np.int64)
-    v = (rows[:, 1] >> 16).astype(np.int64)
-    z = rows[:, 2].view(np.float32)
-    ident = (rows[:, 3] & RECORD_ID_MASK).astype(np.int64)
-    surface = (rows[:, 3] >> RECORD_KIND_SHIFT) & 3 == RECORD_SURFACE
-    side = (rows[:, 3] >> RECORD_SIDE_BIT).astype(np.int64)
+    tile = rows["tile"].astype(np.int64)
+    u = (rows["uv"] & 0xFFFF).astype(np.int64)
+    v = (rows["uv"] >> 16).astype(np.int64)
+    z = rows["z_bits"].view(np.float32)
+    ident = (rows["ident"] & RECORD_ID_MASK).astype(np.int64)
+    surface = (rows["ident"] >> RECORD_KIND_SHIFT) & 3 == RECORD_SURFACE
+    side = (rows["ident"] >> RECORD_SIDE_BIT).astype(np.int64)
     rec = np.zeros(len(rows), dtype=RECORD_DTYPE)
     rec["penetrating"] = plan.bodies[tile, side]
     rec["penetrated"] = plan.bodies[tile, 1 - side]
@@ -441,20 +419,36 @@ def _member(bodies: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     return np.isin(pair_keys(bodies[:, 0], bodies[:, 1]), pair_keys(pairs[:, 0], pairs[:, 1]))
 
 
+@dataclass
+class _Query:
+    """A focused query whose first frame is on the GPU: what :meth:`FocusedStrategy._complete`
+    finishes it with."""
+
+    scene: Scene
+    stats: Stats
+    records: RecordMode
+    pairs: np.ndarray
+    plan: TilePlan
+    pack: ShapePack
+    first: Submitted
+    t3: float
+    stop_at_first: bool
+
+
 class PendingFocused:
     """A focused query whose first frame is on the GPU; :meth:`result` finishes it."""
 
     def __init__(self, strategy: FocusedStrategy, result: CollisionResult | None,
-                 state: tuple | None = None) -> None:
-        self.strategy, self._result, self._state = strategy, result, state
+                 query: _Query | None = None) -> None:
+        self.strategy, self._result, self._query = strategy, result, query
 
     @property
     def ready(self) -> bool:
         """Whether the GPU has finished the first frame (retries, if any, still take time)."""
-        return self._result is not None or self._state[6].ready
+        return self._result is not None or self._query.first.ready
 
     def result(self) -> CollisionResult:
         if self._result is None:
-            state, self._state = self._state, None
-            self._result = self.strategy._complete(*state)
+            query, self._query = self._query, None
+            self._result = self.strategy._complete(query)
         return self._result

@@ -47,7 +47,14 @@ INDIRECT_ARGS = Struct("IndirectArgs", [
     ("edge_test", "array<u32, 3>", "F4 edge test: WORKGROUP listed edges per workgroup"),
 ], doc="Indirect dispatch and draw arguments, written on the GPU by the passes' decisions.")
 
-SHARED_STRUCTS = (TILE, CLUSTER, INDIRECT_ARGS)
+RECORD = Struct("Record", [
+    ("tile", "u32", "the tile's index in its frame"),
+    ("uv", "u32", "pixel u | v << 16"),
+    ("z_bits", "u32", "f32 bits of the sample's depth z in the tile"),
+    ("ident", "u32", "id | kind << RECORD_KIND_SHIFT | side << RECORD_SIDE_BIT"),
+], doc="One sample found inside the other body, or one crossing (passes F4-F6).")
+
+SHARED_STRUCTS = (TILE, CLUSTER, INDIRECT_ARGS, RECORD)
 """The structs generated into every shader that includes the layout."""
 
 # Tile flags.
@@ -93,7 +100,7 @@ COUNTERS = len(COUNTER_NAMES)
 ROUND_COUNTERS = 4
 """The first counters, reset before every round (and C_CUTS, C_EDGES)."""
 
-# Record rows: (tile, u | v << 16, f32 bits of z, id | kind << RECORD_KIND_SHIFT | side << 31).
+# The fields of a record's ``ident`` (see RECORD).
 RECORD_KIND_SHIFT = 29
 RECORD_ID_MASK = (1 << RECORD_KIND_SHIFT) - 1
 RECORD_EDGE, RECORD_SURFACE, RECORD_CROSSING = 0, 1, 2

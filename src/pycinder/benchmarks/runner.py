@@ -157,7 +157,7 @@ def _round_trips(detector: Any) -> Iterator[dict[str, int]]:
     """Count the queue submissions and buffer maps pycinder makes while the block runs (not the
     empty submission wgpu-py makes before some maps)."""
     queue_type = type(detector.gpu.device.queue)
-    buffer_type = type(detector.strategy.passes.counters)
+    buffer_type = type(detector.strategy.frames.buffers.counters)
     submit, map_async = queue_type.submit, buffer_type.map_async
     trips = {"submissions": 0, "maps": 0}
 

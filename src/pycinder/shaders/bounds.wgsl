@@ -1,19 +1,13 @@
 // Focused strategy: body-space bounds of clusters whose vertices changed (deforming bodies).
 //!include tiles.wgsl
 
-struct Params {
-    count: u32,    // clusters to update
-    _p0: u32,
-    _p1: u32,
-    _p2: u32,
-};
 
 @group(0) @binding(0) var<storage, read> positions: array<f32>;
 @group(0) @binding(1) var<storage, read> faces: array<u32>;
 @group(0) @binding(2) var<storage, read> clusters: array<Cluster>;
 @group(0) @binding(3) var<storage, read> which: array<u32>;          // cluster indices to update
 @group(0) @binding(4) var<storage, read_write> bounds: array<vec4f>;  // lo, hi per cluster
-@group(0) @binding(5) var<uniform> params: Params;
+@group(0) @binding(5) var<uniform> params: BoundsParams;
 
 fn position(v: u32) -> vec3f {
     return vec3f(positions[3u * v], positions[3u * v + 1u], positions[3u * v + 2u]);

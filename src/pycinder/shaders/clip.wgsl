@@ -6,31 +6,22 @@
 // cuts them. Cutting is long and branchy: in threads of its own it runs side by side with other
 // cuts, not masked beside faces that needed none.
 //
-// A face within GUARD pixels of the window is passed on as it is; pass F3 discards what it covers
-// outside the window. A face reaching further is cut to the window grown by GUARD: the polygon of
+// A face within the window is passed on as it is. A face reaching beyond it is cut to the window:
+// the polygon of
 // its vertices inside that rectangle, the points where its edges cross the rectangle's sides, and
 // the rectangle's corners inside it, fanned into triangles. The crossing points are computed from
 // each edge's lower-indexed vertex, and an edge that crosses the rectangle's side belongs to two
 // faces that both reach past it, so both cut it at the same point bit for bit: the surface stays
 // watertight, and every ray through a pixel centre of the window still crosses a closed body's
-// surface an even number of times. (The cut lines lie GUARD pixels outside the window.)
+// surface an even number of times.
 // Facing comes from the projected winding (flipped for mirroring transforms); pass F3 draws both
 // sides.
 //!include tiles.wgsl
-
-// Pixels around the window within which faces are not cut (cutting costs more than the spill).
-const GUARD: f32 = 0.0;
 
 // Pixels by which a face's box is grown before it is tested for pixel centres: more than the
 // rasterizer's vertex snapping can move an edge (half a step of a 4-bit sub-pixel grid).
 const SNAP_MARGIN: f32 = 0.125;
 
-struct Params {
-    tri_cap: u32,   // triangles the buffer holds (and faces the cut list holds)
-    item_cap: u32,
-    _p1: u32,
-    _p2: u32,
-};
 
 @group(0) @binding(0) var<storage, read> tiles: array<Tile>;
 @group(0) @binding(1) var<storage, read> clusters: array<Cluster>;
@@ -41,7 +32,7 @@ struct Params {
 // and flags: tile << 3 | count_back << 2 | front << 1 | side.
 @group(0) @binding(5) var<storage, read_write> tris: array<vec4u>;
 @group(0) @binding(6) var<storage, read_write> counters: array<atomic<u32>>;
-@group(0) @binding(7) var<uniform> params: Params;
+@group(0) @binding(7) var<uniform> params: ClipParams;
 // The packed face (cluster order) each triangle comes from.
 @group(0) @binding(8) var<storage, read_write> tri_face: array<u32>;
 // Faces to cut: face item, face within its cluster (counter C_CUTS).
@@ -156,7 +147,7 @@ fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     if (face.area == 0.0) {
         return;  // seen edge-on: covers no pixel centre
     }
-    if (lo.x >= -GUARD && hi.x <= w + GUARD && lo.y >= -GUARD && hi.y <= h + GUARD) {
+    if (lo.x >= 0.0 && hi.x <= w && lo.y >= 0.0 && hi.y <= h) {
         let origin = vec2f(f32(t.window.x), f32(t.window.y));
         emit(atomicAdd(&counters[C_TRIS], 1u), p[0], p[1], p[2], origin, t.slab.x, face.flags,
              face.face);
@@ -168,7 +159,7 @@ fn clip(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     }
 }
 
-// The listed faces cut to the window grown by GUARD: one thread each.
+// The listed faces cut to the window: one thread each.
 @compute @workgroup_size(WORKGROUP)
 fn cut(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
     let i = (wg.y * ROW + wg.x) * WORKGROUP + lid;
@@ -182,9 +173,9 @@ fn cut(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u
     let area = face.area;
     let origin = vec2f(f32(t.window.x), f32(t.window.y));
     let z0 = t.slab.x;
-    let r0 = -GUARD;
-    let rw = f32(t.window.z) + GUARD;
-    let rh = f32(t.window.w) + GUARD;
+    let r0 = 0.0;
+    let rw = f32(t.window.z);
+    let rh = f32(t.window.w);
     // The face cut to the rectangle: a convex polygon of at most 7 corners (13 candidates).
     let id = array<u32, 3>(face.ids.x, face.ids.y, face.ids.z);
     var pts: array<vec3f, 13>;

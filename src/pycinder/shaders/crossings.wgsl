@@ -10,12 +10,6 @@
 // box, the crossings between it and the counting side: there is no one-edge-per-pixel limit.
 //!include tiles.wgsl
 
-struct Atlas {
-    width: u32,          // atlas pixels per row (the stride of the per-pixel buffers)
-    height: u32,         // rows of the render target
-    capacity: u32,       // list entries per pixel
-    target_width: u32,   // columns of the render target (at least `width`)
-};
 
 @group(0) @binding(0) var<storage, read> tris: array<vec4u>;
 @group(0) @binding(1) var<storage, read> tiles: array<Tile>;

@@ -23,16 +23,6 @@
 //!include tiles.wgsl
 //!include records.wgsl
 
-struct Params {
-    record_cap: u32,    // 0: count hits without writing records
-    item_cap: u32,
-    pair_offset: u32,   // where the per-pair hit flags start in tile_counts
-    early_out: u32,     // 1: skip tiles whose pair is already found
-    pair_records: u32,  // records kept per pair
-    budget: u32,        // loop steps a thread may take (well below llvmpipe's 65,535)
-    _p1: u32,
-    _p2: u32,
-};
 
 @group(0) @binding(0) var<storage, read> tiles: array<Tile>;
 @group(0) @binding(1) var<storage, read> clusters: array<Cluster>;
@@ -46,9 +36,9 @@ struct Params {
 @group(0) @binding(7) var<storage, read> entries: array<vec2u>;
 @group(0) @binding(8) var<storage, read_write> tile_counts: array<atomic<u32>>;
 // Per record: tile, pixel u | v << 16, f32 bits of the crossing's z, edge | kind | side.
-@group(0) @binding(9) var<storage, read_write> records: array<vec4u>;
+@group(0) @binding(9) var<storage, read_write> records: array<Record>;
 @group(0) @binding(10) var<storage, read_write> counters: array<atomic<u32>>;
-@group(0) @binding(11) var<uniform> params: Params;
+@group(0) @binding(11) var<uniform> params: CrossingTestParams;
 
 var<workgroup> wanted: array<u32, WORKGROUP>;        // clusters of this chunk to test
 var<workgroup> n_wanted: atomic<u32>;                 // how many
@@ -187,7 +177,7 @@ fn crossing_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_ind
                         continue;
                     }
                     found++;
-                    append_record(t, vec4u(tile_index, u32(x.x) | (u32(x.y) << 16u),
+                    append_record(t, Record(tile_index, u32(x.x) | (u32(x.y) << 16u),
                                            bitcast<u32>(x.z),
                                            e | (RECORD_CROSSING << RECORD_KIND_SHIFT)
                                              | (side << RECORD_SIDE_BIT)));

@@ -8,16 +8,6 @@
 //!include tiles.wgsl
 //!include stop.wgsl
 
-struct Params {
-    total: u32,        // threads of this round
-    first_entry: u32,  // first (tile, side) entry of this round
-    n_entries: u32,    // entries in this round
-    face_cap: u32,
-    edge_cap: u32,
-    pair_offset: u32,  // where the per-pair hit flags start in `counts`
-    retry_offset: u32, // the retry round: where the per-tile retry flags start (0: every tile)
-    _p2: u32,
-};
 
 @group(0) @binding(0) var<storage, read> tiles: array<Tile>;
 @group(0) @binding(1) var<storage, read> clusters: array<Cluster>;
@@ -28,7 +18,7 @@ struct Params {
 @group(0) @binding(4) var<storage, read_write> face_items: array<vec2u>;
 @group(0) @binding(5) var<storage, read_write> edge_items: array<vec2u>;
 @group(0) @binding(6) var<storage, read_write> counters: array<atomic<u32>>;
-@group(0) @binding(7) var<uniform> params: Params;
+@group(0) @binding(7) var<uniform> params: CullParams;
 // Per tile (found, undecided), then per candidate pair a hit flag (set by passes F4-F6), then
 // (in the retry round) per tile whether it is run again (set by retry.wgsl).
 @group(0) @binding(8) var<storage, read> counts: array<u32>;

@@ -23,16 +23,6 @@
 //!include lists.wgsl
 //!include records.wgsl
 
-struct Params {
-    atlas_width: u32,
-    capacity: u32,      // list entries per pixel
-    record_cap: u32,    // 0: count hits without writing records
-    item_cap: u32,
-    pair_offset: u32,   // where the per-pair hit flags start in tile_counts
-    early_out: u32,     // 1: skip tiles whose pair is already found (records "found" or "none")
-    pair_records: u32,  // records kept per pair
-    list_cap: u32,      // edges the edge list holds
-};
 
 @group(0) @binding(0) var<storage, read> tiles: array<Tile>;
 @group(0) @binding(1) var<storage, read> clusters: array<Cluster>;
@@ -44,9 +34,9 @@ struct Params {
 // Per tile: [2t] samples found inside, [2t + 1] samples undecided; then a hit flag per pair.
 @group(0) @binding(7) var<storage, read_write> tile_counts: array<atomic<u32>>;
 // Per record: tile, pixel u | v << 16, f32 bits of the sample's z, edge | kind | side (layout.py).
-@group(0) @binding(8) var<storage, read_write> records: array<vec4u>;
+@group(0) @binding(8) var<storage, read_write> records: array<Record>;
 @group(0) @binding(9) var<storage, read_write> counters: array<atomic<u32>>;
-@group(0) @binding(10) var<uniform> params: Params;
+@group(0) @binding(10) var<uniform> params: EdgeTestParams;
 // Segments of the edges reaching into their tile's box: tile << 1 | side, packed edge, segment,
 // steps of the edge's part in the box (counter C_EDGES counts segments).
 @group(0) @binding(11) var<storage, read_write> edge_list: array<vec4u>;
@@ -134,7 +124,7 @@ fn test_edge(t: Tile, tile_index: u32, side: u32, e: u32, segment: u32, steps: u
         let winding = winding_at(pixel, listed, cap, other, s.z - t.slab.x, back);
         if (winding != 0) {
             found++;
-            append_record(t, vec4u(tile_index, x | (y << 16u), bitcast<u32>(s.z),
+            append_record(t, Record(tile_index, x | (y << 16u), bitcast<u32>(s.z),
                                    e | (RECORD_EDGE << RECORD_KIND_SHIFT) | (side << RECORD_SIDE_BIT)));
         }
     }

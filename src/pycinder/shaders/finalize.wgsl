@@ -2,24 +2,16 @@
 // clamped to what the buffers hold, and keep the largest counts for the host to size buffers.
 //!include tiles.wgsl
 
-struct Params {
-    face_cap: u32,
-    edge_cap: u32,
-    tri_cap: u32,
-    list_cap: u32,  // edges the edge list holds
-};
 
 @group(0) @binding(0) var<storage, read_write> counters: array<u32>;
-// [0..3) face-clip dispatch, [3..6) edge-test dispatch, [6..10) draw (vertices, 1, 0, 0),
-// [10..13) surface-test dispatch (WORKGROUP pixels per workgroup); [13..16) is the retry rounds'
-// cull dispatch (retry.wgsl); [16..19) the cut dispatch; [19..22) the edge-test dispatch
-@group(0) @binding(1) var<storage, read_write> args: array<u32>;
-@group(0) @binding(2) var<uniform> params: Params;
+// The indirect arguments (IndirectArgs in pycinder/layout.py); the retry rounds' cull dispatch is
+// written by retry.wgsl.
+@group(0) @binding(1) var<storage, read_write> args: IndirectArgs;
+@group(0) @binding(2) var<uniform> params: FinalizeParams;
 
-fn rows(n: u32, at: u32) {
-    args[at] = min(n, ROW);
-    args[at + 1u] = (n + ROW - 1u) / ROW;
-    args[at + 2u] = 1u;
+// A dispatch of n workgroups in rows of ROW.
+fn rows(n: u32) -> array<u32, 3> {
+    return array<u32, 3>(min(n, ROW), (n + ROW - 1u) / ROW, 1u);
 }
 
 // After the cull: one workgroup per kept cluster.
@@ -31,8 +23,8 @@ fn after_cull() {
     counters[C_MAX_EDGE_ITEMS] = max(counters[C_MAX_EDGE_ITEMS], edges);
     counters[C_TOTAL_FACE_ITEMS] += faces;
     counters[C_TOTAL_EDGE_ITEMS] += edges;
-    rows(min(faces, params.face_cap), 0u);
-    rows(min(edges, params.edge_cap), 3u);
+    args.clip = rows(min(faces, params.face_cap));
+    args.edges = rows(min(edges, params.edge_cap));
 }
 
 // After the face clip: cut the faces it listed (one thread each). The cut list is as long as the
@@ -42,7 +34,7 @@ fn after_cull() {
 fn after_clip_faces() {
     let cuts = counters[C_CUTS];
     counters[C_MAX_TRIS] = max(counters[C_MAX_TRIS], cuts);
-    rows((min(cuts, params.tri_cap) + WORKGROUP - 1u) / WORKGROUP, 16u);
+    args.cut = rows((min(cuts, params.tri_cap) + WORKGROUP - 1u) / WORKGROUP);
 }
 
 // After the cuts: draw every emitted triangle.
@@ -51,17 +43,14 @@ fn after_clip() {
     let tris = counters[C_TRIS];
     counters[C_MAX_TRIS] = max(counters[C_MAX_TRIS], tris);
     counters[C_TOTAL_TRIS] += tris;
-    args[6] = 3u * min(tris, params.tri_cap);
-    args[7] = 1u;
-    args[8] = 0u;
-    args[9] = 0u;
+    args.draw = array<u32, 4>(3u * min(tris, params.tri_cap), 1u, 0u, 0u);
 }
 
 // After the crossings: one thread per pixel with a listed crossing.
 @compute @workgroup_size(1)
 fn after_crossings() {
     _ = params.face_cap;  // the three entry points share one bind group layout
-    rows((counters[C_ACTIVE] + WORKGROUP - 1u) / WORKGROUP, 10u);
+    args.surface = rows((counters[C_ACTIVE] + WORKGROUP - 1u) / WORKGROUP);
 }
 
 // After the edges are listed: test them (one thread each).
@@ -69,5 +58,5 @@ fn after_crossings() {
 fn after_edge_list() {
     let listed = counters[C_EDGES];
     counters[C_MAX_EDGES] = max(counters[C_MAX_EDGES], listed);
-    rows((min(listed, params.list_cap) + WORKGROUP - 1u) / WORKGROUP, 19u);
+    args.edge_test = rows((min(listed, params.list_cap) + WORKGROUP - 1u) / WORKGROUP);
 }

@@ -7,7 +7,7 @@
 // read back or decoded); with "all" every one is.
 //!include stop.wgsl
 
-fn append_record(t: Tile, row: vec4u) {
+fn append_record(t: Tile, row: Record) {
     if (params.record_cap == 0u) {
         return;  // records "none": the per-tile counts say everything
     }

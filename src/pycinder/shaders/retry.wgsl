@@ -12,29 +12,16 @@
 //!include tiles.wgsl
 //!include stop.wgsl
 
-struct Params {
-    tiles: u32,         // tiles of the frame
-    pair_offset: u32,   // where the per-pair hit flags start in `tile_counts`
-    retry_offset: u32,  // where the per-tile retry flags start
-    every_tile: u32,    // 1: every tile's records are wanted (records "all"), found pair or not
-};
 
 @group(0) @binding(0) var<storage, read> tiles: array<Tile>;
 // Per tile (found, undecided), per pair a hit flag, per tile a retry flag.
 @group(0) @binding(1) var<storage, read_write> tile_counts: array<u32>;
 @group(0) @binding(2) var<storage, read_write> counters: array<atomic<u32>>;
-@group(0) @binding(3) var<uniform> params: Params;
+@group(0) @binding(3) var<uniform> params: RetryParams;
 
-// The first words of one retry round's cull parameters (cull.wgsl's Params).
-struct Round {
-    total: u32,  // cull threads of the round
-    _p0: u32,
-    _p1: u32,
-    _p2: u32,
-};
 
-@group(0) @binding(4) var<uniform> round: Round;
-@group(0) @binding(5) var<storage, read_write> args: array<u32>;
+@group(0) @binding(4) var<uniform> round: CullParams;  // the retry round's cull parameters
+@group(0) @binding(5) var<storage, read_write> args: IndirectArgs;
 
 @compute @workgroup_size(WORKGROUP)
 fn select_retry(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
@@ -52,15 +39,13 @@ fn select_retry(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
     }
 }
 
-// Before each retry round: its cull's indirect dispatch (args[13..16)), or nothing when no tile is
-// retried.
+// Before each retry round: its cull's indirect dispatch (args.retry_cull), or nothing when no tile
+// is retried.
 @compute @workgroup_size(1)
 fn retry_args() {
     let groups = select(0u, (round.total + WORKGROUP - 1u) / WORKGROUP,
                         atomicLoad(&counters[C_RETRY_TILES]) > 0u);
-    args[13] = min(groups, ROW);
-    args[14] = (groups + ROW - 1u) / ROW;
-    args[15] = 1u;
+    args.retry_cull = array<u32, 3>(min(groups, ROW), (groups + ROW - 1u) / ROW, 1u);
 }
 
 // At the end of the frame: count the tiles still undecided whose answer could change (their pair

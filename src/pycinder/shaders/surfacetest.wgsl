@@ -10,25 +10,15 @@
 //!include lists.wgsl
 //!include records.wgsl
 
-struct Params {
-    atlas_width: u32,
-    rows: u32,          // rows of this round
-    capacity: u32,
-    record_cap: u32,    // 0: count hits without writing records
-    pair_offset: u32,
-    pair_records: u32,  // records kept per pair
-    _p1: u32,
-    _p2: u32,
-};
 
 @group(0) @binding(0) var<storage, read> tiles: array<Tile>;
 @group(0) @binding(1) var<storage, read> pixels: array<u32>;
 @group(0) @binding(2) var<storage, read> crossings: array<vec2u>;
 @group(0) @binding(3) var<storage, read_write> tile_counts: array<atomic<u32>>;
 // Per record: tile, pixel u | v << 16, f32 bits of the point's z, face | kind | side (layout.py).
-@group(0) @binding(4) var<storage, read_write> records: array<vec4u>;
+@group(0) @binding(4) var<storage, read_write> records: array<Record>;
 @group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>>;
-@group(0) @binding(6) var<uniform> params: Params;
+@group(0) @binding(6) var<uniform> params: SurfaceTestParams;
 @group(0) @binding(7) var<storage, read> active_pixels: array<u32>;
 
 @compute @workgroup_size(WORKGROUP)
@@ -66,7 +56,7 @@ fn surface_test(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
             found++;
             let u = gid.x - t.window.x;
             let v = gid.y - t.window.y;
-            append_record(t, vec4u(tile_index, u | (v << 16u), bitcast<u32>(z + t.slab.x),
+            append_record(t, Record(tile_index, u | (v << 16u), bitcast<u32>(z + t.slab.x),
                                    entry.y | (RECORD_SURFACE << RECORD_KIND_SHIFT)
                                      | (side << RECORD_SIDE_BIT)));
         }

@@ -1,0 +1,518 @@
+"""The focused strategy's frames: the passes F0-F8 encoded in order over one frame's state,
+submitted once, and read back with one map.
+
+    F0 bounds (when vertices changed)
+    per round:        F1 cull -> F2 clip -> F3 crossings -> F4 surface test -> F5 edge test
+                      -> F6 crossing test (tiles with an open body)
+    when retrying:    F7 retry choice, then per round F1-F6 again for the chosen tiles
+    F8 count undecided
+
+Each pass is an object owning its pipelines, its parameters struct and its bindings by name
+(``passes/<pass>.py``); :data:`PASSES` lists them in the order they run, and the pass table of
+the docs is generated from it. The readback brings the counters, a hit flag per candidate pair,
+the first records and the timestamps; the per-tile counts only when a tile must run again.
+What makes a frame run again is decided in :mod:`pycinder.again`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import wgpu
+
+from ..again import grown_caps
+from ..gpu.buffers import DEFAULT_TIMEOUT, Readback
+from ..gpu.device import Gpu
+from ..layout import (C_AGAIN, C_CUTS, C_EDGES, C_RECORDS, C_RETRY_TILES, C_UNDECIDED,
+                      COUNTERS, FLAG_OPEN, RECORD, ROUND_COUNTERS, TILE)
+from ..request import RecordMode
+from ..scene.pack import ShapePack
+from ..tiles import TilePlan
+from .arguments import Arguments
+from .atlas import (LIST_CAPACITY, PIXEL_BYTES, SLOTS, AtlasBuffers, Encoding, FrameState,
+                    Round)
+from .blocks import ParamBlocks
+from .bindings import Profiler
+from .bounds import Bounds
+from .clip import Clip
+from .crossings import Crossings
+from .crossingtest import CrossingTest
+from .cull import Cull
+from .edgetest import EdgeTest
+from .retry import CountAgain, RetryChoice
+from .scope import ComputeScope
+from .surfacetest import SurfaceTest
+
+PASSES = (Bounds, Cull, Clip, Crossings, SurfaceTest, EdgeTest, CrossingTest, RetryChoice,
+          CountAgain, Arguments)
+"""The pass classes in the order they run (the indirect arguments run between them)."""
+
+ROUND_PASSES = (Cull, Clip, Crossings, SurfaceTest, EdgeTest, CrossingTest)
+"""The passes of every round."""
+
+TIMED_PASSES = tuple(p.INFO.title for p in ROUND_PASSES)
+"""Names of the passes timed per round when profiling (F0, and "decisions" (passes F7 and F8),
+are timed once per frame)."""
+
+SPECULATIVE_RECORDS = 4096
+"""Fewest records copied into the frame's one readback; a frame copies a quarter more than the
+last frame found (frames of an animation are alike), so that most frames need one round trip."""
+
+
+@dataclass
+class FocusedOutput:
+    """What one frame of the focused passes found.
+
+    Attributes
+    ----------
+    pair_found : (K,) bool
+        Per candidate pair: whether a tile of it found a sample inside the other body (or a
+        crossing). Decided on the GPU, where the tiles of a pair meet.
+    tile_counts : (T, 2) int64 or None
+        Per tile: samples found, samples undecided (list overflow;
+        :data:`~pycinder.layout.UNDECIDED_BUDGET_BIT` set where pass F6 ran out of its loop
+        budget). Read only when some tile is left undecided and its answer could still change;
+        None otherwise.
+    records : (R,) structured array of :data:`~pycinder.layout.RECORD`
+        Sorted by (tile, uv, z_bits, ident).
+    counters : (COUNTERS,) int64
+    bytes_read : int
+    reruns : int
+        Times the frame ran again because a buffer had to grow.
+    gpu_ms : dict of str to float
+        GPU milliseconds per pass (summed over rounds), when profiling.
+    dropped_records : int
+        Records found but not kept: more than one records buffer of this device holds.
+    undecided : int
+        Samples undecided (list overflow), in every round and retry round of the frame.
+    retried_tiles : int
+        Tiles run again in the frame's own retry rounds.
+    capacity : int
+        The list capacity of the frame's last round (the retry's when it ran).
+    """
+
+    pair_found: np.ndarray
+    tile_counts: np.ndarray | None
+    records: np.ndarray
+    counters: np.ndarray
+    bytes_read: int
+    gpu_ms: dict[str, float]
+    reruns: int = 0
+    dropped_records: int = 0
+    undecided: int = 0
+    retried_tiles: int = 0
+    capacity: int = LIST_CAPACITY
+
+
+@dataclass
+class FrameInputs:
+    """What a frame is submitted with (kept to run it again)."""
+
+    plan: TilePlan
+    matrices: np.ndarray
+    """(T, 2, 3, 4) tile-from-body matrices."""
+    body_shape: np.ndarray
+    """(N,) each body's shape in ``pack``."""
+    pack: ShapePack
+    pairs: int
+    shapes: list | None
+    records: RecordMode
+    capacity: int
+    retry: bool
+
+
+@dataclass
+class ReadLayout:
+    """Where the parts of a frame's readback lie."""
+
+    head: int
+    stamps: int
+    nbytes: int
+    timed: list[str]
+    waiting: str
+
+
+@dataclass(eq=False)
+class Submitted:
+    """A frame submitted to the GPU, and what it found once read (``output``)."""
+
+    inputs: FrameInputs
+    slot: int
+    state: FrameState | None = None
+    layout: ReadLayout | None = None
+    pending: object = None
+    output: FocusedOutput | None = None
+    reruns: int = 0
+
+    @property
+    def ready(self) -> bool:
+        """Whether the GPU has finished the frame (reading it will not wait)."""
+        return self.output is not None or Readback.ready(self.pending)
+
+
+@dataclass
+class _Uploaded:
+    layout: tuple | None = None
+    shapes: list | None = None
+    bound_pending: np.ndarray | None = None
+    recent_records: int = 0
+    next_slot: int = 0
+    in_flight: list = field(default_factory=lambda: [None] * SLOTS)
+
+
+class FocusedFrames:
+    """The passes F0-F8 and their buffers, made once per detector.
+
+    Parameters
+    ----------
+    gpu : Gpu
+    list_capacity : int
+        Crossings kept per pixel.
+    profile : bool
+        Time every pass of every round.
+    timeout : float
+        Seconds the readback may wait for the GPU.
+    """
+
+    def __init__(self, gpu: Gpu, list_capacity: int = LIST_CAPACITY, profile: bool = False,
+                 timeout: float = DEFAULT_TIMEOUT) -> None:
+        self.gpu = gpu
+        self.capacity = int(list_capacity)
+        self.timeout = float(timeout)
+        self.profiler = Profiler(gpu, profile)
+        self.buffers = AtlasBuffers(gpu.device)
+        self.arguments = Arguments(gpu)
+        self.bounds = Bounds(gpu)
+        self.retry_choice = RetryChoice(gpu)
+        self.count_again = CountAgain(gpu)
+        self.rounds = (Cull(gpu, self.arguments, self.retry_choice.cull_dispatch),
+                       Clip(gpu, self.arguments), Crossings(gpu),
+                       SurfaceTest(gpu, self.arguments), EdgeTest(gpu, self.arguments),
+                       CrossingTest(gpu))
+        self.cull, self.clip, self.crossings, self.surface_test, self.edge_test, \
+            self.crossing_test = self.rounds
+        frame_blocks = {"finalize": Arguments.PARAMS, "clip": Clip.PARAMS,
+                        "atlas": Crossings.PARAMS, "atlas retry": Crossings.PARAMS,
+                        "edges": EdgeTest.PARAMS, "edges retry": EdgeTest.PARAMS,
+                        "bounds": Bounds.PARAMS, "cross": CrossingTest.PARAMS,
+                        "retry": RetryChoice.PARAMS}
+        self.frame_params = ParamBlocks(gpu.device, "frame parameters", frame_blocks)
+        self.round_params = ParamBlocks(gpu.device, "round parameters",
+                                        {"cull": Cull.PARAMS, "surface": SurfaceTest.PARAMS})
+        self._up = _Uploaded()
+
+    @property
+    def records_limit(self) -> int:
+        """Records one records buffer of this device holds."""
+        return self.buffers.limits.records
+
+    # -- shapes -----------------------------------------------------------------------------
+
+    def upload(self, pack: ShapePack, shapes: list) -> int:
+        """Upload the shapes; returns the vertex bytes written.
+
+        Index buffers are written when the layout (topologies, vertex counts) changed; vertices
+        only for shapes that are new objects (a shape object is made for new vertex content).
+        Cluster bounds of those shapes are recomputed by pass F0 at the start of the next frame.
+        """
+        b, up = self.buffers, self._up
+        if pack.layout != up.layout:
+            for buf, data in ((b.positions, pack.positions), (b.faces, pack.faces),
+                              (b.edges, pack.edges), (b.clusters, pack.clusters)):
+                buf.ensure(data.nbytes)
+                buf.write(data)
+            b.cluster_bounds.ensure(32 * len(pack.clusters))
+            up.layout = pack.layout
+            changed = list(range(len(shapes)))
+            written = pack.positions.nbytes
+        else:
+            changed = [k for k, s in enumerate(shapes) if s is not up.shapes[k]]
+            written = 0
+            for k in changed:
+                # The pack's positions are those of the frame that made it: write the shape's own.
+                vertices = shapes[k].vertices
+                b.positions.write(vertices, offset=12 * int(pack.vertex_start[k]))
+                written += vertices.nbytes
+        up.shapes = list(shapes)
+        if changed:
+            which = np.concatenate([np.arange(pack.cluster_start[k], pack.cluster_start[k + 1])
+                                    for k in changed]).astype(np.uint32)
+            if up.bound_pending is not None:
+                which = np.union1d(which, up.bound_pending).astype(np.uint32)
+            up.bound_pending = which
+        return written
+
+    # -- one frame --------------------------------------------------------------------------
+
+    def run(self, inputs: FrameInputs) -> FocusedOutput:
+        """Run a frame and read back what it found (see :meth:`submit`)."""
+        return self.finish(self.submit(inputs))
+
+    def submit(self, inputs: FrameInputs) -> Submitted:
+        """Encode the frame's passes in one command buffer, submit it and start its readback;
+        :meth:`finish` waits for it. Two frames can be in flight: a third waits for the
+        oldest.
+
+        Retry rounds (``inputs.retry``) leave out the tiles of pairs already found: not with a
+        records mode that tests every tile. The caller checks that lists that long fit its
+        memory budget.
+        """
+        if inputs.retry and inputs.records.every_tile:
+            raise ValueError("retry rounds leave out the tiles of pairs already found: not with "
+                             "a records mode that tests every tile")
+        up = self._up
+        slot = up.next_slot
+        up.next_slot = (slot + 1) % SLOTS
+        older = up.in_flight[slot]
+        if older is not None:
+            self.finish(older)  # its staging buffers are about to be reused
+        sub = Submitted(inputs, slot)
+        up.in_flight[slot] = sub
+        self._submit(sub)
+        return sub
+
+    def finish(self, sub: Submitted) -> FocusedOutput:
+        """Wait for a submitted frame and read what it found; run it again while a buffer had to
+        grow (:func:`pycinder.again.grown_caps`), so nothing is dropped.
+
+        Raises
+        ------
+        RoundTooLarge
+            A round needs more than this device's largest buffer holds.
+        """
+        b, up = self.buffers, self._up
+        while sub.output is None:
+            out = self._read(sub)
+            records_read = sub.inputs.records.read
+            try:
+                grown = grown_caps(out.counters, b.caps, b.limits, records_read)
+            except Exception:
+                up.in_flight[sub.slot] = None
+                raise
+            if grown is not None:
+                b.caps = grown
+                sub.reruns += 1
+                shapes = sub.inputs.shapes
+                if shapes is not None and up.shapes is not None \
+                        and any(x is not y for x, y in zip(shapes, up.shapes)):
+                    self.upload(sub.inputs.pack, shapes)  # a later frame replaced the vertices
+                self._submit(sub)
+                continue
+            out.reruns = sub.reruns
+            out.dropped_records = max(int(out.counters[C_RECORDS]) - b.caps.records, 0) \
+                if records_read else 0
+            sub.output = out
+            if up.in_flight[sub.slot] is sub:
+                up.in_flight[sub.slot] = None
+        return sub.output
+
+    def _state(self, sub: Submitted) -> tuple[FrameState, np.ndarray]:
+        """The frame's state, and its (tile, side) entries: the first cull thread of each (a
+        prefix over the frame) and the first cluster of its body."""
+        inputs = sub.inputs
+        plan, pack = inputs.plan, inputs.pack
+        shapes = inputs.body_shape[plan.bodies].reshape(-1)             # entry e = 2 * tile + side
+        count = np.diff(pack.cluster_start)[shapes]
+        prefix = np.concatenate([[0], np.cumsum(count)])
+        if prefix[-1] >= 2**32:
+            raise ValueError("too many cluster tests in one frame; raise the tolerance or split "
+                             "the scene into several queries")
+        entries = np.zeros((len(shapes) + 1, 2), dtype=np.uint32)
+        entries[:, 0] = prefix
+        entries[:-1, 1] = pack.cluster_start[shapes]
+        round_tiles = np.searchsorted(plan.round, np.arange(len(plan.round_rows) + 1))
+        round_threads = np.diff(prefix[2 * round_tiles])
+        state = FrameState(
+            tiles=len(plan), pairs=inputs.pairs, atlas_width=plan.atlas_width,
+            round_rows=list(plan.round_rows), round_threads=round_threads,
+            round_tiles=round_tiles,
+            items=int(round_threads.max()) if len(round_threads) else 0,
+            capacity=int(inputs.capacity or self.capacity), retry=bool(inputs.retry),
+            any_open=bool((plan.flags & (FLAG_OPEN[0] | FLAG_OPEN[1])).any()),
+            records=inputs.records, slot=sub.slot)
+        return state, entries
+
+    def _submit(self, sub: Submitted) -> None:
+        state, entries = self._state(sub)
+        inputs = sub.inputs
+        self.buffers.ensure_frame(state, entries, tile_words(inputs.plan, inputs.matrices))
+        rows = max(state.round_rows) if state.round_rows else 1
+        self.crossings.ensure_target(state.atlas_width, rows)
+        sub.state = state
+        e = Encoding(self.buffers, self.frame_params, self.round_params, state)
+        self._write_params(e)
+        self._encode_and_submit(sub, e)
+
+    def _write_params(self, e: Encoding) -> None:
+        """Every pass's parameters of the frame, by name."""
+        s = e.state
+        self.frame_params.begin()
+        self.round_params.begin(s.rounds * (1 + s.retry))
+        for r, k in self._rounds(s):
+            self.cull.write_params(e, r, k)
+            self.surface_test.write_params(e, r, k)
+        self.arguments.write_params(e)
+        self.clip.write_params(e)
+        self.crossings.write_params(e)
+        self.edge_test.write_params(e)
+        self.crossing_test.write_params(e)
+        self.bounds.write_params(e, self._up.bound_pending)
+        self.retry_choice.write_params(e)
+        self.round_params.write()
+        self.frame_params.write()
+
+    @staticmethod
+    def _rounds(s: FrameState, retry: bool | None = None) -> list[tuple[Round, int]]:
+        """The frame's rounds (``retry`` None: all; False: the first ones; True: the retry
+        rounds), each with the index of the round of the frame it covers."""
+        out = []
+        for is_retry in ((False, True) if retry is None else (retry,)):
+            if is_retry and not s.retry:
+                continue
+            for k in range(s.rounds):
+                block = k + (s.rounds if is_retry else 0)
+                out.append((Round(block, int(s.round_threads[k]), s.round_rows[k], is_retry,
+                                  s.slot), k))
+        return out
+
+    def _encode_round(self, encoder: wgpu.GPUCommandEncoder, e: Encoding, r: Round) -> None:
+        """Passes F1-F6 of round ``r``, in order."""
+        b = e.buffers
+        encoder.clear_buffer(b.counters, 0, 4 * ROUND_COUNTERS)
+        encoder.clear_buffer(b.counters, 4 * C_CUTS, 4)
+        encoder.clear_buffer(b.counters, 4 * C_EDGES, 4)
+        encoder.clear_buffer(b.pixels.buffer, 0, PIXEL_BYTES * e.state.atlas_width * r.rows)
+        scope = ComputeScope(encoder, self.profiler, f"round {r.block}")
+        self.cull.encode(scope, e, r)
+        self.clip.encode(scope, e)
+        scope.end()
+        self.crossings.encode(encoder, self.profiler, e, r)
+        self.surface_test.encode(scope, e, r)
+        self.edge_test.encode(scope, e, r)
+        self.crossing_test.encode(scope, e, r)
+        scope.end()
+
+    def _encode_and_submit(self, sub: Submitted, e: Encoding) -> None:
+        """Encode the frame, submit it and start mapping its readback."""
+        s, b, up = e.state, e.buffers, self._up
+        self.profiler.begin(3 + len(TIMED_PASSES) * s.rounds * (1 + s.retry))
+        encoder = self.gpu.device.create_command_encoder()
+        self.bounds.encode(encoder, self.profiler, e, up.bound_pending)
+        encoder.clear_buffer(b.counters)
+        encoder.clear_buffer(b.tile_counts.buffer, 0, 8 * s.tiles + 4 * s.pairs)
+        for r, _ in self._rounds(s, retry=False):
+            if r.threads:
+                self._encode_round(encoder, e, r)
+        if s.retry:
+            self.retry_choice.encode(encoder, self.profiler, e)
+            for r, _ in self._rounds(s, retry=True):
+                if r.threads:
+                    self._encode_round(encoder, e, r)
+        if s.tiles:
+            self.count_again.encode(encoder, self.profiler, e)
+        s.speculative = min(max(SPECULATIVE_RECORDS, up.recent_records * 5 // 4),
+                            b.caps.records) if s.records.read else 0
+        sub.layout = self._copy_readback(encoder, s)
+        self.gpu.device.queue.submit([encoder.finish()])
+        up.bound_pending = None
+        sub.pending = b.readbacks[s.slot].start(sub.layout.nbytes)
+
+    def _copy_readback(self, encoder: wgpu.GPUCommandEncoder, s: FrameState) -> ReadLayout:
+        """Copy the counters, the per-pair flags, the first records and the timestamps into the
+        frame's staging buffer (and the per-tile counts into the slot's copy)."""
+        b = self.buffers
+        flags = 4 * s.pairs
+        head = -(-(4 * COUNTERS + flags) // 16) * 16
+        stamps = -(-(head + RECORD.size * s.speculative) // 8) * 8
+        nbytes = stamps + self.profiler.nbytes
+        staging = b.readbacks[s.slot].ensure(nbytes)
+        encoder.copy_buffer_to_buffer(b.counters, 0, staging, 0, 4 * COUNTERS)
+        if s.tiles:
+            encoder.copy_buffer_to_buffer(b.tile_counts.buffer, 8 * s.tiles, staging,
+                                          4 * COUNTERS, flags)
+            copy = b.tile_copies[s.slot]
+            copy.ensure(8 * s.tiles)
+            encoder.copy_buffer_to_buffer(b.tile_counts.buffer, 0, copy.buffer, 0, 8 * s.tiles)
+        if s.speculative:
+            encoder.copy_buffer_to_buffer(b.records(s.slot).buffer, 0, staging, head,
+                                          RECORD.size * s.speculative)
+        self.profiler.resolve(encoder, staging, stamps)
+        return ReadLayout(head, stamps, nbytes, list(self.profiler.names),
+                          f"a frame of {s.tiles} tiles in {s.rounds} rounds")
+
+    def _read(self, sub: Submitted) -> FocusedOutput:
+        """Wait for a submitted frame's readback (one map) and decode it. A second map reads the
+        per-tile counts when some tile must run again, and the records beyond those the first
+        brought."""
+        s, lay, b = sub.state, sub.layout, self.buffers
+        data = b.readbacks[s.slot].wait(sub.pending, lay.nbytes, timeout=self.timeout,
+                                        waiting_for=lay.waiting)
+        gpu_ms = self.profiler.times(data[lay.stamps // 4:], lay.timed)
+        counters = data[:COUNTERS].astype(np.int64)
+        pair_found = data[COUNTERS:COUNTERS + s.pairs] != 0
+        n_records = int(min(counters[C_RECORDS], b.caps.records)) if s.records.read else 0
+        if s.records.read:
+            self._up.recent_records = n_records
+        words = RECORD.size // 4
+        recs = data[lay.head // 4: lay.head // 4 + words * n_records]
+        tiles = 8 * s.tiles if counters[C_AGAIN] else 0
+        more = RECORD.size * n_records if n_records > s.speculative else 0
+        tile_counts = None
+        if tiles or more:
+            second = self._read_more(s, tiles, more, n_records)
+            if tiles:
+                tile_counts = second[:2 * s.tiles].reshape(s.tiles, 2).astype(np.int64)
+            if more:
+                recs = second[tiles // 4:]
+        recs = np.ascontiguousarray(recs).view(RECORD.dtype)
+        if len(recs):
+            recs = recs[np.lexsort((recs["ident"], recs["z_bits"], recs["uv"], recs["tile"]))]
+        retried = int(counters[C_RETRY_TILES])
+        return FocusedOutput(pair_found, tile_counts, recs, counters,
+                             lay.nbytes + tiles + more, gpu_ms,
+                             undecided=int(counters[C_UNDECIDED]), retried_tiles=retried,
+                             capacity=s.capacity_of(bool(retried)))
+
+    def _read_more(self, s: FrameState, tiles: int, more: int, n_records: int) -> np.ndarray:
+        """The second map: ``tiles`` bytes of per-tile counts, then ``more`` bytes of records."""
+        b = self.buffers
+        encoder = self.gpu.device.create_command_encoder()
+        readback = b.readbacks_more[s.slot]
+        staging = readback.ensure(tiles + more)
+        if tiles:
+            encoder.copy_buffer_to_buffer(b.tile_copies[s.slot].buffer, 0, staging, 0, tiles)
+        if more:
+            encoder.copy_buffer_to_buffer(b.records(s.slot).buffer, 0, staging, tiles, more)
+        self.gpu.device.queue.submit([encoder.finish()])
+        return readback.read(tiles + more, timeout=self.timeout,
+                             waiting_for=f"the counts of {s.tiles} tiles and {n_records} "
+                                         "records")
+
+
+def tile_words(plan: TilePlan, matrices: np.ndarray) -> np.ndarray:
+    """The tiles as the GPU reads them.
+
+    Parameters
+    ----------
+    plan : TilePlan
+    matrices : (T, 2, 3, 4) float
+        Tile-from-body matrices of both sides.
+
+    Returns
+    -------
+    (T,) structured array of :data:`~pycinder.layout.TILE`
+    """
+    out = TILE.zeros(len(plan))
+    out["m0"] = matrices[:, 0]
+    out["m1"] = matrices[:, 1]
+    out["window"] = plan.window
+    out["slab"][:, :2] = plan.slab
+    out["bodies"] = plan.bodies
+    out["flags"] = plan.flags
+    out["pair"] = plan.pair
+    return out
+
+
+__all__ = ["FocusedFrames", "FocusedOutput", "FrameInputs", "PASSES", "Submitted",
+           "TIMED_PASSES", "tile_words"]
