@@ -25,7 +25,7 @@ import numpy as np
 from .again import (LARGER_LISTS, RETRIES, RoundTooLarge, retry_on_gpu, smaller_rounds,
                     undecided_tiles)
 from .broadphase import sweep_and_prune
-from .errors import GpuMemoryError, LossWarning, PrecisionWarning, warn_at_caller
+from .errors import GpuMemoryError, LossWarning, warn_at_caller
 from .gpu.device import Gpu
 from .layout import (C_SAMPLES, C_TOTAL_TRIS, FLAG_STOP_AT_FIRST, RECORD_ID_MASK,
                      RECORD_KIND_SHIFT, RECORD_SIDE_BIT, RECORD_SURFACE)
@@ -33,12 +33,13 @@ from .passes.atlas import ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS
 from .passes.broad import GpuBroadPhase, in_range
 from .passes.frames import FocusedFrames, FocusedOutput, FrameInputs, Submitted
 from .records import RECORD_DTYPE, empty_records, pair_keys, unique_pairs
-from .request import CollisionRequest, RecordMode, body_sizes, pair_tolerance, record_mode
+from .request import CollisionRequest, RecordMode, record_mode
 from .result import CollisionResult, Stats
 from .scene import Scene
 from .scene.normals import world_edge_normals, world_face_normals
 from .scene.pack import ShapePack, pack_shapes, shape_layout
 from .text import plural
+from .tolerance import pair_tolerances
 from .tiles import LEAD_FROM, LEAD_PAIRS, TilePlan, concat_plans, likely_pairs, plan_tiles
 
 
@@ -71,44 +72,9 @@ class FocusedStrategy:
 
     def tolerances(self, scene: Scene, pairs: np.ndarray, given: np.ndarray | None = None
                    ) -> np.ndarray:
-        """(K,) tolerance of each candidate pair, in world units.
-
-        ``given`` (N,): a tolerance per body (a batch of scenes gives each scene's to its bodies),
-        used for a pair from its first body where not NaN; else the request's tolerance; else the
-        default, :data:`~pycinder.request.DEFAULT_RELATIVE_TOLERANCE` of the smaller body's size,
-        from the pair's own bodies only. A pair's pixels must also be resolvable in single
-        precision (see :func:`resolvable_tolerance`): a default tolerance below that is raised to
-        it with a :class:`~pycinder.errors.PrecisionWarning`; a tolerance given below it raises.
-        """
-        size = body_sizes(scene.local_lo, scene.local_hi, scene.transforms)
-        a, b = pairs[:, 0], pairs[:, 1]
-        floor = resolvable_tolerance(scene, pairs, size)
-        tol = pair_tolerance(size[a], size[b], self.request.tolerance)
-        chosen = np.full(len(pairs), self.request.tolerance is not None)
-        if given is not None:
-            g = np.asarray(given, dtype=np.float64)[a]
-            chosen |= ~np.isnan(g)
-            tol = np.where(np.isnan(g), tol, g)
-        bad = np.flatnonzero(chosen & (tol < floor))
-        if len(bad):
-            k = bad[np.argmax(floor[bad])]
-            raise ValueError(
-                f"tolerance {tol[k]:g} is too fine for {plural(len(bad), 'candidate pair')} in "
-                f"single precision (first: {scene.label(int(a[k]))} and {scene.label(int(b[k]))}, "
-                f"{size[a[k]]:.3g} and {size[b[k]]:.3g} across): the GPU resolves them at "
-                f"{floor[bad].max():.3g} or coarser; use a coarser tolerance, or test those "
-                "bodies in a query of their own scale")
-        raised = np.flatnonzero(~chosen & (tol < floor))
-        if len(raised):
-            k = raised[np.argmax(floor[raised] / np.maximum(tol[raised], 1e-300))]
-            warn_at_caller(
-                f"{plural(len(raised), 'candidate pair')} {'is' if len(raised) == 1 else 'are'} "
-                f"too far apart in size (or too far from the origin) for their default tolerance in single precision: their tolerance was "
-                f"raised to what the GPU resolves (first: {scene.label(int(a[k]))} and "
-                f"{scene.label(int(b[k]))}, {size[a[k]]:.3g} and {size[b[k]]:.3g} across, "
-                f"tolerance {tol[k]:.3g} -> {floor[k]:.3g}); see stats.tolerance",
-                PrecisionWarning)
-        return np.maximum(tol, floor)
+        """(K,) tolerance of each candidate pair, in world units (see
+        :func:`pycinder.tolerance.pair_tolerances`)."""
+        return pair_tolerances(scene, pairs, self.request.tolerance, given)
 
     def _shapes(self, scene: Scene, stats: Stats) -> ShapePack:
         if self._pack is None or self._pack.layout != shape_layout(scene.shapes):
@@ -384,32 +350,6 @@ def _decode(scene: Scene, plan: TilePlan, edge_original: np.ndarray, face_origin
         rec["normal"][surface] = world_face_normals(scene, rec["penetrating"][surface],
                                                     rec["face"][surface])
     return rec
-
-
-MAX_PIXELS_ACROSS = 2.0**20
-"""Most pixels a pair's body may span: single-precision tile coordinates then stay within a
-sixteenth of a pixel (2**20 * 2**-24), well inside the contract's margins."""
-MAX_PIXELS_FROM_ORIGIN = 2.0**48
-"""Most pixels a pair's body may lie from the world origin: the double-precision planning then
-places its tiles within a sixteenth of a pixel (2**48 * 2**-52)."""
-SMALLEST_TOLERANCE = 1e-30
-"""A pair of bodies of no size (all vertices at one point) at the origin still gets a pixel."""
-
-
-def resolvable_tolerance(scene: Scene, pairs: np.ndarray, size: np.ndarray | None = None
-                         ) -> np.ndarray:
-    """(K,) the smallest tolerance at which each pair's tiles are resolved in single precision:
-    each body at most :data:`MAX_PIXELS_ACROSS` pixels across and :data:`MAX_PIXELS_FROM_ORIGIN`
-    pixels from the origin."""
-    if size is None:
-        size = body_sizes(scene.local_lo, scene.local_hi, scene.transforms)
-    centre = np.einsum("nij,nj->ni", scene.transforms[:, :3, :3],
-                       0.5 * (scene.local_lo + scene.local_hi)) + scene.transforms[:, :3, 3]
-    far = np.abs(centre).max(axis=1) + size
-    a, b = pairs[:, 0], pairs[:, 1]
-    return np.maximum.reduce([np.maximum(size[a], size[b]) / MAX_PIXELS_ACROSS,
-                              np.maximum(far[a], far[b]) / MAX_PIXELS_FROM_ORIGIN,
-                              np.full(len(pairs), SMALLEST_TOLERANCE)])
 
 
 def _member(bodies: np.ndarray, pairs: np.ndarray) -> np.ndarray:

@@ -1,0 +1,107 @@
+"""The tolerance policy of the focused strategy, in one place.
+
+A pair's tolerance ``t`` (world units) is the width of its tiles' pixels, and what the contract
+promises is stated in it (a pair at least ``t`` apart is never reported, one at least ``2 t``
+deep always is). It is, in order:
+
+- the tolerance given for the pair's first body (a batch of scenes gives each scene's to its
+  bodies);
+- else the request's ``tolerance``;
+- else :data:`DEFAULT_RELATIVE_TOLERANCE` of the smaller body's size (its bounding-box
+  diagonal in the world), from the pair's own bodies only.
+
+Single precision bounds it from below (:func:`resolvable_tolerance`): a body at most
+:data:`MAX_PIXELS_ACROSS` pixels across and :data:`MAX_PIXELS_FROM_ORIGIN` pixels from the
+origin. A default below that floor is raised to it, with a
+:class:`~pycinder.errors.PrecisionWarning`; a tolerance given below it is an error. The request's
+``max_pixels`` bounds from above how many pixels one query's tiles may hold.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import PrecisionWarning, warn_at_caller
+from .request import DEFAULT_RELATIVE_TOLERANCE, body_sizes, pair_tolerance
+from .scene import Scene
+from .text import plural
+
+MAX_PIXELS_ACROSS = 2.0**20
+"""Most pixels a pair's body may span: single-precision tile coordinates then stay within a
+sixteenth of a pixel (2**20 * 2**-24), well inside the contract's margins."""
+MAX_PIXELS_FROM_ORIGIN = 2.0**48
+"""Most pixels a pair's body may lie from the world origin: the double-precision planning then
+places its tiles within a sixteenth of a pixel (2**48 * 2**-52)."""
+SMALLEST_TOLERANCE = 1e-30
+"""A pair of bodies of no size (all vertices at one point) at the origin still gets a pixel."""
+
+
+def resolvable_tolerance(scene: Scene, pairs: np.ndarray, size: np.ndarray | None = None
+                         ) -> np.ndarray:
+    """(K,) the smallest tolerance at which each pair's tiles are resolved in single precision:
+    each body at most :data:`MAX_PIXELS_ACROSS` pixels across and :data:`MAX_PIXELS_FROM_ORIGIN`
+    pixels from the origin."""
+    if size is None:
+        size = body_sizes(scene.local_lo, scene.local_hi, scene.transforms)
+    centre = np.einsum("nij,nj->ni", scene.transforms[:, :3, :3],
+                       0.5 * (scene.local_lo + scene.local_hi)) + scene.transforms[:, :3, 3]
+    far = np.abs(centre).max(axis=1) + size
+    a, b = pairs[:, 0], pairs[:, 1]
+    return np.maximum.reduce([np.maximum(size[a], size[b]) / MAX_PIXELS_ACROSS,
+                              np.maximum(far[a], far[b]) / MAX_PIXELS_FROM_ORIGIN,
+                              np.full(len(pairs), SMALLEST_TOLERANCE)])
+
+
+def pair_tolerances(scene: Scene, pairs: np.ndarray, tolerance: float | None = None,
+                    given: np.ndarray | None = None) -> np.ndarray:
+    """(K,) tolerance of each candidate pair, in world units, by the policy above.
+
+    Parameters
+    ----------
+    scene : Scene
+    pairs : (K, 2) int
+    tolerance : float, optional
+        The request's tolerance.
+    given : (N,) float, optional
+        A tolerance per body, used for a pair from its first body where not NaN.
+
+    Raises
+    ------
+    ValueError
+        A tolerance given below what single precision resolves for some pair.
+    """
+    size = body_sizes(scene.local_lo, scene.local_hi, scene.transforms)
+    a, b = pairs[:, 0], pairs[:, 1]
+    floor = resolvable_tolerance(scene, pairs, size)
+    tol = pair_tolerance(size[a], size[b], tolerance)
+    chosen = np.full(len(pairs), tolerance is not None)
+    if given is not None:
+        g = np.asarray(given, dtype=np.float64)[a]
+        chosen |= ~np.isnan(g)
+        tol = np.where(np.isnan(g), tol, g)
+    bad = np.flatnonzero(chosen & (tol < floor))
+    if len(bad):
+        k = bad[np.argmax(floor[bad])]
+        raise ValueError(
+            f"tolerance {tol[k]:g} is too fine for {plural(len(bad), 'candidate pair')} in "
+            f"single precision (first: {scene.label(int(a[k]))} and {scene.label(int(b[k]))}, "
+            f"{size[a[k]]:.3g} and {size[b[k]]:.3g} across): the GPU resolves them at "
+            f"{floor[bad].max():.3g} or coarser; use a coarser tolerance, or test those "
+            "bodies in a query of their own scale")
+    raised = np.flatnonzero(~chosen & (tol < floor))
+    if len(raised):
+        k = raised[np.argmax(floor[raised] / np.maximum(tol[raised], 1e-300))]
+        warn_at_caller(
+            f"{plural(len(raised), 'candidate pair')} {'is' if len(raised) == 1 else 'are'} "
+            f"too far apart in size (or too far from the origin) for their default tolerance in "
+        f"single precision: their tolerance was "
+            f"raised to what the GPU resolves (first: {scene.label(int(a[k]))} and "
+            f"{scene.label(int(b[k]))}, {size[a[k]]:.3g} and {size[b[k]]:.3g} across, "
+            f"tolerance {tol[k]:.3g} -> {floor[k]:.3g}); see stats.tolerance",
+            PrecisionWarning)
+    return np.maximum(tol, floor)
+
+
+__all__ = ["DEFAULT_RELATIVE_TOLERANCE", "MAX_PIXELS_ACROSS", "MAX_PIXELS_FROM_ORIGIN",
+           "SMALLEST_TOLERANCE", "body_sizes", "pair_tolerance", "pair_tolerances",
+           "resolvable_tolerance"]
