@@ -56,27 +56,25 @@ PROBE = (24, 24)
 where most pixels go, are then decided by the probe alone."""
 PROBE_PLAN = 2**16
 """Fewest pixels of a plan whose windows are all probed: probes cost the frame a second round of
-passes, which a small plan of small bodies does not repay (measured on lavapipe: Stairs, 300,000
-pixels, runs about 15% faster with its probes; a box touching a ball, 234 pixels, in 4.0 ms
-without a probe against 5.0 ms with one)."""
+passes, which a small plan of small bodies does not repay (the measurements behind this are in
+the benchmarks' README, "Measurements behind the constants")."""
 PROBE_FACES = 4096
 """Fewest faces of a pair (both bodies) whose large window is probed in a plan of any size: a
-probe spares the rest of the window's faces, which dense meshes make worth a round (two bunnies
-of 56k faces in one 3,825-pixel window: 19.6 ms with a probe, 24.0 ms without)."""
+probe spares the rest of the window's faces, which dense meshes make worth a round (see the
+benchmarks' README)."""
 
 
 LEAD_PAIRS = 64
 """Most pairs planned into rounds of their own, first, when a query stops at its first pair
 found (:func:`likely_pairs`; a quarter of the candidates up to this): a dense scene then often
-stops after them. On lavapipe, 1000 bodies answered in 57 ms instead of 248 with them, a probe
-against 200 objects (56 candidates) in 16.5 ms instead of 27.7."""
+stops after them (see the benchmarks' README)."""
 LEAD_FROM = 16
 """Fewest candidate pairs from which a query that stops at its first pair runs the likeliest
 first (the rounds of their own cost a frame their passes' fixed cost)."""
 
 PARALLEL_PAIRS = 1024
-"""Fewest candidate pairs per thread when planning is shared among threads (measured on two cores:
-the 19,276 pairs of 4,000 bodies planned in 60 ms on one thread, 40 ms on two)."""
+"""Fewest candidate pairs per thread when planning is shared among threads (see the benchmarks'
+README)."""
 
 
 @dataclass

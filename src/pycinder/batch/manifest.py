@@ -74,11 +74,6 @@ def read_manifest(path: str | Path) -> Iterator[dict]:
             yield entry
 
 
-def scan_manifest(path: str | Path) -> int:
-    """Check every line of a manifest (JSON, ids) before a run; the number of scenes."""
-    return sum(1 for _ in read_manifest(path))
-
-
 def normalize(entry: Any, position: int, base: str | Path | None = None) -> dict:
     """A scene entry checked for structure, with mesh paths made absolute.
 
