@@ -1,7 +1,7 @@
 """The contract's edge clause: an edge of one body lying 1.6 tolerances inside the other always
 yields a record of that edge, whatever the size of the cluster that owns it.
 
-Pass F4 tests edges cluster by cluster; a cluster of 64 faces owns about 90-130 edges, more than a
+Pass F5 tests edges cluster by cluster; a cluster of 64 faces owns about 90-130 edges, more than a
 workgroup's threads, so every edge of clusters of every size is checked here against geometry
 built by hand: bodies lying wholly inside a box with room to spare, every one of whose edges is
 therefore inside it.

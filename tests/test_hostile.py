@@ -101,7 +101,7 @@ def test_rounds_shrink_when_the_device_holds_fewer_triangles(monkeypatch):
 
 
 def test_rounds_shrink_when_the_device_holds_fewer_edges_to_sample(monkeypatch):
-    """Likewise for the edges pass F4 lists for sampling: a round listing more than one buffer
+    """Likewise for the edges pass F5 lists for sampling: a round listing more than one buffer
     holds is planned again in smaller rounds, with the same answer."""
     scene = ([BALL] * 30, [move(0.8 * k) for k in range(30)])
     det = pycinder.Detector(tolerance=0.01, records="all")   # every edge of every tile listed

@@ -87,7 +87,7 @@ def test_the_gpu_stops_at_the_first_pair():
     assert len(truth.overlap) > 20 and truth.score(whole.pairs)["recall"] == 1.0
     stopped = det._pending(meshes, transforms, None, None, None, "none",
                            stop_at_first=True).result()
-    # Pass F5 found some pairs; pass F4, which runs after it, then tested no edge at all.
+    # Pass F4 found some pairs; pass F5, which runs after it, then tested no edge at all.
     assert len(stopped.pairs) >= 1
     assert {tuple(p) for p in stopped.pairs.tolist()} <= {tuple(p) for p in whole.pairs.tolist()}
     assert whole.stats.samples > 0 and stopped.stats.samples < whole.stats.samples

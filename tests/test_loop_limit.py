@@ -1,7 +1,7 @@
 """Work that llvmpipe's loop limiter would end silently.
 
 llvmpipe (the CPU driver behind lavapipe Vulkan and llvmpipe OpenGL) ends a shader invocation's
-loops after 65,535 steps in all, as if their conditions were false, and says nothing. Pass F4
+loops after 65,535 steps in all, as if their conditions were false, and says nothing. Pass F5
 samples an edge's part inside a box at a pixel's steps, and the box is as deep as the overlap is
 long over the tolerance: it tests a long part in segments of its own threads. Pass F6 tests an
 open body's edges against the other body's faces cluster by cluster: it counts its steps and,

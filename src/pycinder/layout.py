@@ -18,7 +18,7 @@ ROW = 32768
 
 CLUSTER_FACES = 64
 """Faces per culling cluster. Pass F2 clips one face per thread of a workgroup, so a cluster has at
-most :data:`WORKGROUP` faces; its edges (about twice as many) are strided over by pass F4."""
+most :data:`WORKGROUP` faces; its edges (about twice as many) are strided over by pass F5."""
 
 TILE = Struct("Tile", [
     ("m0", "array<vec4f, 3>", "tile-from-body rows (u, v, z) for body a"),
@@ -39,12 +39,12 @@ CLUSTER = Struct("Cluster", [
 
 INDIRECT_ARGS = Struct("IndirectArgs", [
     ("clip", "array<u32, 3>", "F2 clip: one workgroup per kept cluster"),
-    ("edges", "array<u32, 3>", "F4 edge list and F6: one workgroup per kept edge cluster"),
+    ("edges", "array<u32, 3>", "F5 edge list and F6: one workgroup per kept edge cluster"),
     ("draw", "array<u32, 4>", "F3: vertices, instances, first vertex, first instance"),
-    ("surface", "array<u32, 3>", "F5 surface test: WORKGROUP active pixels per workgroup"),
+    ("surface", "array<u32, 3>", "F4 surface test: WORKGROUP active pixels per workgroup"),
     ("retry_cull", "array<u32, 3>", "F1 cull of a retry round"),
     ("cut", "array<u32, 3>", "F2 cuts: WORKGROUP listed faces per workgroup"),
-    ("edge_test", "array<u32, 3>", "F4 edge test: WORKGROUP listed edges per workgroup"),
+    ("edge_test", "array<u32, 3>", "F5 edge test: WORKGROUP listed edges per workgroup"),
 ], doc="Indirect dispatch and draw arguments, written on the GPU by the passes' decisions.")
 
 RECORD = Struct("Record", [
@@ -89,7 +89,7 @@ COUNTER_NAMES = (
     "C_TOTAL_EDGE_ITEMS",
     "C_CUTS",              # faces listed for cutting by pass F2 (this round)
     "C_AGAIN",             # tiles left undecided whose answer could still change (host retries)
-    "C_EDGES",             # edges listed for sampling by pass F4 (this round)
+    "C_EDGES",             # edges listed for sampling by pass F5 (this round)
     "C_MAX_EDGES",
     "C_FOUND",             # non-zero once any pair of the frame is found
 )

@@ -6,7 +6,7 @@
 // on the counting side of the box only change how many times the ray has entered each body
 // before it reaches the box: they are summed per body (front faces +1, back faces -1, as passes 2
 // and 3 of the paper do in the stencil buffer). Crossings within the box's depth range are kept
-// in a short list per pixel, so that pass F4 can count, for an edge sample at any depth in the
+// in a short list per pixel, so that pass F5 can count, for an edge sample at any depth in the
 // box, the crossings between it and the counting side: there is no one-edge-per-pixel limit.
 //!include tiles.wgsl
 
@@ -22,7 +22,7 @@
 @group(0) @binding(3) var<storage, read_write> crossings: array<vec2u>;
 @group(0) @binding(4) var<uniform> atlas: Atlas;
 @group(0) @binding(5) var<storage, read> tri_face: array<u32>;
-// The pixels with a listed crossing, for pass F5 (counter C_ACTIVE).
+// The pixels with a listed crossing, for pass F4 (counter C_ACTIVE).
 @group(0) @binding(6) var<storage, read_write> active_pixels: array<u32>;
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
 

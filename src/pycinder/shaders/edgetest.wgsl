@@ -1,4 +1,4 @@
-// Focused strategy, pass F4 (compute): every edge of both bodies inside the box, sampled, and each
+// Focused strategy, pass F5 (compute): every edge of both bodies inside the box, sampled, and each
 // sample tested against the other body with the crossings of pass F3.
 //
 // An edge is clipped to the box and sampled at steps of at most one pixel along u, v and z. A
@@ -161,7 +161,7 @@ fn list_edges(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index)
         return;  // the other body has no inside (its surface is tested by pass F6)
     }
     if (pair_found(t)) {
-        return;  // pass F5 or an earlier tile already found this pair
+        return;  // pass F4 or an earlier tile already found this pair
     }
     // A cluster owns up to about twice as many edges as faces: the workgroup strides over them.
     for (var k = lid; k < info.edge_count; k += WORKGROUP) {

@@ -1,9 +1,9 @@
-// Focused strategy, pass F5 (compute): every surface point of both bodies that pass F3 listed in
+// Focused strategy, pass F4 (compute): every surface point of both bodies that pass F3 listed in
 // a tile's box (a face crossing a pixel centre's ray), tested against the other body.
 //
 // The point lies exactly on its body's surface, at the pixel centre and the crossing's depth; the
 // other body's winding there comes from the same pixel's list. Non-zero: the surfaces overlap
-// there, and the point is appended as a record. Edge samples (pass F4) miss overlaps that lie in
+// there, and the point is appended as a record. Edge samples (pass F5) miss overlaps that lie in
 // the middle of faces, between edges; these points do not. One thread per pixel that pass F3
 // listed a crossing at.
 //!include tiles.wgsl
