@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pycinder.broadphase import sweep_and_prune, world_boxes
-from pycinder.passes.broadphase import GpuBroadPhase
+from pycinder.passes.broad import GpuBroadPhase
 from pycinder.testing import random_rotation
 
 
@@ -194,7 +194,7 @@ def test_buffers_are_reused(bp):
     rng = np.random.default_rng(11)
     bodies = random_bodies(rng, 1000)
     bp.pairs(*bodies)
-    buffers = (bp.bodies, bp.elements, bp.sorted_lo, bp.pairs_buffer)
+    buffers = (bp.buffers.bodies, bp.buffers.elements, bp.buffers.sorted_lo, bp.buffers.pairs)
     generations = [b.generation for b in buffers]
     check(bp, *random_bodies(rng, 700))
     assert [b.generation for b in buffers] == generations
@@ -304,19 +304,20 @@ def test_dispatches_over_several_rows_of_workgroups(monkeypatch):
     from pycinder import layout
     from pycinder.gpu.device import get_gpu, shader_source
     from pycinder.passes import bindings
-    from pycinder.passes import broadphase as stage
 
-    key = (id(get_gpu().device), "broadphase")
+    device = id(get_gpu().device)
 
     def forget() -> None:
         shader_source.cache_clear()
-        bindings.Stage._modules.pop(key, None)
+        for key in [k for k in bindings.Stage._modules
+                    if k[0] == device and k[1].startswith("broad_")]:
+            del bindings.Stage._modules[key]
 
-    monkeypatch.setattr(layout, "ROW", 3)
-    monkeypatch.setattr(stage, "ROW", 3)
+    monkeypatch.setattr(layout, "ROW", 3)  # the shaders' ROW (the WGSL prelude)
+    monkeypatch.setattr(bindings, "ROW", 3)  # the dispatches' (workgroup_grid)
     forget()
     try:
-        small_rows = stage.GpuBroadPhase()
+        small_rows = GpuBroadPhase()
         rng = np.random.default_rng(14)
         check(small_rows, *random_bodies(rng, 5000 - 37))  # 16 sort blocks in 18 workgroups
     finally:
@@ -396,3 +397,56 @@ def test_a_query_on_the_gpu_answers_as_with_numpy_at_the_edges():
     assert result.pairs.tolist() == [[0, 1]] and result.stats.broad_phase == "numpy"
     with pytest.raises(ValueError, match="too large for the float32 broad phase"):
         pycinder.Detector(broad_phase="gpu").find_collisions([huge, huge], far)
+
+
+def test_passes_are_numbered_in_order_and_label_their_pipelines(bp):
+    from pycinder.passes.broad import PASSES, broad_pass_table
+
+    assert [p.INFO.number for p in PASSES] == [f"B{k}" for k in range(1, 9)]
+    assert [type(p) for p in bp.passes] == list(PASSES)
+    assert [p.stage.label for p in bp.passes] == [p.INFO.title for p in PASSES]
+    table = broad_pass_table()
+    assert all(p.INFO.name in table for p in PASSES)
+
+
+def test_shaders_declare_no_struct_or_shared_constant_the_host_declares():
+    """The structs the host writes and the constants it shares are generated from
+    ``passes/broad/common.py``: no broad-phase shader spells one out."""
+    import re
+    from importlib import resources
+
+    from pycinder.passes.broad import common, sort
+
+    names = {"Body", "Params", "SortStep", "Grid", "Counts"} | set(common.CONSTS)
+    for f in resources.files("pycinder.shaders").iterdir():
+        if f.name.startswith("broad_"):
+            text = f.read_text()
+            assert not re.search(r"^\s*struct\s", text, re.M), f.name
+            declared = set(re.findall(r"^\s*const\s+(\w+)", text, re.M))
+            assert not declared & names, (f.name, declared & names)
+    assert sort.SORT_STEP.name == "SortStep" and common.BODY.size == 96
+
+
+def test_the_host_writes_the_body_struct_by_field_name():
+    from pycinder.passes.broad.common import BODY, COORDINATE_LIMIT
+    from pycinder.passes.broad.host import packed
+
+    rng = np.random.default_rng(2)
+    lo, hi, r, t = random_bodies(rng, 7)
+    keys = np.arange(7, dtype=np.uint32)
+    bodies, axis, origin = packed(lo, hi, r, t, keys, keys[::-1].copy())
+    assert bodies.dtype == BODY.dtype and bodies.shape == (7,)
+    assert np.array_equal(bodies["rows"][:, :, :3], t[:, :3, :3].astype(np.float32))
+    assert np.array_equal(bodies["rows"][:, :, 3], (t[:, :3, 3] - origin).astype(np.float32))
+    assert np.array_equal(bodies["radius"], r.astype(np.float32))
+    assert (bodies["within"] == keys).all() and (bodies["group"] == keys[::-1]).all()
+    assert COORDINATE_LIMIT > np.abs(bodies["hi"]).max()
+
+
+def test_const_declarations():
+    from pycinder.passes.bindings import const_declarations
+
+    assert const_declarations({"A": 3, "B": 0.5}) == "const A: u32 = 3u;\nconst B: f32 = 0.5;\n"
+    for bad in (-1, 2 ** 32, 0.1, float("inf")):
+        with pytest.raises(ValueError):
+            const_declarations({"X": bad})

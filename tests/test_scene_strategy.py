@@ -100,3 +100,99 @@ def test_offset_works_through_a_user_view_without_pixel_size():
     assert a.pairs.tolist() == b.pairs.tolist() == []
     assert b.stats.self_interference_pixels > 0
     assert a.stats.self_interference_pixels < b.stats.self_interference_pixels / 5
+
+
+# -- The passes as objects: the pass table, structs declared once, binding by name, profiling ----
+
+SHADERS = ("raycast", "filter", "reduce")
+
+
+def test_pass_table_comes_from_the_classes_in_the_order_passes_run():
+    from pycinder.passes.filter import FilterPass
+    from pycinder.passes.raycast import RaycastPasses
+    from pycinder.passes.reduce import MipReduce
+    from pycinder.passes.states import PASSES
+    from pycinder.passes.table import pass_table
+
+    infos = [*RaycastPasses.INFOS, FilterPass.INFO, MipReduce.INFO]
+    assert [i.number for i in infos] == [str(n) for n in range(1, 10)]
+    for info, state in zip(infos, PASSES.values()):
+        # the state column is the state table's row, not a copy of it
+        assert info.kind == "render" and info.state == state.summary
+        assert f"depth {state.depth_compare}" in info.state and f"cull {state.cull}" in info.state
+    table = pass_table(infos)
+    assert all(i.name in table for i in infos)
+
+
+def test_no_shader_declares_a_struct_the_host_writes():
+    import re
+
+    from pycinder.gpu.device import shader_source
+    from pycinder.passes import filter as filter_pass, raycast, reduce
+
+    for shader, struct in zip(SHADERS, (raycast.FRAME, filter_pass.PARAMS, reduce.PARAMS)):
+        source = shader_source(shader)
+        assert not re.search(rf"struct\s+{struct.name}\b", source), shader
+        assert re.search(rf"var<uniform>\s+\w+\s*:\s*{struct.name}\s*;", source), shader
+        assert not re.search(r"\b_pad\w*\s*:", source), shader
+
+
+def test_a_field_added_to_the_frame_struct_is_seen_by_both_sides():
+    """The Frame block grows a field: the generated WGSL declares it, the shader still compiles
+    against it, and the host writes it by name at the offset WGSL gives it."""
+    from pycinder.gpu.structs import Field, Struct
+    from pycinder.passes.bindings import Stage
+    from pycinder.passes.raycast import FRAME, PAYLOAD
+
+    grown = Struct(FRAME.name, [*FRAME.fields, Field("extra", "vec3f", "a test field")],
+                   uniform=True)
+    assert "extra: vec3f" in grown.wgsl() and grown.offset("extra") == 16 and grown.size == 32
+    gpu = pycinder.Detector(strategy="scene", resolution=64).gpu
+    stage = Stage(gpu, "raycast", render={
+        "vertex": "vs_edge", "fragment": "fs_edge", "primitive": {"topology": "line-list"},
+        "targets": [{"format": "rgba32uint"}]}, structs=(grown,), consts=PAYLOAD,
+        layout="declared")
+    assert stage.numbers["frame"] == 0
+    block = grown.zeros()
+    block["extra"] = (1, 2, 3)
+    block["edge_offset"] = 0.5
+    words = np.frombuffer(block.tobytes(), np.uint32)
+    assert words.tolist()[:8] == [np.float32(0.5).view(np.uint32), 0, 0, 0,
+                                  np.float32(1).view(np.uint32), np.float32(2).view(np.uint32),
+                                  np.float32(3).view(np.uint32), 0]
+
+
+def test_bindings_are_by_name_and_a_wrong_name_is_refused():
+    det = pycinder.Detector(strategy="scene", resolution=64)
+    boxes, _, _ = three_boxes()
+    det.find_collisions(boxes)
+    strategy = det.strategy
+    stage = strategy.filter.stage
+    with pytest.raises(KeyError, match="declares no binding"):
+        stage.group("wrong", records=strategy.targets.records_view, counter=strategy.filter.counters)
+    raycast = strategy.raycast
+    group = raycast.bind_group(strategy.buffers, strategy.targets)
+    assert raycast.bind_group(strategy.buffers, strategy.targets) is group  # cached
+
+
+@pytest.mark.parametrize("readback", ["compact", "adaptive"])
+def test_profile_times_every_pass_in_the_frames_one_readback(monkeypatch, readback):
+    """One profiler times the render steps, the filter and the readback mode's passes; the
+    timestamps travel with the header: a query that finds nothing is one submission, one map."""
+    import wgpu
+
+    det = pycinder.Detector(strategy="scene", resolution=128, readback=readback, profile=True)
+    a, b = trimesh.creation.box((1, 1, 1)), trimesh.creation.icosphere(radius=0.4)
+    apart = [np.eye(4), trimesh.transformations.translation_matrix((2, 0, 0))]
+    det.find_collisions([a, b], apart)
+    maps = []
+    map_async = wgpu.backends.wgpu_native.GPUBuffer.map_async
+    monkeypatch.setattr(wgpu.backends.wgpu_native.GPUBuffer, "map_async",
+                        lambda buf, *args, **kw: maps.append(1) or map_async(buf, *args, **kw))
+    result = det.find_collisions([a, b], apart)
+    assert len(maps) == 1 and len(result.records) == 0
+    if det.gpu.timestamps:
+        want = {step.title for step in det.strategy.raycast.plan} | {"8 filter"}
+        if readback == "adaptive":
+            want.add("9 mip-map reduction")
+        assert set(result.stats.gpu_ms) == want

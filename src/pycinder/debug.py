@@ -1,6 +1,6 @@
 """``pycinder debug-buffers``: the buffers after each pass, as in the paper's Figures 9 to 13.
 
-The scene strategy's frame runner runs each pass in its own render pass when given a hook, so that
+The whole-scene strategy's frame runs each pass in its own render pass when given a hook, so that
 depth, stencil and colour can be captured between passes; the normal path replays one bundle per
 render step.
 """
@@ -17,7 +17,8 @@ import trimesh
 import wgpu
 
 from .detector import Detector
-from .gpu.device import shader_source
+from .passes.bindings import Stage
+from .passes.states import STENCIL_MASK
 from .result import Stats
 from .scene import prepare_scene
 from .view import View
@@ -78,7 +79,7 @@ def record_image(records: np.ndarray) -> np.ndarray:
 
 
 class BufferCapture:
-    """Runs the scene strategy's passes one render pass at a time (the frame runner's hook) and
+    """Runs the whole-scene strategy's passes one render pass at a time (the frame's hook) and
     reads the buffers between them, on any backend.
 
     The depth buffer after pass 1 is read from the colour target's b channel, which pass 1 fills
@@ -94,17 +95,14 @@ class BufferCapture:
         self.strategy = detector.strategy
         device = detector.gpu.device
         t = self.strategy.targets
-        module = device.create_shader_module(label="debug", code=shader_source("debug"))
         equal = {"compare": "equal", "fail_op": "keep", "depth_fail_op": "keep", "pass_op": "keep"}
-        self.pipeline = device.create_render_pipeline(
-            label="stencil readout", layout="auto",
-            vertex={"module": module, "entry_point": "vs"},
-            primitive={"topology": "triangle-list"},
-            depth_stencil={"format": detector.gpu.depth_format, "depth_write_enabled": False,
-                           "depth_compare": "always", "stencil_front": equal,
-                           "stencil_back": equal, "stencil_read_mask": 0xFF,
-                           "stencil_write_mask": 0},
-            fragment={"module": module, "entry_point": "fs", "targets": [{"format": "r8uint"}]})
+        self.pipeline = Stage(detector.gpu, "debug", label="stencil readout", render={
+            "primitive": {"topology": "triangle-list"},
+            "depth_stencil": {"format": detector.gpu.depth_format, "depth_write_enabled": False,
+                              "depth_compare": "always", "stencil_front": equal,
+                              "stencil_back": equal, "stencil_read_mask": STENCIL_MASK,
+                              "stencil_write_mask": 0},
+            "targets": [{"format": "r8uint"}]}).pipeline
         self.stencil = device.create_texture(
             size=(t.width, t.height, 1), format="r8uint",
             usage=wgpu.TextureUsage.RENDER_ATTACHMENT | wgpu.TextureUsage.COPY_SRC)
@@ -158,7 +156,7 @@ class BufferCapture:
             elif name is not None:
                 out[name] = self._read(strategy.targets.records, 16, np.uint32, 4)
 
-        strategy.runner.run(stats, hook)
+        strategy.frame.run(stats, hook)
         if strategy.filter.output == "full":
             data = np.frombuffer(self.det.gpu.device.queue.read_buffer(strategy.filter.out.buffer),
                                  np.uint32)

@@ -1,27 +1,34 @@
-"""One frame of the paper's passes through one view: the runner that the scene strategy and the
-debug capture share.
+"""One frame of the whole-scene strategy through one view: the frame encoder that the strategy
+and the debug capture share.
 
-    passes 1-7 (grouped into render steps) -> self-interference filter -> readback mode's GPU work
-    -> counters (16 bytes; nothing else when nothing survived) -> records
+    passes 1-7 (grouped into render steps) -> pass 8, self-interference filter
+    -> the readback mode's passes (pass 9, mip-map reduction) -> header (the filter's counters
+    first; nothing else when nothing survived) -> records
 
-Normally each render step replays a render bundle recorded once per topology, and everything goes
-in one submission. With a hook, every pass gets its own render pass and submission and the hook
-runs after each, so the debug capture can read the depth, stencil and colour buffers between
-passes (the paper's Figures 9 to 13).
+The passes are objects (:class:`~pycinder.passes.raycast.RaycastPasses`,
+:class:`~pycinder.passes.filter.FilterPass`, :class:`~pycinder.passes.reduce.MipReduce`), each
+encoding itself onto a :class:`SceneFrame`; :class:`WholeSceneFrame` walks them in order and
+times them with the one :class:`~pycinder.passes.bindings.Profiler` that the focused strategy
+also uses. Normally each render step replays a render bundle recorded once per topology, and
+everything goes in one submission, the timestamps travelling with the header. With a hook,
+every pass gets its own render pass and submission and the hook runs after each, so the debug
+capture can read the depth, stencil and colour buffers between passes (the paper's Figures 9 to
+13).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import wgpu
 
-from .gpu.buffers import Readback, SceneBuffers, Targets
+from .gpu.buffers import GrowableBuffer, Readback, SceneBuffers, Targets
 from .gpu.device import Gpu
-from .passes.filter import FilterPass
+from .passes.bindings import Profiler
+from .passes.filter import FilterPass, read_counters
 from .passes.raycast import RaycastPasses
-from .passes.states import RenderStep
 from .readback import ReadbackMode
 from .result import Stats
 
@@ -30,8 +37,32 @@ Hook = Callable[[str], None]
 and with ``"filter"`` after the filter."""
 
 
-class FrameRunner:
-    """Runs passes 1-7, the filter and the readback of one view.
+@dataclass(frozen=True)
+class SceneFrame:
+    """What every pass of a whole-scene frame encodes onto.
+
+    Attributes
+    ----------
+    encoder : wgpu.GPUCommandEncoder
+    profiler : Profiler
+        Gives each pass its timestamp writes (none when profiling is off).
+    targets : Targets
+        The records and depth-stencil targets of the resolution.
+    buffers : SceneBuffers
+        The uploaded scene, with the view's matrices written.
+    filtered : GrowableBuffer
+        The filter's output: level 0 of the mip-map reduction.
+    """
+
+    encoder: wgpu.GPUCommandEncoder
+    profiler: Profiler
+    targets: Targets
+    buffers: SceneBuffers
+    filtered: GrowableBuffer
+
+
+class WholeSceneFrame:
+    """Runs passes 1-9 and the readback of one view of the whole-scene strategy.
 
     Parameters
     ----------
@@ -43,7 +74,7 @@ class FrameRunner:
     buffers : SceneBuffers
         The uploaded scene, with the view's matrices already written.
     profile : bool
-        Time each render step and the filter with timestamp queries.
+        Time each render step, the filter and the readback mode's passes.
     """
 
     def __init__(self, gpu: Gpu, raycast: RaycastPasses, filter_pass: FilterPass,
@@ -51,95 +82,57 @@ class FrameRunner:
                  profile: bool = False) -> None:
         self.gpu, self.raycast, self.filter, self.readback = gpu, raycast, filter_pass, readback
         self.targets, self.buffers = targets, buffers
-        device = gpu.device
-        self.counters = Readback(device, "counters readback")
-        self.records = Readback(device, "records readback")
-        self.profile = profile and gpu.timestamps
-        if self.profile:
-            self.stage_names = [" + ".join(f"pass {n}" for n in step.passes)
-                                for step in raycast.plan] + ["filter"]
-            n = 2 * len(self.stage_names)
-            self.queries = device.create_query_set(type="timestamp", count=n)
-            self.query_buf = device.create_buffer(
-                size=8 * n, usage=wgpu.BufferUsage.QUERY_RESOLVE | wgpu.BufferUsage.COPY_SRC)
-            self.query_readback = Readback(device, "timestamps readback")
+        self.counters = Readback(gpu.device, "counters readback")
+        self.records = Readback(gpu.device, "records readback")
+        self.profiler = Profiler(gpu, profile)
+        self._untimed = Profiler(gpu, False)
 
-    def _timestamps(self, i: int) -> dict | None:
-        if not self.profile:
-            return None
-        return {"query_set": self.queries, "beginning_of_pass_write_index": 2 * i,
-                "end_of_pass_write_index": 2 * i + 1}
-
-    def _passes_with_hook(self, hook: Hook) -> None:
-        """Each pass in its own render pass and submission, except that passes 5-7 stay together
-        (they run body by body); the steps' own starts (clears, copies) stay where they are. Pass
-        1 also writes its edges' depth bits into the colour target (channel b) for the hook to
-        read, and the colour target is cleared again after it where the plan would not do so."""
-        device = self.gpu.device
-        raycast = self.raycast
-        bind_group = raycast.bind_group(self.buffers, self.targets)
-        for step in raycast.plan:
-            chunks: list[tuple[int, ...]] = []
-            for n in step.passes:
-                if chunks and raycast.states[n].per_body and raycast.states[chunks[-1][-1]].per_body:
-                    chunks[-1] += (n,)
-                else:
-                    chunks.append((n,))
-            for k, chunk in enumerate(chunks):
-                encoder = device.create_command_encoder()
-                start = step if k == 0 else RenderStep(chunk, False, False)
-                rp = RaycastPasses.begin_step(encoder, self.targets, start)
-                raycast.record(rp, chunk, self.buffers, bind_group, capture=True)
-                rp.end()
-                device.queue.submit([encoder.finish()])
-                hook(f"pass {chunk[-1]}")
-                if chunk == (1,) and raycast.states[1].color_writes != "rba" \
-                        and len(chunks) > 1:
-                    encoder = device.create_command_encoder()
-                    RaycastPasses.begin_step(encoder, self.targets,
-                                             RenderStep((), False, True)).end()
-                    device.queue.submit([encoder.finish()])
+    @property
+    def passes(self) -> tuple:
+        """The passes of a frame after passes 1-7, in order: the filter, then the readback
+        mode's."""
+        return (self.filter, *self.readback.passes)
 
     def run(self, stats: Stats, hook: Hook | None = None) -> np.ndarray:
-        """Run the passes, the filter and the readback mode's GPU work; returns the header
-        (counters first) as uint32 words."""
+        """Run the passes and the copy of the header; returns the header (the filter's counters
+        first) as uint32 words, and adds the passes' GPU times to ``stats.gpu_ms`` when
+        profiling."""
         device = self.gpu.device
+        profiler = self.profiler if hook is None else self._untimed
+        profiler.begin(len(self.raycast.plan) + len(self.passes))
         encoder = device.create_command_encoder()
-        steps = len(self.raycast.plan)
         if hook is None:
-            self.raycast.encode(encoder, self.buffers, self.targets,
-                                [self._timestamps(i) for i in range(steps)] if self.profile else None)
+            self.raycast.encode(self._frame(encoder, profiler))
         else:
-            self._passes_with_hook(hook)
-        self.filter.encode(encoder, self.targets,
-                           timestamp_writes=self._timestamps(steps) if hook is None else None)
-        if hook is not None:
-            device.queue.submit([encoder.finish()])
-            hook("filter")
-            encoder = device.create_command_encoder()
-        staging = self.counters.ensure(self.readback.header_bytes + 64)
-        header_bytes = self.readback.encode(encoder, self.filter, staging)
-        if self.profile and hook is None:
-            nq = 2 * len(self.stage_names)
-            encoder.resolve_query_set(self.queries, 0, nq, self.query_buf, 0)
-            encoder.copy_buffer_to_buffer(self.query_buf, 0, self.query_readback.ensure(8 * nq),
-                                          0, 8 * nq)
+            self.raycast.encode_each(device, self.buffers, self.targets, hook)
+        for k, stage in enumerate(self.passes):
+            stage.encode(self._frame(encoder, profiler))
+            if hook is not None and k == 0:
+                device.queue.submit([encoder.finish()])
+                hook("filter")
+                encoder = device.create_command_encoder()
+        header_bytes = self.readback.header_bytes
+        staging = self.counters.ensure(header_bytes + profiler.nbytes)
+        self.readback.copy_header(encoder, self.filter, staging)
+        profiler.resolve(encoder, staging, header_bytes)
         device.queue.submit([encoder.finish()])
-        header = self.counters.read(header_bytes)
+        words = self.counters.read(header_bytes + profiler.nbytes)
         stats.bytes_read += header_bytes
-        if self.profile and hook is None:
-            ts = self.query_readback.read(8 * len(self.stage_names) * 2, np.uint64)
-            ts = ts.astype(np.float64)
-            for i, name in enumerate(self.stage_names):
-                stats.gpu_ms[name] = stats.gpu_ms.get(name, 0.0) + (ts[2 * i + 1] - ts[2 * i]) * 1e-6
-        return header
+        for name, ms in profiler.times(words[header_bytes // 4:]).items():
+            stats.gpu_ms[name] = stats.gpu_ms.get(name, 0.0) + ms
+        return words[:header_bytes // 4]
+
+    def _frame(self, encoder: wgpu.GPUCommandEncoder, profiler: Profiler) -> SceneFrame:
+        return SceneFrame(encoder, profiler, self.targets, self.buffers, self.filter.out)
 
     def read_records(self, header: np.ndarray, stats: Stats, view_index: int, encode: str,
                      edge_start: np.ndarray) -> np.ndarray | None:
-        """The records of the frame, or None when nothing survived the filter."""
-        survivors = int(header[0])
-        stats.self_interference_pixels += int(header[1])
-        stats.unidentified_pixels += int(header[2])
+        """The records of the frame (a structured array, see :mod:`pycinder.records`), or None
+        when nothing survived the filter."""
+        counters = read_counters(header)
+        survivors = int(counters["survivors"])
+        stats.self_interference_pixels += int(counters["self_interference"])
+        stats.unidentified_pixels += int(counters["unidentified"])
         if survivors == 0:
             return None
         source, nbytes = self.readback.source(self.filter, header, survivors, stats)
@@ -150,3 +143,6 @@ class FrameRunner:
         data = self.records.read(nbytes)
         stats.bytes_read += nbytes
         return self.readback.decode(data, view_index, encode, edge_start)
+
+
+__all__ = ["Hook", "SceneFrame", "WholeSceneFrame"]

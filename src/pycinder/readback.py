@@ -1,7 +1,8 @@
-"""How the scene strategy brings its records back (paper 4.3.2), one small class per mode.
+"""How the whole-scene strategy brings its records back (paper 4.3.2), one small class per mode.
 
-Each mode says which output of the self-interference filter it needs, what it adds on the GPU
-after the filter, which buffer and how many bytes it reads, and how those bytes become records.
+Each mode says which output of the self-interference filter it needs, which passes it adds on
+the GPU after the filter (:attr:`ReadbackMode.passes`, encoded by the frame), which buffer and
+how many bytes it reads, and how those bytes become records.
 All modes first read the filter's 16-byte counters, and stop there when nothing survived: the
 paper's occlusion-query early-out (4.3.2.3).
 
@@ -29,7 +30,15 @@ from .result import Stats
 
 
 class ReadbackMode:
-    """A readback mode of the scene strategy."""
+    """A readback mode of the whole-scene strategy.
+
+    Parameters
+    ----------
+    gpu : Gpu
+    width, height : int
+        The resolution.
+    request : CollisionRequest
+    """
 
     name = ""
     filter_output = "compact"
@@ -37,12 +46,14 @@ class ReadbackMode:
 
     def __init__(self, gpu: Gpu, width: int, height: int, request: CollisionRequest) -> None:
         self.gpu, self.width, self.height = gpu, width, height
+        self.passes: tuple[MipReduce, ...] = ()
+        """Passes the frame encodes after the filter, in order."""
 
-    def encode(self, encoder: wgpu.GPUCommandEncoder, filter_pass: FilterPass,
-               staging: wgpu.GPUBuffer) -> int:
-        """Record GPU work after the filter and the copy of the counters into ``staging``.
+    def copy_header(self, encoder: wgpu.GPUCommandEncoder, filter_pass: FilterPass,
+                    staging: wgpu.GPUBuffer) -> int:
+        """Record the copy of the header (the filter's counters first) into ``staging``.
 
-        Returns the bytes of ``staging`` to read: the header.
+        Returns the bytes of ``staging`` to read: :attr:`header_bytes`.
         """
         encoder.copy_buffer_to_buffer(filter_pass.counters, 0, staging, 0, COUNTERS_BYTES)
         return COUNTERS_BYTES
@@ -96,6 +107,7 @@ class Mipmap(ReadbackMode):
     def __init__(self, gpu: Gpu, width: int, height: int, request: CollisionRequest) -> None:
         super().__init__(gpu, width, height, request)
         self.reduce = MipReduce(gpu, width, height, self.levels(request))
+        self.passes = (self.reduce,)
 
     def levels(self, request: CollisionRequest) -> int:
         return int(request.mipmap_levels)
@@ -105,9 +117,8 @@ class Mipmap(ReadbackMode):
         lost_bytes = 4 * (self.reduce.levels + 1)
         return COUNTERS_BYTES + -(-lost_bytes // 8) * 8
 
-    def encode(self, encoder, filter_pass, staging):
-        super().encode(encoder, filter_pass, staging)
-        self.reduce.encode(encoder, filter_pass.out.buffer)
+    def copy_header(self, encoder, filter_pass, staging):
+        super().copy_header(encoder, filter_pass, staging)
         encoder.copy_buffer_to_buffer(self.reduce.lost, 0, staging, COUNTERS_BYTES,
                                       4 * (self.reduce.levels + 1))
         return self.header_bytes

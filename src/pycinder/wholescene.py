@@ -1,7 +1,8 @@
-"""The scene strategy: the paper's CInDeR over one image of the whole scene.
+"""The whole-scene strategy (``strategy="scene"``): the paper's CInDeR over one image of the
+whole scene.
 
     scene -> pack body by body -> upload -> views (fitted, or the user's)
-          -> per view: frame runner (passes 1-7, filter, readback mode) -> records
+          -> per view: frame (passes 1-7, filter, readback mode's passes) -> records
           -> merge views -> pairs
 
 Its pixel is the scene's extent divided by the resolution, and at most one edge is seen per pixel
@@ -17,7 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .errors import ClippedBodyWarning, warn_at_caller
-from .frame import FrameRunner, Hook
+from .frame import Hook, WholeSceneFrame
 from .gpu.buffers import SceneBuffers, Targets
 from .gpu.device import Gpu, check_resolution
 from .passes.filter import FilterPass
@@ -32,7 +33,7 @@ from .selfint import SELF_INTERFERENCE
 from .view import View, world_corners
 
 
-class SceneStrategy:
+class WholeSceneStrategy:
     """Runs queries through one image of the whole scene (or several views, merged).
 
     Parameters
@@ -54,7 +55,7 @@ class SceneStrategy:
         self.raycast = RaycastPasses(gpu, self.selfint.table, self.selfint.plan)
         self.filter = FilterPass(gpu, self.readback.filter_output)
         self.buffers = SceneBuffers(device)
-        self.runner = FrameRunner(gpu, self.raycast, self.filter, self.readback, self.targets,
+        self.frame = WholeSceneFrame(gpu, self.raycast, self.filter, self.readback, self.targets,
                                   self.buffers, profile=request.profile)
 
     def prepare(self, scene: Scene, view: View | Sequence[View] | None, stats: Stats
@@ -74,7 +75,7 @@ class SceneStrategy:
         lo, hi = scene.world_boxes()
         centre = 0.5 * (lo.min(axis=0) + hi.max(axis=0))
         offset = self.selfint.edge_offset(view, self.resolution, centre)
-        self.buffers.write_frame(offset, 1 if self.request.encode == "normal" else 0)
+        self.raycast.write_frame(offset, payload_normal=self.request.encode == "normal")
 
     def run(self, scene: Scene, stats: Stats, view: View | Sequence[View] | None = None,
             hook: Hook | None = None) -> CollisionResult:
@@ -91,9 +92,9 @@ class SceneStrategy:
         for k, v in enumerate(views):
             t1 = time.perf_counter()
             self.set_view(v, scene)
-            header = self.runner.run(stats, hook)
+            header = self.frame.run(stats, hook)
             t2 = time.perf_counter()
-            rec = self.runner.read_records(header, stats, k, self.request.encode, packed.edge_start)
+            rec = self.frame.read_records(header, stats, k, self.request.encode, packed.edge_start)
             if rec is not None:
                 rec["point"] = v.unproject(rec["pixel_x"], rec["pixel_y"], rec["pixel_z"],
                                            self.resolution, self.resolution)

@@ -64,15 +64,16 @@ class GrowableBuffer:
 
 
 class SceneBuffers:
-    """The packed scene on the GPU (bindings 1-7 of ``raycast.wgsl``)."""
+    """The packed scene on the GPU, for the whole-scene strategy's passes 1-7: each storage
+    buffer under the name ``raycast.wgsl`` binds it by (:attr:`NAMES`), and the index buffer.
+    (The view's own constants, the ``Frame`` block, belong to the passes:
+    :class:`~pycinder.passes.raycast.RaycastPasses`.)"""
 
     NAMES = ("positions", "vertex_body", "clip_from_body", "edges", "vertex_normals",
              "edge_normals", "world_from_body")
 
     def __init__(self, device: wgpu.GPUDevice) -> None:
         self.device = device
-        self.frame = device.create_buffer(label="frame", size=16,
-                                          usage=wgpu.BufferUsage.UNIFORM | wgpu.BufferUsage.COPY_DST)
         self.storage = {n: GrowableBuffer(device, n, STORAGE) for n in self.NAMES}
         self.index = GrowableBuffer(device, "indices",
                                     wgpu.BufferUsage.INDEX | wgpu.BufferUsage.COPY_DST)
@@ -141,12 +142,6 @@ class SceneBuffers:
             self.storage[name].ensure(data.nbytes)
             self.storage[name].write(data)
 
-    def write_frame(self, edge_offset: float, payload_mode: int) -> None:
-        data = np.zeros(4, dtype=np.uint32)
-        data[0] = np.float32(edge_offset).view(np.uint32)
-        data[1] = payload_mode
-        self.device.queue.write_buffer(self.frame, 0, data)
-
 
 class Targets:
     """Render targets of one resolution.
@@ -176,8 +171,6 @@ class Targets:
     @property
     def pixels(self) -> int:
         return self.width * self.height
-
-
 
 
 class Readback:

@@ -10,6 +10,7 @@ in Python (:class:`~pycinder.gpu.structs.Struct`) and generated into its source.
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from typing import Any, Union
 
 import numpy as np
@@ -20,10 +21,14 @@ from ..gpu.device import Gpu, shader_source
 from ..gpu.structs import Struct, declarations
 from ..layout import ROW
 
-Resource = Union[wgpu.GPUBuffer, GrowableBuffer, tuple]
-"""A buffer, a growable buffer (its current buffer), or ``(buffer, offset, size)``."""
+Resource = Union[wgpu.GPUBuffer, GrowableBuffer, tuple, wgpu.GPUTextureView, wgpu.GPUSampler]
+"""A buffer, a growable buffer (its current buffer), ``(buffer, offset, size)``, a texture view
+or a sampler."""
 
 _BINDING = re.compile(r"@group\(0\)\s*@binding\((\d+)\)\s*var(?:<[^>]*>)?\s+(\w+)")
+_DECLARATION = re.compile(
+    r"@group\(0\)\s*@binding\((\d+)\)\s*var(?:<([^>]*)>)?\s+\w+\s*:\s*([A-Za-z_0-9]+(?:<\w+>)?)")
+_SAMPLE_TYPES = {"u32": "uint", "i32": "sint", "f32": "float"}
 
 PARAM_STRIDE = 256
 """Bytes between parameter blocks of one uniform buffer (WebGPU's uniform offset alignment)."""
@@ -38,6 +43,50 @@ def workgroup_grid(n: int) -> tuple[int, int]:
 def binding_numbers(source: str) -> dict[str, int]:
     """Binding number of every ``@group(0)`` variable declared in a WGSL source, by name."""
     return {name: int(number) for number, name in _BINDING.findall(source)}
+
+
+def _layout_entry(number: int, space: str, wgsl_type: str, visibility: int) -> dict[str, Any]:
+    """The bind group layout entry of one ``@group(0)`` declaration."""
+    space = space.replace(" ", "")
+    entry: dict[str, Any] = {"binding": number, "visibility": visibility}
+    if space == "uniform":
+        entry["buffer"] = {"type": wgpu.BufferBindingType.uniform}
+    elif space == "storage,read_write":  # vertex shaders cannot write storage
+        entry["buffer"] = {"type": wgpu.BufferBindingType.storage}
+        entry["visibility"] = visibility & ~wgpu.ShaderStage.VERTEX
+    elif space.startswith("storage"):
+        entry["buffer"] = {"type": wgpu.BufferBindingType.read_only_storage}
+    elif wgsl_type.startswith("texture_2d<"):
+        entry["texture"] = {"sample_type": _SAMPLE_TYPES[wgsl_type[11:-1]]}
+    elif wgsl_type == "sampler":
+        entry["sampler"] = {"type": wgpu.SamplerBindingType.filtering}
+    else:
+        raise ValueError(f"binding {number}: cannot declare a layout for {wgsl_type!r}")
+    return entry
+
+
+def declared_layout_entries(source: str, visibility: int) -> list[dict[str, Any]]:
+    """Bind group layout entries of every ``@group(0)`` variable declared in a WGSL source, each
+    visible to the stages ``visibility`` (a writable storage buffer to the non-vertex ones)."""
+    return [_layout_entry(int(n), space, t, visibility)
+            for n, space, t in _DECLARATION.findall(source)]
+
+
+def const_declarations(consts: Mapping[str, int | float]) -> str:
+    """WGSL ``const`` declarations of ``consts``: ``u32`` for an int (0 to 2**32 - 1), ``f32``
+    for a float (written exactly: the value must be a float32)."""
+    lines = []
+    for name, value in consts.items():
+        if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+            if not 0 <= value < 2 ** 32:
+                raise ValueError(f"const {name} = {value} is not a u32")
+            lines.append(f"const {name}: u32 = {int(value)}u;")
+        elif isinstance(value, (float, np.floating)) and np.isfinite(value) \
+                and float(np.float32(value)) == value:
+            lines.append(f"const {name}: f32 = {float(value)!r};")
+        else:
+            raise ValueError(f"const {name} = {value!r} is not a u32 or a float32")
+    return "".join(f"{line}\n" for line in lines)
 
 
 class Stage:
@@ -59,37 +108,81 @@ class Stage:
         Structs the shader uses that are declared with the pass (its parameters): their WGSL
         declarations are generated in front of the shader's source. Every stage of one shader
         file gives the same ones.
+    consts : dict of str to int or float, optional
+        Constants declared in Python and shared with the shader: generated in front of its
+        source as ``const NAME: u32`` (an int) or ``const NAME: f32`` (a float). Every stage of
+        one shader file gives the same ones.
+    layout : {"auto", "declared"}
+        ``"auto"``: the pipeline's own bind group layout (of the bindings its entry points use).
+        ``"declared"``: one layout of every binding the shader declares, shared by every stage of
+        the shader (with the same structs and constants) that asks for it, so one bind group
+        serves all their pipelines (as a render bundle that switches pipelines needs).
+
+    Notes
+    -----
+    ``render`` may also give ``vertex`` and ``fragment`` (entry points; default ``vs`` and
+    ``fs``) and ``depth_stencil`` (the pipeline's depth-stencil state).
     """
 
-    _modules: dict[tuple[int, str, tuple[str, ...]], wgpu.GPUShaderModule] = {}
+    _modules: dict[tuple[int, str, tuple[str, ...], str], wgpu.GPUShaderModule] = {}
+    _layouts: dict[tuple, tuple[wgpu.GPUBindGroupLayout, wgpu.GPUPipelineLayout]] = {}
 
     def __init__(self, gpu: Gpu, shader: str, entry: str = "", *, render: dict | None = None,
-                 label: str = "", structs: tuple[Struct, ...] = ()) -> None:
+                 label: str = "", structs: tuple[Struct, ...] = (),
+                 consts: Mapping[str, int | float] | None = None,
+                 layout: str = "auto") -> None:
         self.device = gpu.device
         self.label = label or f"{shader}: {entry}"
         source = shader_source(shader)
         if structs:
             source = declarations(structs) + source
+        generated = const_declarations(consts or {})
+        source = generated + source
         self.numbers = binding_numbers(source)
-        key = (id(self.device), shader, tuple(s.wgsl() for s in structs))
+        key = (id(self.device), shader, tuple(s.wgsl() for s in structs), generated)
         module = self._modules.get(key)
         if module is None:
             module = self._modules[key] = self.device.create_shader_module(label=shader,
                                                                            code=source)
+        self.bind_layout: wgpu.GPUBindGroupLayout | None = None
+        pipeline_layout: Any = "auto"
+        if layout == "declared":
+            self.bind_layout, pipeline_layout = self._declared_layout(key, source, render is None)
+        elif layout != "auto":
+            raise ValueError(f"unknown layout {layout!r}")
         if render is None:
             self.pipeline = self.device.create_compute_pipeline(
-                label=self.label, layout="auto",
+                label=self.label, layout=pipeline_layout,
                 compute={"module": module, "entry_point": entry})
         else:
+            extra = {"depth_stencil": render["depth_stencil"]} if "depth_stencil" in render else {}
             self.pipeline = self.device.create_render_pipeline(
-                label=self.label, layout="auto",
-                vertex={"module": module, "entry_point": "vs"},
+                label=self.label, layout=pipeline_layout,
+                vertex={"module": module, "entry_point": render.get("vertex", "vs")},
                 primitive=render["primitive"],
-                fragment={"module": module, "entry_point": "fs", "targets": render["targets"]})
+                fragment={"module": module, "entry_point": render.get("fragment", "fs"),
+                          "targets": render["targets"]}, **extra)
+        if self.bind_layout is None:
+            self.bind_layout = self.pipeline.get_bind_group_layout(0)
         self._groups: dict[str, tuple[tuple, wgpu.GPUBindGroup]] = {}
 
+    def _declared_layout(self, key: tuple, source: str, compute: bool
+                         ) -> tuple[wgpu.GPUBindGroupLayout, wgpu.GPUPipelineLayout]:
+        """The bind group layout of every binding of ``source`` and its pipeline layout, made
+        once per shader module and kind of pipeline."""
+        key = (*key, compute)
+        if key not in self._layouts:
+            stages = wgpu.ShaderStage
+            visibility = stages.COMPUTE if compute else stages.VERTEX | stages.FRAGMENT
+            bind_layout = self.device.create_bind_group_layout(
+                label=self.label, entries=declared_layout_entries(source, visibility))
+            self._layouts[key] = (bind_layout, self.device.create_pipeline_layout(
+                bind_group_layouts=[bind_layout]))
+        return self._layouts[key]
+
     def group(self, key: str = "", /, **resources: Resource) -> wgpu.GPUBindGroup:
-        """The bind group of ``resources`` by binding name (cached under ``key``).
+        """The bind group of ``resources`` (buffers, texture views, samplers) by binding name
+        (cached under ``key``).
 
         Every binding the pipeline uses must be given; names the shader does not declare are an
         error (a renamed binding is caught at once)."""
@@ -108,12 +201,13 @@ class Stage:
         for name, resource in zip(resources, resolved):
             if isinstance(resource, tuple):
                 buffer, offset, size = resource
-                entry = {"buffer": buffer, "offset": offset, "size": size}
+                entry: Any = {"buffer": buffer, "offset": offset, "size": size}
+            elif isinstance(resource, (wgpu.GPUTextureView, wgpu.GPUSampler)):
+                entry = resource
             else:
                 entry = {"buffer": resource}
             entries.append({"binding": self.numbers[name], "resource": entry})
-        group = self.device.create_bind_group(layout=self.pipeline.get_bind_group_layout(0),
-                                              entries=entries)
+        group = self.device.create_bind_group(layout=self.bind_layout, entries=entries)
         self._groups[key] = (ident, group)
         return group
 
@@ -200,4 +294,5 @@ class Profiler:
         return out
 
 
-__all__ = ["PARAM_STRIDE", "Profiler", "Stage", "binding_numbers", "dispatch", "workgroup_grid"]
+__all__ = ["PARAM_STRIDE", "Profiler", "Stage", "binding_numbers", "const_declarations", "dispatch",
+           "workgroup_grid"]

@@ -1,4 +1,5 @@
-"""The self-interference filter (paper 4.3.1.2) as a compute pass, with its two outputs.
+"""Pass 8 of the whole-scene strategy: the self-interference filter (paper 4.3.1.2) as a compute
+pass, with its three outputs.
 
 ``full`` writes the filtered image; ``compact`` appends the surviving records to a buffer through
 an atomic counter, so that only the records are read back; ``packed`` writes the image in the
@@ -11,73 +12,118 @@ nothing else is read back.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, ClassVar
+
 import numpy as np
 import wgpu
 
 from ..gpu.buffers import GrowableBuffer, Targets
-from ..gpu.device import Gpu, shader_source
+from ..gpu.device import Gpu
+from ..gpu.structs import Struct
+from .bindings import Stage
+from .table import PassInfo
 
-COUNTERS_BYTES = 16
+if TYPE_CHECKING:
+    from ..frame import SceneFrame
+
+PARAMS = Struct("FilterParams", [
+    ("width", "u32", "pixels per row of the records target"),
+    ("height", "u32", "rows of the records target"),
+    ("capacity", "u32", "records the compact output holds"),
+], uniform=True, doc="The filter's parameters, written by the host once per resolution.")
+
+COUNTERS = Struct("FilterCounters", [
+    ("survivors", "u32", "records that survived the filter"),
+    ("self_interference", "u32", "pixels blanked as self-interference (r == g)"),
+    ("unidentified", "u32", "pixels blanked as unidentified (r != 0, g == 0)"),
+    ("overflow", "u32", "survivors that did not fit the compact output (never: it holds all)"),
+], doc="The filter's counters: atomics on the GPU, the first words of every readback.")
+"""The filter's counters as the host reads them. WGSL counts them with atomics, which a struct
+the host writes cannot hold: the shader sees ``array<atomic<u32>, COUNTER_WORDS>`` and the index
+constants of :data:`COUNTER_INDEX`, generated from this declaration."""
+
+COUNTERS_BYTES = COUNTERS.size
 RECORD_BYTES = 16
+"""Bytes of one record (a ``vec4u``)."""
 WORKGROUP = 8
+"""Side of the square workgroups of the filter and the reduction (``@workgroup_size(8, 8)``)."""
+
+COUNTER_INDEX = {f"COUNT_{f.name.upper()}": COUNTERS.offset(f.name) // 4 for f in COUNTERS.fields}
+"""WGSL constants: the index of each counter in the atomic array."""
+
+
+def read_counters(header: np.ndarray) -> np.void:
+    """The counters at the start of a readback's header ((words,) uint32), by name."""
+    return header[:COUNTERS.size // 4].view(COUNTERS.dtype)[0]
 
 
 class FilterPass:
-    """Filter self-interference and unidentified pixels; write the image or compact records.
+    """Pass 8: filter self-interference and unidentified pixels; write the image or compact
+    records.
 
-    counters : (4,) uint32 buffer: survivors, self-interference blanked, unidentified blanked,
-        overflow
-    out : the filtered image ((H*W, 4) uint32) or the compact records ((K, 4) uint32)
+    Parameters
+    ----------
+    gpu : Gpu
+    output : {"full", "compact", "packed"}
+        Which entry point of ``filter.wgsl`` runs (what the readback mode reads).
+
+    Attributes
+    ----------
+    counters : wgpu.GPUBuffer
+        :data:`COUNTERS`, zeroed before every frame.
+    out : GrowableBuffer
+        The filtered image ((H*W, 4) uint32) or the compact records ((K, 4) uint32).
     """
 
-    ENTRY = {"full": "filter_full", "compact": "filter_compact", "packed": "filter_packed"}
+    INFO: ClassVar[PassInfo] = PassInfo(
+        "8", "filter", "blank self-interference and unidentified pixels; count the survivors",
+        when="every view")
+    ENTRY: ClassVar[dict[str, str]] = {
+        "full": "filter_full", "compact": "filter_compact", "packed": "filter_packed"}
 
     def __init__(self, gpu: Gpu, output: str) -> None:
         if output not in self.ENTRY:
             raise ValueError(f"unknown filter output {output!r}")
         self.gpu, self.output = gpu, output
         device = gpu.device
-        module = device.create_shader_module(label="filter", code=shader_source("filter"))
-        self.pipeline = device.create_compute_pipeline(
-            label=f"filter ({output})", layout="auto",
-            compute={"module": module, "entry_point": self.ENTRY[output]})
+        consts = {**COUNTER_INDEX, "COUNTER_WORDS": COUNTERS.size // 4,
+                  "WORKGROUP_SIDE": WORKGROUP}
+        self.stage = Stage(gpu, "filter", self.ENTRY[output], label=f"{self.INFO.title} "
+                           f"({output})", structs=(PARAMS,), consts=consts)
+        self.pipeline = self.stage.pipeline
         usage = wgpu.BufferUsage
         self.counters = device.create_buffer(
-            label="counters", size=COUNTERS_BYTES,
+            label="counters", size=COUNTERS.size,
             usage=usage.STORAGE | usage.COPY_SRC | usage.COPY_DST)
-        self.params = device.create_buffer(label="filter params", size=16,
-                                           usage=usage.UNIFORM | usage.COPY_DST)
-        self.out = GrowableBuffer(device, f"filtered ({output})",
-                                  usage.STORAGE | usage.COPY_SRC)
-        self._bind_group: wgpu.GPUBindGroup | None = None
-        self._bind_key: tuple | None = None
-        self._zeros = np.zeros(4, dtype=np.uint32)
+        self.params = PARAMS.zeros()
+        self.params_buffer = device.create_buffer(label="filter params", size=PARAMS.size,
+                                                  usage=usage.UNIFORM | usage.COPY_DST)
+        self.out = GrowableBuffer(device, f"filtered ({output})", usage.STORAGE | usage.COPY_SRC)
+        self._params_for: Targets | None = None
+        self._zeros = COUNTERS.zeros()
 
     def _bind(self, targets: Targets) -> wgpu.GPUBindGroup:
         self.out.ensure(targets.pixels * RECORD_BYTES)
-        key = (id(targets), self.out.generation)
-        if key != self._bind_key:
-            self.gpu.device.queue.write_buffer(
-                self.params, 0, np.array([targets.width, targets.height, targets.pixels, 0],
-                                         dtype=np.uint32))
-            self._bind_group = self.gpu.device.create_bind_group(
-                layout=self.pipeline.get_bind_group_layout(0),
-                entries=[
-                    {"binding": 0, "resource": targets.records_view},
-                    {"binding": 1, "resource": {"buffer": self.counters}},
-                    {"binding": 2, "resource": {"buffer": self.out.buffer}},
-                    {"binding": 3, "resource": {"buffer": self.params}},
-                ])
-            self._bind_key = key
-        return self._bind_group
+        if targets is not self._params_for:
+            self.params["width"], self.params["height"] = targets.width, targets.height
+            self.params["capacity"] = targets.pixels
+            self.gpu.device.queue.write_buffer(self.params_buffer, 0, self.params)
+            self._params_for = targets
+        return self.stage.group(records=targets.records_view, counters=self.counters,
+                                out_records=self.out, params=self.params_buffer)
 
-    def encode(self, encoder: wgpu.GPUCommandEncoder, targets: Targets,
-               timestamp_writes: dict | None = None) -> None:
+    def encode(self, frame: SceneFrame) -> None:
+        """Zero the counters and filter the frame's records target."""
+        targets = frame.targets
         bind_group = self._bind(targets)
         self.gpu.device.queue.write_buffer(self.counters, 0, self._zeros)
-        kwargs = {"timestamp_writes": timestamp_writes} if timestamp_writes else {}
-        cpass = encoder.begin_compute_pass(**kwargs)
+        cpass = frame.encoder.begin_compute_pass(label=self.INFO.title,
+                                                 **frame.profiler.writes(self.INFO.title))
         cpass.set_pipeline(self.pipeline)
         cpass.set_bind_group(0, bind_group)
         cpass.dispatch_workgroups(-(-targets.width // WORKGROUP), -(-targets.height // WORKGROUP))
         cpass.end()
+
+
+__all__ = ["COUNTERS", "COUNTERS_BYTES", "FilterPass", "PARAMS", "RECORD_BYTES", "WORKGROUP",
+           "read_counters"]

@@ -73,27 +73,43 @@ class PassState:
     color_writes: str  # subset of "rgba"; "" writes no colour
     per_body: bool
     skip_own_faces: bool = False  # discard a body's faces where the edge pixel is its own
+    name: str = ""  # a short name, for the pass table and labels
 
     @property
     def write_mask(self) -> int:
         return write_mask(self.color_writes)
 
+    @property
+    def summary(self) -> str:
+        """Depth, stencil and cull state in a line, for the pass table."""
+        depth = f"depth {self.depth_compare}{', write' if self.depth_write else ''}"
+        stencil = f"stencil {self.stencil_compare}, {self.stencil_pass_op}"
+        colour = f"writes {', '.join(self.color_writes) or '-'}"
+        return f"{self.draws}; cull {self.cull}; {depth}; {stencil}; {colour}"
+
 
 PASSES: dict[int, PassState] = {
     1: PassState(1, "draw the edges into the depth buffer",
-                 "edges", "none", "always", True, "always", "keep", "", False),
+                 "edges", "none", "always", True, "always", "keep", "", False,
+                 name="edges into depth"),
     2: PassState(2, "count front faces in front of each edge",
-                 "faces", "back", "less", False, "always", "increment-wrap", "", False),
+                 "faces", "back", "less", False, "always", "increment-wrap", "", False,
+                 name="count front faces"),
     3: PassState(3, "subtract back faces in front of each edge",
-                 "faces", "front", "less-equal", False, "always", "decrement-wrap", "", False),
+                 "faces", "front", "less-equal", False, "always", "decrement-wrap", "", False,
+                 name="subtract back faces"),
     4: PassState(4, "identify the penetrating body where the count is non-zero",
-                 "edges", "none", "always", False, "not-equal", "keep", "rba", False),
+                 "edges", "none", "always", False, "not-equal", "keep", "rba", False,
+                 name="identify penetrating"),
     5: PassState(5, "count this body's front faces in front of each edge",
-                 "faces", "back", "less", False, "always", "increment-wrap", "", True),
+                 "faces", "back", "less", False, "always", "increment-wrap", "", True,
+                 name="count front faces per body"),
     6: PassState(6, "subtract this body's back faces in front of each edge",
-                 "faces", "front", "less-equal", False, "always", "decrement-wrap", "", True),
+                 "faces", "front", "less-equal", False, "always", "decrement-wrap", "", True,
+                 name="subtract back faces per body"),
     7: PassState(7, "identify this body as penetrated and reset the stencil",
-                 "faces", "none", "always", False, "not-equal", "zero", "g", True),
+                 "faces", "none", "always", False, "not-equal", "zero", "g", True,
+                 name="identify penetrated"),
 }
 
 PREVENT: dict[int, PassState] = {
@@ -115,6 +131,14 @@ class RenderStep:
     clear_depth_stencil: bool
     clear_colour: bool
     copy_owner_before: bool = False  # copy the colour target to the edge-owner texture first
+
+    @property
+    def title(self) -> str:
+        """How labels and profiles name the step: ``"pass 1"``, ``"passes 2-4"``."""
+        if not self.passes:
+            return "clear"
+        first, last = self.passes[0], self.passes[-1]
+        return f"pass {first}" if first == last else f"passes {first}-{last}"
 
 
 PLAN = (RenderStep((1, 2, 3, 4), True, True), RenderStep((5, 6, 7), False, False))

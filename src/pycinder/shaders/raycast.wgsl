@@ -12,15 +12,8 @@
 //   b = bit pattern of the edge fragment's depth (f32)   written by pass 4
 //   a = payload of the edge: global edge index + 1, or a packed normal   written by pass 4
 
-struct Frame {
-    // Offset of edge vertices along their vertex normal, in world units (self_interference="offset").
-    edge_offset: f32,
-    // 0: payload is the edge index + 1; 1: payload is the packed world-space edge normal.
-    payload_mode: u32,
-    _pad0: u32,
-    _pad1: u32,
-};
-
+// The Frame struct (edge offset, payload mode) and the PAYLOAD_* constants are declared in Python
+// (passes/raycast.py) and generated in front of this source.
 @group(0) @binding(0) var<uniform> frame: Frame;
 // Body-space vertex positions, 3 floats per vertex, all bodies packed one after another.
 @group(0) @binding(1) var<storage, read> positions: array<f32>;
@@ -84,7 +77,7 @@ fn vs_edge(@builtin(vertex_index) vi: u32) -> EdgeOut {
     var out: EdgeOut;
     out.position = clip_from_body[body] * vec4f(p, 1.0);
     out.body_id = body + 1u;
-    if (frame.payload_mode == 1u) {
+    if (frame.payload_mode == PAYLOAD_NORMAL) {
         let n_body = vec3f(edge_normals[3u * e], edge_normals[3u * e + 1u], edge_normals[3u * e + 2u]);
         let n = (world_from_body[body] * vec4f(n_body, 0.0)).xyz;
         out.payload = pack_normal(normalize(n));

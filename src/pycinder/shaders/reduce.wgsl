@@ -10,21 +10,12 @@
 // Records are in the compact layout (pixel index, r << 16 | g, depth bits, payload), so a record
 // that survives keeps the pixel it came from.
 
-struct Params {
-    src_width: u32,
-    src_height: u32,
-    dst_width: u32,
-    dst_height: u32,
-    level: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
-};
-
+// ReduceParams (one level: source and destination sizes, the level) is declared in Python
+// (passes/reduce.py) and generated in front of this source.
 @group(0) @binding(0) var<storage, read> src: array<vec4u>;
 @group(0) @binding(1) var<storage, read_write> dst: array<vec4u>;
 @group(0) @binding(2) var<storage, read_write> lost: array<atomic<u32>>;
-@group(0) @binding(3) var<uniform> params: Params;
+@group(0) @binding(3) var<uniform> params: ReduceParams;
 
 fn pair_key(rec: vec4u) -> u32 {
     let a = rec.y >> 16u;
@@ -32,7 +23,7 @@ fn pair_key(rec: vec4u) -> u32 {
     return (min(a, b) << 16u) | max(a, b);
 }
 
-@compute @workgroup_size(8, 8)
+@compute @workgroup_size(WORKGROUP_SIDE, WORKGROUP_SIDE)
 fn reduce(@builtin(global_invocation_id) gid: vec3u) {
     if (gid.x >= params.dst_width || gid.y >= params.dst_height) {
         return;
