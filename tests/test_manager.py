@@ -7,6 +7,7 @@ import pytest
 import trimesh
 
 import pycinder
+from pycinder.manager import EXTERNAL
 from pycinder.testing import ground_truth, random_scene
 
 TrimeshManager = trimesh.collision.CollisionManager
@@ -338,6 +339,46 @@ def test_contact_accuracy_against_analytic_pairs(name):
     world = [m.copy().apply_transform(t) for m, t in zip(meshes, transforms)]
     inside = [trimesh.proximity.signed_distance(w, [c.point])[0] for w in world]
     assert min(inside) > -tol  # the point is on the intersection
+
+
+def test_return_data_asks_for_contacts_and_stays_trimesh_s(monkeypatch):
+    """The manager asks its detector for contacts explicitly (contacts=True with return_data,
+    pairs only without), and its ContactData are those contacts, named, as before: a unit box and
+    a ball of radius 0.4 at x = 0.6 overlap by exactly 0.3 along +x, at one region."""
+    box = trimesh.creation.box((1, 1, 1))
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.4)
+    tol = 0.005
+    ours = pycinder.CollisionManager(tolerance=tol)
+    ours.add_object("box", box)
+    ours.add_object("ball", ball, T((0.6, 0, 0)))
+    asked = []
+    find = pycinder.Detector.find_collisions
+    monkeypatch.setattr(pycinder.Detector, "find_collisions",
+                        lambda self, *a, **k: asked.append(dict(k)) or find(self, *a, **k))
+    hit, names, data = ours.in_collision_internal(return_names=True, return_data=True)
+    assert asked[-1].get("contacts") is True and "records" not in asked[-1]
+    assert (hit, names) == (True, {("ball", "box")})
+    assert len(data) == 1 and isinstance(data[0], pycinder.ContactData)
+    c = data[0]
+    assert c.names == {"box", "ball"} and c.pair == ("box", "ball")
+    assert np.degrees(np.arccos(np.clip(c.normal @ [1, 0, 0], -1, 1))) < 10
+    assert abs(c.depth - 0.3) < 0.03 + tol
+    world = [box, ball.copy().apply_translation((0.6, 0, 0))]
+    assert min(trimesh.proximity.signed_distance(w, [c.point])[0] for w in world) > -tol
+    assert -1 <= c.index("box") < 12 and -1 <= c.index("ball") < len(ball.faces)
+    # the same contacts as the detector's own, asked for with the query
+    det = pycinder.Detector(tolerance=tol)
+    direct = find(det, [box, ball], np.stack([np.eye(4), T((0.6, 0, 0))]),
+                  names=["box", "ball"], contacts=True).contacts()
+    assert [repr(d) for d in direct] == [repr(d) for d in data]
+    # pairs only, without return_data; the probe and the other manager ask for contacts too
+    assert ours.in_collision_internal(return_names=True) == (True, {("ball", "box")})
+    hit, data = ours.in_collision_single(ball, T((0.6, 0, 0)), return_data=True)
+    assert asked[-1].get("contacts") is True and hit
+    assert {frozenset(d.names) for d in data} == {frozenset({"box", EXTERNAL}),
+                                                 frozenset({"ball", EXTERNAL})}
+    with pytest.raises(TypeError, match="'contacts'"):
+        pycinder.CollisionManager(contacts=True)
 
 
 def test_scene_to_collision():

@@ -126,7 +126,7 @@ def test_contacts_and_submit_work_on_prepared_bodies(detector):
     b = trimesh.creation.icosphere(subdivisions=2, radius=0.4)
     bodies = detector.prepare([a, b], names=["box", "ball"])
     poses = np.stack([np.eye(4), trimesh.transformations.translation_matrix((0.7, 0, 0))])
-    pending = detector.submit(bodies, poses)
+    pending = detector.submit(bodies, poses, contacts=True)
     result = pending.result()
     assert result.pairs.tolist() == [[0, 1]]
     contacts = result.contacts()

@@ -1,6 +1,6 @@
-"""Results as plain data across processes: pickling, process pools with either start method, and a
-process forked after its parent used the GPU (a working detector of its own, or a clear error
-within seconds: never a hang).
+"""Results as plain data across processes: pickling (pairs, records and contacts read back equal),
+process pools with either start method, and a process forked after its parent used the GPU (a
+working detector of its own, or a clear error within seconds: never a hang).
 
 Every pool call waits with a deadline, so a hang fails the test instead of blocking the suite.
 """
@@ -38,12 +38,20 @@ def scene(gap: float) -> tuple[list[trimesh.Trimesh], np.ndarray]:
 
 
 def query(gap: float) -> pycinder.CollisionResult:
-    """A query with names, every record and its contacts, as a pool worker would return it."""
+    """A query with names, asked for its contacts, as a pool worker would return it (its
+    contacts computed there)."""
     meshes, transforms = scene(gap)
     result = pycinder.find_collisions(meshes, transforms, names=["box", "ball", "far"],
-                                      tolerance=0.005, records="all")
+                                      tolerance=0.005, contacts=True)
     result.contacts()
     return result
+
+
+def query_plain(gap: float) -> pycinder.CollisionResult:
+    """:func:`query` returned with its contacts not yet computed: the parent reduces them."""
+    meshes, transforms = scene(gap)
+    return pycinder.find_collisions(meshes, transforms, names=["box", "ball", "far"],
+                                    tolerance=0.005, contacts=True)
 
 
 def answer(gap: float) -> tuple[int, list, list]:
@@ -81,11 +89,15 @@ def test_box_and_ball_truth() -> None:
 
 
 def test_result_pickles_with_records_contacts_and_stats() -> None:
+    """A result asked for contacts pickles as it is and reads back equal: pairs, every field of
+    every record, every array of its contacts, names and stats."""
     result = query(-0.1)
     assert result.pairs.tolist() == [[0, 1]] and len(result.contacts())
+    assert result.records_kept == "all" and not hasattr(result, "query")
     copy = pickle.loads(pickle.dumps(result))
-    assert copy.query is not None and copy.query.detector is None
+    assert copy._contacts is not None  # the contacts travelled with it
     assert_same_result(result, copy)
+    assert copy.records_kept == "all"
     assert copy.stats == result.stats and copy.stats.wall_ms == result.stats.wall_ms
     assert pickle.loads(pickle.dumps(result.stats)) == result.stats
     contacts = pickle.loads(pickle.dumps(result.contacts()))
@@ -94,12 +106,12 @@ def test_result_pickles_with_records_contacts_and_stats() -> None:
 
 
 def test_pickled_result_computes_contacts_from_every_record() -> None:
-    """A result that kept every record reduces its contacts in the copy, without a GPU."""
-    meshes, transforms = scene(-0.1)
-    result = pycinder.find_collisions(meshes, transforms, tolerance=0.005, records="all")
+    """A result asked for contacts reduces them in the copy, without a GPU, as the original
+    does."""
+    result = query_plain(-0.1)
     copy = pickle.loads(pickle.dumps(result))
     assert copy._contacts is None
-    np.testing.assert_array_equal(copy.contacts().depth, result.contacts().depth)
+    assert_same_result(result, copy)
 
 
 def test_pickled_result_without_every_record_says_how_to_get_contacts() -> None:
@@ -107,9 +119,9 @@ def test_pickled_result_without_every_record_says_how_to_get_contacts() -> None:
     result = pycinder.find_collisions(meshes, transforms, tolerance=0.005)  # records="found"
     copy = pickle.loads(pickle.dumps(result))
     np.testing.assert_array_equal(copy.records["point"], result.records["point"])
-    with pytest.raises(ValueError, match=r"pickled.*contacts\(\) before pickling"):
-        copy.contacts()
-    assert len(result.contacts())  # the original still runs its query again
+    for r in (result, copy):
+        with pytest.raises(ValueError, match=r"records='found'.*contacts=True"):
+            r.contacts()
 
 
 @pytest.mark.parametrize("method", ["spawn", "forkserver"])
@@ -121,6 +133,16 @@ def test_pool_returns_equal_results(method: str) -> None:
     for (gap, mine), theirs in zip(here.items(), there):
         assert_same_result(mine, theirs)
     assert there[0].pair_names() == {("ball", "box")} and not there[1]
+
+
+def test_pool_returns_results_whose_contacts_are_reduced_here() -> None:
+    """A result asked for contacts, sent back before they were computed, reduces them here
+    from its own records: equal to the same query's here."""
+    here = query(-0.1)
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        (there,) = pool.map_async(query_plain, [-0.1]).get(DEADLINE)
+    assert there._contacts is None
+    assert_same_result(here, there)
 
 
 def test_fork_after_the_parent_used_the_gpu() -> None:

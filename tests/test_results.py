@@ -1,5 +1,7 @@
-"""What a result tells a user: a short repr, contacts from any query, the names it was given,
-records named for what they hold, normals filled when asked for, stats per strategy."""
+"""What a result tells a user: a short repr, contacts when the query asked for them (and a
+ValueError naming ``contacts=True`` when it did not), the names it was given, records named for
+what they hold, normals filled when asked for, stats per strategy; and a result is plain data,
+with no GPU object in it."""
 
 import numpy as np
 import pytest
@@ -70,12 +72,13 @@ def test_records_are_decoded_when_first_read(detector, monkeypatch):
 
 
 @pytest.mark.parametrize("tol", [0.005, 0.001])
-def test_contacts_from_a_default_query_measure_the_exact_overlap(tol):
+def test_contacts_asked_with_the_query_measure_the_exact_overlap(tol):
     """One contact region, whatever the tolerance (at 0.001 the ball's cap is sampled at a
     grazing angle near its pole, and those thin samples stay in the one region)."""
     box, ball = box_and_ball()
     det = pycinder.Detector(tolerance=tol)
-    result = det.find_collisions([box, ball], names=["box", "ball"])  # records="found"
+    result = det.find_collisions([box, ball], names=["box", "ball"], contacts=True)
+    assert result.records_kept == "all"
     contacts = result.contacts()
     assert len(contacts) == 1
     (c,) = list(contacts)
@@ -86,30 +89,178 @@ def test_contacts_from_a_default_query_measure_the_exact_overlap(tol):
     # the point lies in both bodies (within a tolerance)
     for mesh in (box, ball):
         assert trimesh.proximity.signed_distance(mesh, [c.point])[0] > -tol
-    # the same contacts as reducing a records="all" query directly; computed once
+    # contacts=True is records="all": the same contacts as reducing such a query directly;
+    # computed once
     direct = reduce_contacts(det.find_collisions([box, ball], records="all"))
     assert np.allclose(direct.normal, contacts.normal) and np.allclose(direct.depth, contacts.depth)
     assert result.contacts() is contacts
 
 
-def test_contacts_of_a_pairs_only_query_and_of_a_probe(detector):
+def test_contacts_of_a_probe(detector):
     box, ball = box_and_ball()
     far = trimesh.creation.icosphere(radius=0.2)
     far.apply_translation((0.6, 0.0, 0.0))  # inside the ball, touching nothing else
-    result = detector.find_collisions([box, ball, far], records="none", groups=[0, 1, 0])
-    assert result.pairs.tolist() == [[0, 1], [1, 2]] and len(result.records) == 0
+    result = detector.find_collisions([box, ball, far], groups=[0, 1, 0], contacts=True)
+    assert result.pairs.tolist() == [[0, 1], [1, 2]]
     contacts = result.contacts()
     assert sorted({tuple(p) for p in contacts.pair.tolist()}) == [(0, 1), (1, 2)]
     # unnamed bodies are named by their indices
     assert {c.pair for c in contacts} == {(0, 1), (1, 2)}
 
 
+@pytest.mark.parametrize("records", ["found", "none"])
+def test_contacts_not_asked_for_say_how_to_ask(detector, records, monkeypatch):
+    """A result that kept fewer than every record runs nothing again: contacts() raises, naming
+    contacts=True, whether or not it has pairs, here and once pickled."""
+    import pickle
+
+    from pycinder import detector as detector_module
+
+    box, ball = box_and_ball()
+    result = detector.find_collisions([box, ball], records=records)
+    assert result.records_kept == records and result.pairs.tolist() == [[0, 1]]
+    copy = pickle.loads(pickle.dumps(result))
+    monkeypatch.setattr(detector_module.Detector, "_submit",
+                        lambda *a, **k: pytest.fail("contacts() ran a query"))
+    for r in (result, copy):
+        with pytest.raises(ValueError, match=rf"kept records='{records}'.*contacts=True"):
+            r.contacts()
+    ball.apply_translation((2, 0, 0))
+    monkeypatch.undo()
+    apart = detector.find_collisions([box, ball], records=records)
+    with pytest.raises(ValueError, match="contacts=True"):
+        apart.contacts()
+
+
+def test_contacts_option_is_checked_once_with_the_others(detector):
+    box, ball = box_and_ball()
+    for bad in ("found", "none"):
+        with pytest.raises(ValueError, match=rf"contacts=True.*records='{bad}'"):
+            pycinder.CollisionRequest(contacts=True, records=bad)
+        with pytest.raises(ValueError, match=rf"contacts=True.*records='{bad}'"):
+            detector.find_collisions([box, ball], contacts=True, records=bad)
+        with pytest.raises(ValueError, match=rf"contacts=True.*records='{bad}'"):
+            detector.find_collisions_batch([([box, ball], None)], contacts=True, records=bad)
+    with pytest.raises(ValueError, match="contacts must be True or False"):
+        pycinder.CollisionRequest(contacts=1)
+    with pytest.raises(ValueError, match="contacts must be True or False"):
+        detector.find_collisions([box, ball], contacts="yes")
+    with pytest.raises(ValueError, match="focused strategy"):
+        pycinder.CollisionRequest(strategy="scene", contacts=True)
+    with pytest.raises(ValueError, match="focused strategy"):
+        pycinder.Detector(strategy="scene", resolution=64).find_collisions([box, ball],
+                                                                           contacts=True)
+    # records follow contacts; contacts=True with records="all" is the same request
+    assert pycinder.CollisionRequest(contacts=True).records == "all"
+    assert pycinder.CollisionRequest(contacts=True) == pycinder.CollisionRequest(
+        contacts=True, records="all")
+    assert pycinder.CollisionRequest().replace(contacts=True).records == "all"
+    assert pycinder.CollisionRequest(contacts=True).replace(contacts=False).records == "found"
+    # per call: True asks for every record, False for none beyond the request's default
+    det = pycinder.Detector(contacts=True)
+    assert det.find_collisions([box, ball]).records_kept == "all"
+    assert det.find_collisions([box, ball], contacts=False).records_kept == "found"
+    assert det.find_collisions([box, ball], records="none").records_kept == "none"
+
+
+def test_batch_results_give_their_contacts(detector):
+    """Each scene's result of a batch asked for contacts gives that scene's, equal to a query
+    of the scene alone asked for them."""
+    box, ball = box_and_ball()
+    near = trimesh.creation.icosphere(subdivisions=3, radius=0.4).apply_translation((0, 0.65, 0))
+    scenes = [([box, ball], None, ["box", "ball"]), ([near, box], None)]
+    batch = detector.find_collisions_batch(scenes, tolerance=0.005, contacts=True)
+    single = pycinder.Detector(tolerance=0.005, contacts=True)
+    for part, scene in zip(batch, scenes):
+        alone = single.find_collisions(scene[0], names=scene[2] if len(scene) == 3 else None)
+        assert part.records_kept == "all"
+        np.testing.assert_array_equal(part.pairs, alone.pairs)
+        mine, theirs = part.contacts(), alone.contacts()
+        assert len(mine) == len(theirs) == 1 and mine.names == theirs.names
+        np.testing.assert_array_equal(mine.pair, theirs.pair)
+        assert np.allclose(mine.normal, theirs.normal, atol=1e-3)
+        assert np.allclose(mine.depth, theirs.depth, atol=0.01)
+    assert {c.pair for c in batch[0].contacts()} == {("box", "ball")}
+
+
+def _gpu_objects(root: object) -> list[str]:
+    """Paths to every wgpu object, Detector, strategy or function reachable from ``root``
+    through attributes, containers, partials' arguments and arrays' bases."""
+    import functools
+
+    import wgpu
+
+    from pycinder.detector import Detector
+
+    found, seen = [], set()
+    stack = [(root, "result")]
+    while stack:
+        obj, path = stack.pop()
+        if id(obj) in seen or obj is None or isinstance(obj, (str, bytes, int, float, bool)):
+            continue
+        seen.add(id(obj))
+        module = type(obj).__module__ or ""
+        if module.startswith(("wgpu", "_cffi")) or isinstance(obj, Detector) \
+                or type(obj).__name__ in ("FocusedStrategy", "SceneStrategy", "WholeSceneStrategy",
+                                          "Gpu", "FocusedFrames") \
+                or isinstance(obj, (wgpu.GPUObjectBase, wgpu.GPUDevice)):
+            found.append(f"{path}: {type(obj).__name__}")
+            continue
+        if isinstance(obj, np.ndarray):
+            if obj.base is not None:
+                stack.append((obj.base, path + ".base"))
+            if obj.dtype == object:
+                stack += [(v, f"{path}[{k}]") for k, v in enumerate(obj.ravel().tolist())]
+            continue
+        if isinstance(obj, memoryview):
+            stack.append((obj.obj, path + ".obj"))
+            continue
+        if isinstance(obj, functools.partial):
+            stack += [(obj.func, path + ".func")] + [(a, f"{path}.args[{k}]")
+                                                     for k, a in enumerate(obj.args)]
+            continue
+        if isinstance(obj, dict):
+            stack += [(v, f"{path}[{k!r}]") for k, v in obj.items()]
+            continue
+        if isinstance(obj, (list, tuple, set, frozenset)):
+            stack += [(v, f"{path}[{k}]") for k, v in enumerate(obj)]
+            continue
+        if callable(obj) and not hasattr(obj, "__dict__"):
+            continue  # a builtin function
+        if hasattr(obj, "__dict__"):
+            stack += [(v, f"{path}.{k}") for k, v in vars(obj).items()]
+        for slot in getattr(type(obj), "__slots__", ()):
+            if hasattr(obj, slot):
+                stack.append((getattr(obj, slot), f"{path}.{slot}"))
+    return found
+
+
+@pytest.mark.parametrize("options", [{"contacts": True}, {}, {"records": "none"},
+                                     {"strategy": "scene", "resolution": 128}])
+def test_a_result_holds_no_gpu_object(options):
+    """Walking a result's attributes (before and after its records and contacts are read) finds
+    no wgpu object, detector, strategy or GPU: it is plain data."""
+    box, ball = box_and_ball()
+    det = pycinder.Detector(**options)
+    result = det.find_collisions([box, ball], names=["box", "ball"])
+    assert result.pairs.tolist() == [[0, 1]]
+    assert _gpu_objects(result) == []
+    result.records
+    if options.get("contacts"):
+        result.contacts()
+    assert _gpu_objects(result) == []
+    assert _gpu_objects(det)  # the walk does find them where they are
+    batch = pycinder.Detector(contacts=True).find_collisions_batch([([box, ball], None)])
+    assert _gpu_objects(batch) == []
+
+
 def test_no_contacts_without_pairs_and_none_from_the_scene_strategy():
     box, ball = box_and_ball()
     ball.apply_translation((2, 0, 0))
-    assert len(pycinder.find_collisions([box, ball]).contacts()) == 0
+    assert len(pycinder.find_collisions([box, ball], contacts=True).contacts()) == 0
     ball.apply_translation((-2, 0, 0))
     scene = pycinder.find_collisions([box, ball], strategy="scene", resolution=256)
+    assert scene.records_kept is None
     with pytest.raises(ValueError, match="focused strategy"):
         scene.contacts()
 

@@ -267,10 +267,21 @@ def _width(region: np.ndarray, n: int, along: np.ndarray, from_a: np.ndarray) ->
 
 def reduce_contacts(result: CollisionResult) -> Contacts:
     """One contact per contact region of every colliding pair in ``result``, from its records
-    as they are (:meth:`CollisionResult.contacts` runs the query again for all of them first).
+    as they are, with no GPU.
 
-    The result should come from a focused query with ``records="all"`` (with fewer records the
-    contacts are those of the records found).
+    The result should come from a focused query asked for contacts (``contacts=True``, which
+    keeps every record: :meth:`CollisionResult.contacts` checks this and calls this function);
+    with fewer records the contacts are those of the records found.
+
+    Parameters
+    ----------
+    result : CollisionResult
+        Of the focused strategy: its ``records``, ``scene`` and ``tiles`` are read.
+
+    Returns
+    -------
+    Contacts
+        C contacts over every pair that has records.
     """
     rec = result.records
     if len(rec) == 0 or result.scene is None or result.tiles is None:

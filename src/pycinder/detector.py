@@ -2,7 +2,7 @@
 
     request (checked once) + bodies + transforms
       -> scene (validated shapes, cached by content)
-      -> strategy: focused (broad phase -> tiles -> passes F0-F5 -> readback)
+      -> strategy: focused (broad phase -> tiles -> passes F0-F8 -> readback)
                    or scene (views -> passes 1-7 -> filter -> readback mode)
       -> CollisionResult
 """
@@ -20,12 +20,12 @@ import wgpu
 from .errors import GpuError, GpuTimeoutError
 from .focused import FocusedStrategy
 from .gpu.device import check_not_forked, fork_generation, get_gpu, keep_from_parent
-from .request import CollisionRequest, record_mode
-from .result import CollisionResult, Stats, remember_query
-from .scene import PreparedBodies, ShapeCache, prepare_scene
+from .request import CollisionRequest
+from .result import CollisionResult, Stats
+from .scene import PreparedBodies, Scene, ShapeCache, prepare_scene
 from .scene.prepared import check_body_count
 from .view import View
-from .wholescene import SceneStrategy
+from .wholescene import WholeSceneStrategy
 
 
 class Detector:
@@ -37,7 +37,8 @@ class Detector:
         Every option at once; keywords below build one (or change the given one).
     **options
         Options of :class:`~pycinder.CollisionRequest`: ``tolerance``, ``strategy``,
-        ``resolution``, ``self_interference``, ``readback``, ``encode``, ``strict``, ...
+        ``resolution``, ``self_interference``, ``readback``, ``encode``, ``strict``,
+        ``contacts`` (every query keeps what ``result.contacts()`` needs), ...
 
     Examples
     --------
@@ -76,7 +77,7 @@ class Detector:
         self._generation = fork_generation()
         self._lock = self.gpu.lock  # one query at a time on the device, from any thread
         with self._lock:  # pipelines and buffers are made on the device too
-            self.strategy: FocusedStrategy | SceneStrategy = self._make_strategy()
+            self.strategy: FocusedStrategy | WholeSceneStrategy = self._make_strategy()
 
     @property
     def in_this_process(self) -> bool:
@@ -92,10 +93,10 @@ class Detector:
         check_not_forked(self._generation, "this Detector")
         return self._lock
 
-    def _make_strategy(self) -> FocusedStrategy | SceneStrategy:
+    def _make_strategy(self) -> FocusedStrategy | WholeSceneStrategy:
         if self.request.strategy == "focused":
             return FocusedStrategy(self.gpu, self.request)
-        return SceneStrategy(self.gpu, self.request)
+        return WholeSceneStrategy(self.gpu, self.request)
 
     def _recover(self, exc: Exception) -> GpuError:
         """After a GPU error: rebuild the strategy's pipelines and buffers, so that the next
@@ -138,7 +139,8 @@ class Detector:
                         names: Sequence[str | None] | None = None,
                         groups: Any = None,
                         view: View | Sequence[View] | None = None,
-                        records: str | None = None) -> CollisionResult:
+                        records: str | None = None, contacts: bool | None = None
+                        ) -> CollisionResult:
         """Find every pair of interfering bodies.
 
         Parameters
@@ -157,20 +159,43 @@ class Detector:
             Scene strategy only: the views to render through (default: one fitted view).
         records : {"found", "all", "none"}, optional
             Focused strategy: the request's ``records`` for this call only, on the same
-            pipelines and cached shapes (a manager asks for contacts on some calls only).
+            pipelines and cached shapes.
+        contacts : bool, optional
+            Focused strategy: True keeps what contacts are reduced from (every record, as
+            ``records="all"``), so that ``result.contacts()`` answers from the result alone;
+            False needs none. Default: the request's ``contacts``. A physics step asks for
+            both every frame: ``Detector(contacts=True)``, or this per call.
 
         Returns
         -------
         CollisionResult
-            ``pairs`` is (K, 2) int64 with ``i < j``.
+            ``pairs`` is (K, 2) int64 with ``i < j``. Plain data: no detector or GPU handle.
+
+        Raises
+        ------
+        ValueError
+            Bad bodies or options; ``contacts=True`` with ``records`` other than ``"all"``, or
+            with the scene strategy.
+
+        Examples
+        --------
+        Pairs and contacts of one step, together:
+
+        >>> import trimesh, pycinder
+        >>> box = trimesh.creation.box((1, 1, 1))
+        >>> ball = trimesh.creation.icosphere(radius=0.4).apply_translation((0.6, 0, 0))
+        >>> det = pycinder.Detector(tolerance=0.005)
+        >>> result = det.find_collisions([box, ball], names=["box", "ball"], contacts=True)
+        >>> [(c.pair, c.normal.round(1).tolist()) for c in result.contacts()]
+        [(('box', 'ball'), [1.0, 0.0, 0.0])]
         """
         return self.submit(bodies, transforms, names=names, groups=groups, view=view,
-                           records=records).result()
+                           records=records, contacts=contacts).result()
 
     def submit(self, bodies: Sequence[Any], transforms: Any = None, *,
                names: Sequence[str | None] | None = None, groups: Any = None,
-               view: View | Sequence[View] | None = None, records: str | None = None
-               ) -> PendingQuery:
+               view: View | Sequence[View] | None = None, records: str | None = None,
+               contacts: bool | None = None) -> PendingQuery:
         """:meth:`find_collisions` without waiting for the GPU: the host checks the bodies,
         plans the tiles and submits the frame, and returns at once. Prepare the next frame, then
         call ``.result()`` on the handle. Two queries can be in flight; a third waits for the
@@ -199,7 +224,8 @@ class Detector:
         >>> len(pending.result().pairs)
         0
         """
-        return self._pending(bodies, transforms, names, groups, view, records)
+        return self._pending(bodies, transforms, names, groups, view,
+                             self.request.call_records(records, contacts))
 
     def in_collision(self, bodies: Sequence[Any], transforms: Any = None, *,
                      names: Sequence[str | None] | None = None, groups: Any = None) -> bool:
@@ -225,83 +251,124 @@ class Detector:
                  names: Sequence[str | None] | None, groups: Any,
                  view: View | Sequence[View] | None, records: str | None,
                  stop_at_first: bool = False) -> PendingQuery:
+        """Validate a query's input and submit it; ``records``: the mode it keeps, resolved by
+        :meth:`CollisionRequest.call_records` (None for the scene strategy)."""
         if not isinstance(bodies, Sequence):
-            bodies = list(bodies)  # kept on the result, to run it again for contacts
+            bodies = list(bodies)
         if isinstance(bodies, PreparedBodies) and names is not None:
             raise ValueError("prepared bodies have their names (given to Detector.prepare); "
                              "pass names=None")
+        if view is not None and self.request.strategy != "scene":
+            raise ValueError("view applies to strategy='scene'; the focused strategy chooses a "
+                             "view per candidate pair")
         with self._device_lock():  # one query at a time: the GPU buffers are the detector's own
             t0 = time.perf_counter()
-            try:
-                return PendingQuery(self, self._submit(bodies, transforms, names, groups, view,
-                                                       records, t0, stop_at_first), t0,
-                                    (bodies, transforms, names, groups, records))
-            except (GpuTimeoutError, wgpu.GPUError) as exc:
-                raise self._recover(exc) from exc
+            scene = self._scene(bodies, transforms, names)
+            groups = _checked_groups(groups, len(scene))
+            return PendingQuery(self, self._submit(scene, t0, groups=groups, view=view,
+                                                   records=records, stop_at_first=stop_at_first),
+                                t0, records)
 
     def find_collisions_batch(self, scenes: Sequence[Any], *, tolerance: Any = None,
-                              labels: Sequence[Any] | None = None, records: str | None = None
-                              ) -> list[CollisionResult]:
+                              labels: Sequence[Any] | None = None, records: str | None = None,
+                              contacts: bool | None = None) -> list[CollisionResult]:
         """Many small scenes in one query, pairs only within a scene; one result per scene,
-        as :meth:`find_collisions` gives it. See :func:`pycinder.batch.find_collisions_batch`."""
+        as :meth:`find_collisions` gives it (with ``contacts=True``, each result's contacts).
+        See :func:`pycinder.batch.find_collisions_batch`."""
         from .batch.query import find_collisions_batch
 
         with self._device_lock():
-            try:
-                return find_collisions_batch(self, scenes, tolerance=tolerance, labels=labels,
-                                             records=records)
-            except (GpuTimeoutError, wgpu.GPUError) as exc:
-                raise self._recover(exc) from exc
+            return find_collisions_batch(self, scenes, tolerance=tolerance, labels=labels,
+                                         records=records, contacts=contacts)
 
-    def _finish(self, pending: Any, t0: float, query: tuple) -> CollisionResult:
+    def _scene(self, bodies: Sequence[Any], transforms: Any,
+               names: Sequence[str | None] | None) -> Scene:
+        """The validated scene of bodies (or prepared bodies) and their transforms."""
+        if isinstance(bodies, PreparedBodies):
+            # Bodies prepared by a detector that holds more are checked against this one.
+            check_body_count(len(bodies), self.request.max_bodies)
+            return bodies.scene(transforms)
+        return prepare_scene(bodies, transforms, names=names, strict=self.request.strict,
+                             cache=self.shapes, max_bodies=self.request.max_bodies)
+
+    def _submit(self, scene: Scene, t0: float, *, groups: np.ndarray | None = None,
+                view: View | Sequence[View] | None = None, records: str | None = None,
+                within: np.ndarray | None = None, tolerance: np.ndarray | None = None,
+                stop_at_first: bool = False) -> Any:
+        """Submit a validated scene to the strategy (the one path of single and batched
+        queries; the caller holds the device lock); :meth:`_finish` completes it.
+
+        Parameters
+        ----------
+        scene : Scene
+        t0 : float
+            ``time.perf_counter()`` at the query's start (validation is timed from it).
+        groups : (N,) int, optional
+            Checked groups: only pairs across them are tested.
+        view : View or sequence of View, optional
+            Scene strategy only.
+        records : {"found", "all", "none"}, optional
+            Focused strategy: the records kept (default: the request's).
+        within : (N,) int, optional
+            Focused strategy: only pairs of bodies with the same key (a batch's scenes).
+        tolerance : (N,) float, optional
+            Focused strategy: a pair's tolerance from its first body, where not NaN.
+        stop_at_first : bool
+            Focused strategy: only whether anything collides (records "none").
+
+        Returns
+        -------
+        PendingFocused or _Done
+            ``.result()`` gives the strategy's :class:`CollisionResult`.
+
+        Raises
+        ------
+        GpuError
+            After a GPU error, with the detector reset (see :meth:`_recover`).
+        """
+        stats = Stats(strategy=self.request.strategy, adapter=self.gpu.description,
+                      bodies=len(scene))
+        stats.add_ms("validate", (time.perf_counter() - t0) * 1e3)
+        try:
+            if isinstance(self.strategy, WholeSceneStrategy):
+                result = self.strategy.run(scene, stats, view)
+                return _Done(result.across(groups) if groups is not None else result)
+            return self.strategy.submit(scene, stats, groups, records, within, tolerance,
+                                        stop_at_first=stop_at_first)
+        except (GpuTimeoutError, wgpu.GPUError) as exc:
+            raise self._recover(exc) from exc
+
+    def _finish(self, pending: Any, t0: float, records: str | None) -> CollisionResult:
+        """The result of a query :meth:`_submit` submitted, waiting for the GPU: its total time
+        and the records it kept (``records``, default the request's) written in."""
         with self._lock:
             try:
                 result = pending.result()
             except (GpuTimeoutError, wgpu.GPUError) as exc:
                 raise self._recover(exc) from exc
             result.stats.wall_ms["total"] = (time.perf_counter() - t0) * 1e3
-            bodies, transforms, names, groups, records = query
-            remember_query(result, self, bodies, transforms, names, groups,
-                           records or self.request.records)
+            if self.request.strategy == "focused":
+                result.records_kept = records or self.request.records
             return result
 
-    def _submit(self, bodies: Sequence[Any], transforms: Any,
-                names: Sequence[str | None] | None, groups: Any,
-                view: View | Sequence[View] | None, records: str | None, t0: float,
-                stop_at_first: bool = False) -> Any:
-        if view is not None and self.request.strategy != "scene":
-            raise ValueError("view applies to strategy='scene'; the focused strategy chooses a "
-                             "view per candidate pair")
-        if records is not None:
-            if self.request.strategy != "focused":
-                raise ValueError("records per call applies to strategy='focused'")
-            record_mode(records)  # a ValueError naming the modes for any other value
-        if isinstance(bodies, PreparedBodies):
-            # Bodies prepared by a detector that holds more are checked against this one.
-            check_body_count(len(bodies), self.request.max_bodies)
-            scene = bodies.scene(transforms)
-        else:
-            scene = prepare_scene(bodies, transforms, names=names, strict=self.request.strict,
-                                  cache=self.shapes, max_bodies=self.request.max_bodies)
-        stats = Stats(strategy=self.request.strategy, adapter=self.gpu.description,
-                      bodies=len(scene))
-        if groups is not None:
-            groups = np.asarray(groups)
-            if groups.shape != (len(scene),) or not np.issubdtype(groups.dtype, np.integer):
-                raise ValueError(f"groups must be {len(scene)} whole numbers, one per body; "
-                                 f"got shape {groups.shape} of {groups.dtype}")
-        stats.add_ms("validate", (time.perf_counter() - t0) * 1e3)
-        if isinstance(self.strategy, SceneStrategy):
-            result = self.strategy.run(scene, stats, view)
-            return _Done(result.across(groups) if groups is not None else result)
-        return self.strategy.submit(scene, stats, groups, records, stop_at_first=stop_at_first)
+
+def _checked_groups(groups: Any, n: int) -> np.ndarray | None:
+    """``groups`` as an (n,) integer array, or None; a ValueError for any other shape."""
+    if groups is None:
+        return None
+    groups = np.asarray(groups)
+    if groups.shape != (n,) or not np.issubdtype(groups.dtype, np.integer):
+        raise ValueError(f"groups must be {n} whole numbers, one per body; "
+                         f"got shape {groups.shape} of {groups.dtype}")
+    return groups
 
 
 class PendingQuery:
     """A query submitted with :meth:`Detector.submit`; :meth:`result` waits for it."""
 
-    def __init__(self, detector: Detector, pending: Any, t0: float, query: tuple) -> None:
-        self._detector, self._pending, self._t0, self._query = detector, pending, t0, query
+    def __init__(self, detector: Detector, pending: Any, t0: float, records: str | None
+                 ) -> None:
+        self._detector, self._pending, self._t0, self._records = detector, pending, t0, records
         self._result: CollisionResult | None = None
 
     @property
@@ -314,7 +381,7 @@ class PendingQuery:
         """The query's result, waiting for the GPU if it has not finished (at most the request's
         ``timeout`` per wait)."""
         if self._result is None:
-            self._result = self._detector._finish(self._pending, self._t0, self._query)
+            self._result = self._detector._finish(self._pending, self._t0, self._records)
         return self._result
 
 
@@ -370,11 +437,14 @@ def find_collisions(bodies: Sequence[Any], transforms: Any = None, *,
     view : View or sequence of View, optional
         Scene strategy only.
     **options
-        Other options of :class:`~pycinder.CollisionRequest` (``strategy``, ``encode``, ...).
+        Other options of :class:`~pycinder.CollisionRequest` (``strategy``, ``encode``,
+        ``records``, ``contacts``, ...). ``contacts=True`` keeps what contacts are reduced from,
+        so that ``result.contacts()`` answers from the result alone.
 
     Returns
     -------
     CollisionResult
+        Plain data (no detector or GPU handle): it pickles.
 
     Notes
     -----

@@ -191,9 +191,11 @@ class CollisionManager:
     """
 
     def __init__(self, **options: Any) -> None:
-        if "records" in options:
-            raise TypeError("CollisionManager chooses the records itself (all of them when a "
-                            "call asks for return_data, none otherwise); leave 'records' out")
+        given = [name for name in ("records", "contacts") if name in options]
+        if given:
+            raise TypeError(f"CollisionManager chooses the records itself (contacts when a call "
+                            f"asks for return_data, pairs only otherwise); leave "
+                            f"{' and '.join(map(repr, given))} out")
         if options.get("strategy", "focused") != "focused":
             raise ValueError("CollisionManager runs the focused strategy (its contacts and "
                              "distances need tiles per pair); leave 'strategy' out")
@@ -498,8 +500,11 @@ class CollisionManager:
     def _query(self, objs: Sequence[CollisionObject], labels: list[str],
                groups: np.ndarray | None, contacts: bool) -> CollisionResult:
         bodies, transforms, names = self._bodies(objs, labels)
+        if contacts:
+            return self._detector.find_collisions(bodies, transforms, names=names, groups=groups,
+                                                  contacts=True)
         return self._detector.find_collisions(bodies, transforms, names=names, groups=groups,
-                                              records="all" if contacts else "none")
+                                              records="none")
 
     def _any(self, objs: Sequence[CollisionObject], labels: list[str],
              groups: np.ndarray | None) -> bool:
@@ -523,7 +528,8 @@ class CollisionManager:
 
     @staticmethod
     def _contacts(result: CollisionResult) -> list[ContactData]:
-        """The result's contacts, named by the labels the query was given."""
+        """The contacts of a result asked for with contacts (:meth:`_query`), named by the
+        labels the query was given."""
         return list(result.contacts())
 
     def _min_distance(self, objs: Sequence[CollisionObject], labels: list[str],

@@ -221,18 +221,26 @@ class CollisionRequest:
     broad_phase : {"auto", "gpu", "numpy"}
         Focused strategy: where the candidate pairs (bodies whose world boxes overlap) are
         found. ``"gpu"``: world boxes, a sort and a sweep in compute passes
-        (:class:`pycinder.passes.broadphase.GpuBroadPhase`), one more submission and map per
+        (:class:`pycinder.passes.broad.GpuBroadPhase`), one more submission and map per
         query; it may add pairs whose boxes are apart by a few millionths of their coordinates,
         which the tile planner then separates. ``"numpy"``: a vectorised sweep on the host.
         ``"auto"`` (default): the GPU from :data:`GPU_BROAD_PHASE_BODIES` bodies. The pairs
         reported are the same.
-    records : {"found", "all", "none"}
+    records : {"found", "all", "none"}, optional
         Focused strategy: ``"found"`` (default) stops testing a pair as soon as one of its tiles
         found it colliding (large windows are probed at their centre first) and returns the
         first records found (up to :data:`FOUND_RECORDS_PER_PAIR` per pair); ``"all"`` tests
-        every tile and returns every sample inside the other body (for contact generation);
-        ``"none"`` returns pairs only. The pairs are the same in every mode (see
-        :class:`RecordMode`). The scene strategy always returns its records.
+        every tile and returns every sample inside the other body (what contacts are reduced
+        from); ``"none"`` returns pairs only. The pairs are the same in every mode (see
+        :class:`RecordMode`). The scene strategy always returns its records. Default:
+        ``"all"`` with ``contacts=True``, else ``"found"``.
+    contacts : bool
+        Focused strategy: every query keeps what its contacts are reduced from (every record,
+        ``records="all"``), so that :meth:`~pycinder.CollisionResult.contacts` answers from the
+        result's own records, with no GPU. A physics step asks for pairs and contacts together:
+        ``Detector(contacts=True)``, or ``contacts=True`` per call. ``contacts=True`` with
+        ``records`` other than ``"all"`` is an error, as is ``contacts=True`` with the scene
+        strategy (its one image has no tiles to measure contacts in).
     """
 
     strategy: Literal["focused", "scene"] = "focused"
@@ -246,16 +254,18 @@ class CollisionRequest:
     strict: bool = False
     profile: bool = False
     memory_budget: int = DEFAULT_MEMORY_BUDGET
-    records: str = "found"
+    records: str | None = None
     timeout: float = DEFAULT_TIMEOUT
     max_pixels: int = DEFAULT_MAX_PIXELS
     broad_phase: str = "auto"
+    contacts: bool = False
 
     def __post_init__(self) -> None:
         _one_of("strategy", self.strategy, STRATEGIES)
         _one_of("encode", self.encode, ENCODINGS)
-        _one_of("records", self.records, RECORD_MODES)
         _one_of("broad_phase", self.broad_phase, BROAD_PHASES)
+        object.__setattr__(self, "records",
+                           _records_for_contacts(self.strategy, self.records, self.contacts))
         for name in ("strict", "profile"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
@@ -319,13 +329,79 @@ class CollisionRequest:
         return record_mode(self.records)
 
     def replace(self, **changes: Any) -> CollisionRequest:
-        """A copy with some options changed (checked again)."""
+        """A copy with some options changed (checked again). Changing ``contacts`` alone lets
+        ``records`` follow it (``"all"`` with contacts, ``"found"`` without)."""
         values = {f.name: getattr(self, f.name) for f in fields(self)}
         if changes.get("strategy", self.strategy) == "focused":
             for name in _SCENE_ONLY:
                 values[name] = _DEFAULTS[name]
+        if "contacts" in changes and "records" not in changes \
+                and self.records == ("all" if self.contacts else "found"):
+            values["records"] = None  # the default that follows contacts
         values.update(changes)
         return CollisionRequest(**values)
+
+    def call_records(self, records: str | None = None, contacts: bool | None = None
+                     ) -> str | None:
+        """The records one query keeps, from the options of its call
+        (:meth:`~pycinder.Detector.submit`, :meth:`~pycinder.Detector.find_collisions`,
+        :func:`~pycinder.batch.find_collisions_batch`), checked as the request's own are.
+
+        Parameters
+        ----------
+        records : {"found", "all", "none"}, optional
+            This call's records; default: the request's.
+        contacts : bool, optional
+            True: this call keeps what its contacts need (every record). False: it needs none
+            (the request's records, or ``"found"`` where the request asked for contacts).
+            Default: the request's.
+
+        Returns
+        -------
+        str or None
+            A records mode of the focused strategy; None for the scene strategy (it keeps its
+            own records).
+
+        Raises
+        ------
+        ValueError
+            For a value not allowed, ``contacts=True`` with ``records`` other than ``"all"``,
+            and records or contacts per call with the scene strategy.
+        """
+        if contacts is not None and not isinstance(contacts, bool):
+            raise ValueError(f"contacts must be True or False, got {contacts!r}")
+        if records is not None:
+            record_mode(records)  # a ValueError naming the modes for any other value
+        if self.strategy != "focused":
+            if records is not None:
+                raise ValueError("records per call applies to strategy='focused'")
+            _records_for_contacts(self.strategy, None, bool(contacts))  # raises for True
+            return None
+        if contacts is None:
+            return records or self.records
+        if contacts:
+            return _records_for_contacts(self.strategy, records, True)
+        return records or ("found" if self.contacts else self.records)
+
+
+def _records_for_contacts(strategy: str, records: str | None, contacts: Any) -> str:
+    """The records a query keeps given ``records`` (None: the default) and ``contacts``; raises
+    ValueError for a bad value or a combination that cannot give contacts."""
+    if not isinstance(contacts, bool):
+        raise ValueError(f"contacts must be True or False, got {contacts!r}")
+    if records is not None:
+        _one_of("records", records, RECORD_MODES)
+    if not contacts:
+        return "found" if records is None else records
+    if strategy != "focused":
+        raise ValueError("contacts are measured in the focused strategy's tiles; "
+                         "strategy='scene' has none (its one image has no tiles per pair). "
+                         "Leave strategy out for contacts.")
+    if records not in (None, "all"):
+        raise ValueError(f"contacts=True keeps every record of each pair (records='all'), "
+                         f"but records={records!r} was given: leave records out, or pass "
+                         f"records='all'")
+    return "all"
 
 
 def _positive_int(value: Any) -> bool:

@@ -10,7 +10,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .records import RECORD_DTYPE
-from .request import record_mode
 from .text import plural
 
 if TYPE_CHECKING:
@@ -169,68 +168,9 @@ def _pack(entries: list[str], first: str, width: int = 100) -> list[str]:
 _OWN_FIELDS = {f.name for f in fields(Stats)}
 
 
-@dataclass
-class Query:
-    """What made a result, kept so that it can be run again with other records (for
-    :meth:`CollisionResult.contacts`).
-
-    Attributes
-    ----------
-    detector : Detector or None
-        None once the result was pickled (see :meth:`detached`).
-    bodies : sequence
-        The bodies as given (vertex arrays are not copied: contacts computed later see them as
-        they are then).
-    transforms : (N, 4, 4) float or None
-        A copy of the transforms as given.
-    names : sequence of str or None
-    groups : (N,) int or None
-    records : {"found", "all", "none"}
-        The records mode the query ran with.
-    """
-
-    detector: Any
-    bodies: Sequence[Any]
-    transforms: np.ndarray | None
-    names: Sequence[str | None] | None
-    groups: np.ndarray | None
-    records: str
-
-    def run(self, records: str) -> CollisionResult:
-        """The same query again with ``records``.
-
-        Raises
-        ------
-        ValueError
-            For a query without its detector (one of a result that was pickled).
-        """
-        if self.detector is None:
-            raise ValueError(
-                f"this result was pickled (sent from another process, or loaded): it keeps no "
-                f"detector to run its query again with every record, and it kept "
-                f"records={self.records!r}. Call result.contacts() before pickling it (contacts "
-                f"are kept and pickled with the result), or run the query with records='all'")
-        return self.detector.find_collisions(self.bodies, self.transforms, names=self.names,
-                                             groups=self.groups, records=records)
-
-    def detached(self) -> Query:
-        """This query without its detector, bodies and transforms: what a pickled result keeps
-        (its names, groups and records mode)."""
-        return Query(None, (), None, self.names, self.groups, self.records)
-
-
-def remember_query(result: CollisionResult, detector: Any, bodies: Sequence[Any],
-                   transforms: Any, names: Sequence[str | None] | None, groups: Any,
-                   records: str) -> None:
-    """Attach to ``result`` what made it (see :class:`Query`)."""
-    result.query = Query(detector, bodies,
-                         None if transforms is None else np.array(transforms, dtype=np.float64),
-                         None if names is None else list(names),
-                         None if groups is None else np.array(groups), records)
-
-
 class CollisionResult:
-    """The answer to one query.
+    """The answer to one query: plain arrays and dataclasses, with no detector, GPU handle or
+    caller's body in it.
 
     Attributes
     ----------
@@ -245,17 +185,20 @@ class CollisionResult:
     views : list of View
         Scene strategy: the view of each ``records["view"]`` index.
     tiles : TilePlan or None
-        Focused strategy: the tile of each ``records["view"]`` index.
+        Focused strategy: the tile of each ``records["view"]`` index (NumPy arrays).
     scene : Scene or None
-        The validated bodies the query ran on.
-    query : Query or None
-        What made this result (the detector and its inputs), to compute contacts later.
+        The validated bodies the query ran on (their shapes are copies in single precision, not
+        the caller's arrays).
+    records_kept : {"found", "all", "none"} or None
+        The records the focused query kept (its ``records``, ``"all"`` when it was asked for
+        contacts); None for the scene strategy. :meth:`contacts` needs ``"all"``.
 
     Notes
     -----
-    A result pickles (to return it from a process pool, or to store it): its records are decoded
-    first, and the copy keeps no detector, bodies or GPU handle. Contacts computed before pickling
-    travel with it; a copy whose query kept fewer than every record cannot compute them later.
+    Contacts are asked for with the query (``contacts=True``), as a physics step asks for pairs
+    and contacts together: the query then keeps every record, and :meth:`contacts` reduces them
+    here, with no GPU. A result pickles as it is (to return it from a process pool, or to store
+    it): its records are decoded first; its contacts, computed or not, come with it.
 
     Parameters
     ----------
@@ -267,13 +210,13 @@ class CollisionResult:
     def __init__(self, pairs: np.ndarray,
                  records: np.ndarray | tuple[int, Callable[[], np.ndarray]], stats: Stats,
                  views: list[View] | None = None, tiles: TilePlan | None = None,
-                 scene: Scene | None = None, query: Query | None = None) -> None:
+                 scene: Scene | None = None, records_kept: str | None = None) -> None:
         self.pairs = pairs
         self.stats = stats
         self.views = [] if views is None else views
         self.tiles = tiles
         self.scene = scene
-        self.query = query
+        self.records_kept = records_kept
         self._contacts: Contacts | None = None
         self._decode: Callable[[], np.ndarray] | None = None
         self._records: np.ndarray | None = None
@@ -283,12 +226,10 @@ class CollisionResult:
             self._count, self._records = len(records), records
 
     def __getstate__(self) -> dict[str, Any]:
-        """What a pickled result holds: plain arrays and dataclasses, with its records decoded
-        and its query detached from the detector (no GPU handle crosses a process)."""
+        """What a pickled result holds: its attributes, with its records decoded (the decoder,
+        a function, stays behind)."""
         state = self.__dict__.copy()
         state["_records"], state["_decode"] = self.records, None
-        if self.query is not None:
-            state["query"] = self.query.detached()
         return state
 
     @property
@@ -317,8 +258,6 @@ class CollisionResult:
     @property
     def names(self) -> list[str | None] | None:
         """The body names the query was given (None where it was given none)."""
-        if self.query is not None and self.query.names is not None:
-            return list(self.query.names)
         if self.scene is not None and any(n is not None for n in self.scene.names):
             return list(self.scene.names)
         return None
@@ -372,30 +311,39 @@ class CollisionResult:
         rec = rec[groups[rec["penetrating"]] != groups[rec["penetrated"]]]
         self.stats.records = len(rec)
         return CollisionResult(self.pairs[keep], rec, self.stats, self.views, self.tiles,
-                               self.scene, self.query)
+                               self.scene, self.records_kept)
 
     def contacts(self) -> Contacts:
         """One contact per contact region of every colliding pair, with its point, normal and
-        penetration depth (see :mod:`pycinder.contacts`).
+        penetration depth (see :mod:`pycinder.contacts`), reduced from this result's records:
+        no GPU runs.
 
-        Contacts are reduced from every record of a pair. When this query kept fewer
-        (``records="found"``, the default, or ``"none"``), it is run once more through the
-        detector that made it with ``records="all"``, on the bodies and transforms it was given
-        (as they are now: call this before changing vertex arrays in place). The answer is kept,
+        Contacts are reduced from every record of a pair: ask for them with the query
+        (``contacts=True``, or ``records="all"``). The answer is computed on first call, kept,
         and pickled with the result.
 
         Returns
         -------
         Contacts
-            Arrays of C contacts (``pair``, ``point``, ``normal``, ``depth``, ...); iterating
-            gives one :class:`~pycinder.ContactData` per contact, named by the query's names
-            (body indices where it had none).
+            Arrays of C contacts (``pair`` (C, 2), ``point`` (C, 3), ``normal`` (C, 3),
+            ``depth`` (C,), ...); iterating gives one :class:`~pycinder.ContactData` per
+            contact, named by the query's names (body indices where it had none).
 
         Raises
         ------
         ValueError
-            For a result of the scene strategy, whose image has no tiles to measure contacts in;
-            for a pickled result that kept fewer than every record and no contacts.
+            For a result that kept fewer than every record (``records="found"``, the default,
+            or ``"none"``): the message says to query with ``contacts=True``; for a result of
+            the scene strategy, whose image has no tiles to measure contacts in.
+
+        Examples
+        --------
+        >>> import trimesh, pycinder
+        >>> box = trimesh.creation.box((1, 1, 1))
+        >>> ball = trimesh.creation.icosphere(radius=0.4).apply_translation((0.6, 0, 0))
+        >>> result = pycinder.find_collisions([box, ball], tolerance=0.005, contacts=True)
+        >>> [(c.pair, round(c.depth, 1)) for c in result.contacts()]
+        [((0, 1), 0.3)]
         """
         from .contacts import reduce_contacts
 
@@ -404,11 +352,17 @@ class CollisionResult:
         if self.stats.strategy != "focused":
             raise ValueError("contacts are measured in the focused strategy's tiles; this result "
                              "comes from strategy='scene'. Run the query with the default "
-                             "strategy for contacts.")
-        source = self
-        if len(self.pairs) and self.query is not None and not record_mode(self.query.records).complete:
-            source = self.query.run("all")
-        contacts = reduce_contacts(source).restricted_to(self.pairs)
+                             "strategy and contacts=True for contacts.")
+        if self.records_kept != "all":
+            kept = f"records={self.records_kept!r}" if self.records_kept else \
+                "no word of which records it kept"
+            raise ValueError(
+                f"this result has no contacts: its query kept {kept}, and contacts are reduced "
+                f"from every record of each pair. Ask for them with the query: "
+                f"find_collisions(..., contacts=True) (on a Detector too, or "
+                f"Detector(contacts=True) for every query; find_collisions_batch(..., "
+                f"contacts=True) for a batch)")
+        contacts = reduce_contacts(self).restricted_to(self.pairs)
         contacts.names = self.names
         self._contacts = contacts
         return contacts

@@ -19,8 +19,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..request import CollisionRequest, record_mode
-from ..result import CollisionResult, Stats
+from ..request import CollisionRequest
+from ..result import CollisionResult
 from ..scene import Scene, prepare_scene
 
 if TYPE_CHECKING:
@@ -79,8 +79,8 @@ def _transforms(transforms: Any, n: int, label: Any) -> np.ndarray:
 
 
 def find_collisions_batch(detector: Detector, scenes: Sequence[Any], *, tolerance: Any = None,
-                          labels: Sequence[Any] | None = None, records: str | None = None
-                          ) -> list[CollisionResult]:
+                          labels: Sequence[Any] | None = None, records: str | None = None,
+                          contacts: bool | None = None) -> list[CollisionResult]:
     """Find the colliding pairs of many scenes in one query.
 
     Parameters
@@ -96,6 +96,9 @@ def find_collisions_batch(detector: Detector, scenes: Sequence[Any], *, toleranc
         Scene labels for messages (default: the scenes' positions).
     records : {"found", "all", "none"}, optional
         The records kept for this call (default: the detector's request's).
+    contacts : bool, optional
+        True: each scene's result keeps what its contacts are reduced from (every record), and
+        ``result.contacts()`` gives them. Default: the detector's request's.
 
     Returns
     -------
@@ -104,13 +107,18 @@ def find_collisions_batch(detector: Detector, scenes: Sequence[Any], *, toleranc
         scene's own bodies; ``scene`` is the scene alone, ``tiles`` the batch's plan (which
         ``records["view"]`` indexes). ``stats`` counts the whole query (one per batch), except
         ``bodies`` and ``records``, which are the scene's.
+
+    Notes
+    -----
+    The batch is submitted and finished by the detector as a single query is
+    (``Detector._submit``, ``Detector._finish``), with the scenes joined into one and a key per
+    body that keeps pairs within a scene.
     """
     request = detector.request
     if request.strategy != "focused":
         raise ValueError("find_collisions_batch needs strategy='focused': the scene strategy "
                          "draws one image of everything")
-    if records is not None:
-        record_mode(records)  # a ValueError naming the modes for any other value
+    records = request.call_records(records, contacts)
     t0 = time.perf_counter()
     scenes = list(scenes)
     labels = list(range(len(scenes))) if labels is None else list(labels)
@@ -134,10 +142,9 @@ def find_collisions_batch(detector: Detector, scenes: Sequence[Any], *, toleranc
     joined = prepare_scene(bodies, np.concatenate(transforms) if bodies else None, names=names,
                            strict=request.strict, cache=detector.shapes,
                            max_bodies=request.max_bodies)
-    stats = Stats(strategy="focused", adapter=detector.gpu.description, bodies=len(joined))
-    stats.add_ms("validate", (time.perf_counter() - t0) * 1e3)
-    result = detector.strategy.run(joined, stats, None, records, within=key, tolerance=tol[key])
-    stats.wall_ms["total"] = (time.perf_counter() - t0) * 1e3
+    with detector._device_lock():  # one query at a time (already held from the Detector)
+        pending = detector._submit(joined, t0, records=records, within=key, tolerance=tol[key])
+        result = detector._finish(pending, t0, records)
     return split(result, joined, counts, local_names)
 
 
@@ -163,5 +170,6 @@ def split(result: CollisionResult, joined: Scene, counts: np.ndarray,
         stats = copy.deepcopy(result.stats)  # with its strategy's part (replace() drops it)
         stats.bodies, stats.records = int(counts[s]), len(part)
         out.append(CollisionResult(result.pairs[pair_cut[s]:pair_cut[s + 1]] - a, part, stats,
-                                   tiles=result.tiles, scene=scene))
+                                   tiles=result.tiles, scene=scene,
+                                   records_kept=result.records_kept))
     return out

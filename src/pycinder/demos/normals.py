@@ -72,7 +72,7 @@ class NormalsSim:
             self._shoot(i, first=True)
         self.colour = np.tile(UNTOUCHED_COLOUR, (spheres, 1))
         self.touching = np.zeros(spheres, bool)
-        self.detector = Detector(tolerance=tolerance, encode="normal", records="all")
+        self.detector = Detector(tolerance=tolerance, encode="normal", contacts=True)
         self.bounces = 0
         self.contacts: list[tuple[np.ndarray, np.ndarray]] = []  # (points, normals) per frame
         self.surface = self._inset_surface()

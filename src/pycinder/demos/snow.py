@@ -102,7 +102,7 @@ class SnowSim:
         """Flakes that have landed so far (the oldest frozen ones melt away)."""
         self.spin = spin
         self.angle = 0.0
-        self.detector = Detector(tolerance=tolerance, records="all")  # for contacts()
+        self.detector = Detector(tolerance=tolerance, contacts=True)  # pairs and contacts
         self.warnings: list[str] = []
 
     def bunny_transform(self) -> np.ndarray:

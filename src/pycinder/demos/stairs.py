@@ -157,8 +157,9 @@ class StairsSim:
         self.descents = 0
         self.shots = 0
         self.sphere_contacts = 0
-        # Every record of every pair: contacts() reduces them without running the query again.
-        self.detector = Detector(tolerance=self.tolerance, records="all")
+        # Pairs and contacts together, every substep: each result keeps every record of every
+        # pair, and contacts() reduces them with no GPU.
+        self.detector = Detector(tolerance=self.tolerance, contacts=True)
         self.statics = np.concatenate([step_transforms(), box_transforms(FLOOR_BOX[None])])
         self.frame_index = 0
 
