@@ -30,6 +30,7 @@ extensions = [
     "sphinx.ext.autodoc",
     "numpydoc",
     "cliref",
+    "passtable",
     "repolinks",
 ]
 

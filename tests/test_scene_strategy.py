@@ -114,7 +114,10 @@ def test_pass_table_comes_from_the_classes_in_the_order_passes_run():
     from pycinder.passes.states import PASSES
     from pycinder.passes.table import pass_table
 
+    from pycinder.frame import PASS_INFOS
+
     infos = [*RaycastPasses.INFOS, FilterPass.INFO, MipReduce.INFO]
+    assert list(PASS_INFOS) == infos
     assert [i.number for i in infos] == [str(n) for n in range(1, 10)]
     for info, state in zip(infos, PASSES.values()):
         # the state column is the state table's row, not a copy of it

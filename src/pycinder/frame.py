@@ -29,12 +29,19 @@ from .gpu.device import Gpu
 from .passes.bindings import Profiler
 from .passes.filter import FilterPass, read_counters
 from .passes.raycast import RaycastPasses
+from .passes.reduce import MipReduce
+from .passes.table import PassInfo
 from .readback import ReadbackMode
 from .result import Stats
 
 Hook = Callable[[str], None]
 """Called with ``"pass N"`` after pass N (``"pass 7"`` after passes 5-7, which run body by body)
 and with ``"filter"`` after the filter."""
+
+
+PASS_INFOS: tuple[PassInfo, ...] = (*RaycastPasses.INFOS, FilterPass.INFO, MipReduce.INFO)
+"""The whole-scene strategy's passes in the order they run (the pass table is generated from
+them): Appendix A's passes 1-7, the self-interference filter, the mip-map reduction."""
 
 
 @dataclass(frozen=True)
@@ -145,4 +152,4 @@ class WholeSceneFrame:
         return self.readback.decode(data, view_index, encode, edge_start)
 
 
-__all__ = ["Hook", "SceneFrame", "WholeSceneFrame"]
+__all__ = ["PASS_INFOS", "Hook", "SceneFrame", "WholeSceneFrame"]

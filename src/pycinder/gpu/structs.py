@@ -13,7 +13,8 @@ The layout is checked against WGSL's rules for the address space the struct is u
 from WGSL's (an array of ``vec3``, whose stride is 16 bytes for 12 of data) is refused: declare
 ``vec4`` instead.
 
->>> s = Struct("Example", [("count", "u32", "items"), ("origin", "vec3f", ""), ("scale", "f32", "")])
+>>> s = Struct("Example", [("count", "u32", "items"), ("origin", "vec3f", ""),
+...                        ("scale", "f32", "")])
 >>> [s.offset(f) for f in ("count", "origin", "scale")], s.size
 ([0, 16, 28], 32)
 >>> print(s.wgsl())

@@ -246,5 +246,5 @@ class Encoding:
     state: FrameState
 
 
-__all__ = ["Encoding", "AtlasBuffers", "Caps", "FrameState", "LIST_CAPACITY", "RETRY_LISTS", "SLOTS",
-           "Round"]
+__all__ = ["EDGE_ENTRY_BYTES", "ENTRY_BYTES", "LIST_CAPACITY", "PIXEL_BYTES", "RETRY_LISTS",
+           "SLOTS", "AtlasBuffers", "Caps", "Encoding", "FrameState", "Round"]

@@ -22,13 +22,10 @@ import numpy as np
 import wgpu
 
 from ..again import grown_caps
-from ..gpu.buffers import DEFAULT_TIMEOUT, Readback
+from ..gpu.buffers import DEFAULT_TIMEOUT
 from ..gpu.device import Gpu
-from ..layout import (C_AGAIN, C_CUTS, C_EDGES, C_RECORDS, C_RETRY_TILES, C_UNDECIDED,
-                      COUNTERS, FLAG_OPEN, RECORD, ROUND_COUNTERS, TILE)
-from ..request import RecordMode
+from ..layout import C_CUTS, C_EDGES, C_RECORDS, FLAG_OPEN, ROUND_COUNTERS
 from ..scene.pack import ShapePack
-from ..tiles import TilePlan
 from .arguments import Arguments
 from .atlas import (LIST_CAPACITY, PIXEL_BYTES, SLOTS, AtlasBuffers, Encoding, FrameState,
                     Round)
@@ -40,6 +37,7 @@ from .crossings import Crossings
 from .crossingtest import CrossingTest
 from .cull import Cull
 from .edgetest import EdgeTest
+from .output import FocusedOutput, FrameInputs, FrameReadback, Submitted, tile_words
 from .retry import CountAgain, RetryChoice
 from .scope import ComputeScope
 from .surfacetest import SurfaceTest
@@ -55,108 +53,11 @@ TIMED_PASSES = tuple(p.INFO.title for p in ROUND_PASSES)
 """Names of the passes timed per round when profiling (F0, and "decisions" (passes F7 and F8),
 are timed once per frame)."""
 
-SPECULATIVE_RECORDS = 4096
-"""Fewest records copied into the frame's one readback; a frame copies a quarter more than the
-last frame found (frames of an animation are alike), so that most frames need one round trip."""
-
-
-@dataclass
-class FocusedOutput:
-    """What one frame of the focused passes found.
-
-    Attributes
-    ----------
-    pair_found : (K,) bool
-        Per candidate pair: whether a tile of it found a sample inside the other body (or a
-        crossing). Decided on the GPU, where the tiles of a pair meet.
-    tile_counts : (T, 2) int64 or None
-        Per tile: samples found, samples undecided (list overflow;
-        :data:`~pycinder.layout.UNDECIDED_BUDGET_BIT` set where pass F6 ran out of its loop
-        budget). Read only when some tile is left undecided and its answer could still change;
-        None otherwise.
-    records : (R,) structured array of :data:`~pycinder.layout.RECORD`
-        Sorted by (tile, uv, z_bits, ident).
-    counters : (COUNTERS,) int64
-    bytes_read : int
-    reruns : int
-        Times the frame ran again because a buffer had to grow.
-    gpu_ms : dict of str to float
-        GPU milliseconds per pass (summed over rounds), when profiling.
-    dropped_records : int
-        Records found but not kept: more than one records buffer of this device holds.
-    undecided : int
-        Samples undecided (list overflow), in every round and retry round of the frame.
-    retried_tiles : int
-        Tiles run again in the frame's own retry rounds.
-    capacity : int
-        The list capacity of the frame's last round (the retry's when it ran).
-    """
-
-    pair_found: np.ndarray
-    tile_counts: np.ndarray | None
-    records: np.ndarray
-    counters: np.ndarray
-    bytes_read: int
-    gpu_ms: dict[str, float]
-    reruns: int = 0
-    dropped_records: int = 0
-    undecided: int = 0
-    retried_tiles: int = 0
-    capacity: int = LIST_CAPACITY
-
-
-@dataclass
-class FrameInputs:
-    """What a frame is submitted with (kept to run it again)."""
-
-    plan: TilePlan
-    matrices: np.ndarray
-    """(T, 2, 3, 4) tile-from-body matrices."""
-    body_shape: np.ndarray
-    """(N,) each body's shape in ``pack``."""
-    pack: ShapePack
-    pairs: int
-    shapes: list | None
-    records: RecordMode
-    capacity: int
-    retry: bool
-
-
-@dataclass
-class ReadLayout:
-    """Where the parts of a frame's readback lie."""
-
-    head: int
-    stamps: int
-    nbytes: int
-    timed: list[str]
-    waiting: str
-
-
-@dataclass(eq=False)
-class Submitted:
-    """A frame submitted to the GPU, and what it found once read (``output``)."""
-
-    inputs: FrameInputs
-    slot: int
-    state: FrameState | None = None
-    layout: ReadLayout | None = None
-    pending: object = None
-    output: FocusedOutput | None = None
-    reruns: int = 0
-
-    @property
-    def ready(self) -> bool:
-        """Whether the GPU has finished the frame (reading it will not wait)."""
-        return self.output is not None or Readback.ready(self.pending)
-
-
 @dataclass
 class _Uploaded:
     layout: tuple | None = None
     shapes: list | None = None
     bound_pending: np.ndarray | None = None
-    recent_records: int = 0
     next_slot: int = 0
     in_flight: list = field(default_factory=lambda: [None] * SLOTS)
 
@@ -200,6 +101,7 @@ class FocusedFrames:
         self.frame_params = ParamBlocks(gpu.device, "frame parameters", frame_blocks)
         self.round_params = ParamBlocks(gpu.device, "round parameters",
                                         {"cull": Cull.PARAMS, "surface": SurfaceTest.PARAMS})
+        self.readback = FrameReadback(gpu, self.buffers, self.profiler, self.timeout)
         self._up = _Uploaded()
 
     @property
@@ -283,7 +185,7 @@ class FocusedFrames:
         """
         b, up = self.buffers, self._up
         while sub.output is None:
-            out = self._read(sub)
+            out = self.readback.read(sub)
             records_read = sub.inputs.records.read
             try:
                 grown = grown_caps(out.counters, b.caps, b.limits, records_read)
@@ -411,108 +313,12 @@ class FocusedFrames:
                     self._encode_round(encoder, e, r)
         if s.tiles:
             self.count_again.encode(encoder, self.profiler, e)
-        s.speculative = min(max(SPECULATIVE_RECORDS, up.recent_records * 5 // 4),
-                            b.caps.records) if s.records.read else 0
-        sub.layout = self._copy_readback(encoder, s)
+        s.speculative = self.readback.speculative(s)
+        sub.layout = self.readback.copy(encoder, s)
         self.gpu.device.queue.submit([encoder.finish()])
         up.bound_pending = None
         sub.pending = b.readbacks[s.slot].start(sub.layout.nbytes)
 
-    def _copy_readback(self, encoder: wgpu.GPUCommandEncoder, s: FrameState) -> ReadLayout:
-        """Copy the counters, the per-pair flags, the first records and the timestamps into the
-        frame's staging buffer (and the per-tile counts into the slot's copy)."""
-        b = self.buffers
-        flags = 4 * s.pairs
-        head = -(-(4 * COUNTERS + flags) // 16) * 16
-        stamps = -(-(head + RECORD.size * s.speculative) // 8) * 8
-        nbytes = stamps + self.profiler.nbytes
-        staging = b.readbacks[s.slot].ensure(nbytes)
-        encoder.copy_buffer_to_buffer(b.counters, 0, staging, 0, 4 * COUNTERS)
-        if s.tiles:
-            encoder.copy_buffer_to_buffer(b.tile_counts.buffer, 8 * s.tiles, staging,
-                                          4 * COUNTERS, flags)
-            copy = b.tile_copies[s.slot]
-            copy.ensure(8 * s.tiles)
-            encoder.copy_buffer_to_buffer(b.tile_counts.buffer, 0, copy.buffer, 0, 8 * s.tiles)
-        if s.speculative:
-            encoder.copy_buffer_to_buffer(b.records(s.slot).buffer, 0, staging, head,
-                                          RECORD.size * s.speculative)
-        self.profiler.resolve(encoder, staging, stamps)
-        return ReadLayout(head, stamps, nbytes, list(self.profiler.names),
-                          f"a frame of {s.tiles} tiles in {s.rounds} rounds")
 
-    def _read(self, sub: Submitted) -> FocusedOutput:
-        """Wait for a submitted frame's readback (one map) and decode it. A second map reads the
-        per-tile counts when some tile must run again, and the records beyond those the first
-        brought."""
-        s, lay, b = sub.state, sub.layout, self.buffers
-        data = b.readbacks[s.slot].wait(sub.pending, lay.nbytes, timeout=self.timeout,
-                                        waiting_for=lay.waiting)
-        gpu_ms = self.profiler.times(data[lay.stamps // 4:], lay.timed)
-        counters = data[:COUNTERS].astype(np.int64)
-        pair_found = data[COUNTERS:COUNTERS + s.pairs] != 0
-        n_records = int(min(counters[C_RECORDS], b.caps.records)) if s.records.read else 0
-        if s.records.read:
-            self._up.recent_records = n_records
-        words = RECORD.size // 4
-        recs = data[lay.head // 4: lay.head // 4 + words * n_records]
-        tiles = 8 * s.tiles if counters[C_AGAIN] else 0
-        more = RECORD.size * n_records if n_records > s.speculative else 0
-        tile_counts = None
-        if tiles or more:
-            second = self._read_more(s, tiles, more, n_records)
-            if tiles:
-                tile_counts = second[:2 * s.tiles].reshape(s.tiles, 2).astype(np.int64)
-            if more:
-                recs = second[tiles // 4:]
-        recs = np.ascontiguousarray(recs).view(RECORD.dtype)
-        if len(recs):
-            recs = recs[np.lexsort((recs["ident"], recs["z_bits"], recs["uv"], recs["tile"]))]
-        retried = int(counters[C_RETRY_TILES])
-        return FocusedOutput(pair_found, tile_counts, recs, counters,
-                             lay.nbytes + tiles + more, gpu_ms,
-                             undecided=int(counters[C_UNDECIDED]), retried_tiles=retried,
-                             capacity=s.capacity_of(bool(retried)))
-
-    def _read_more(self, s: FrameState, tiles: int, more: int, n_records: int) -> np.ndarray:
-        """The second map: ``tiles`` bytes of per-tile counts, then ``more`` bytes of records."""
-        b = self.buffers
-        encoder = self.gpu.device.create_command_encoder()
-        readback = b.readbacks_more[s.slot]
-        staging = readback.ensure(tiles + more)
-        if tiles:
-            encoder.copy_buffer_to_buffer(b.tile_copies[s.slot].buffer, 0, staging, 0, tiles)
-        if more:
-            encoder.copy_buffer_to_buffer(b.records(s.slot).buffer, 0, staging, tiles, more)
-        self.gpu.device.queue.submit([encoder.finish()])
-        return readback.read(tiles + more, timeout=self.timeout,
-                             waiting_for=f"the counts of {s.tiles} tiles and {n_records} "
-                                         "records")
-
-
-def tile_words(plan: TilePlan, matrices: np.ndarray) -> np.ndarray:
-    """The tiles as the GPU reads them.
-
-    Parameters
-    ----------
-    plan : TilePlan
-    matrices : (T, 2, 3, 4) float
-        Tile-from-body matrices of both sides.
-
-    Returns
-    -------
-    (T,) structured array of :data:`~pycinder.layout.TILE`
-    """
-    out = TILE.zeros(len(plan))
-    out["m0"] = matrices[:, 0]
-    out["m1"] = matrices[:, 1]
-    out["window"] = plan.window
-    out["slab"][:, :2] = plan.slab
-    out["bodies"] = plan.bodies
-    out["flags"] = plan.flags
-    out["pair"] = plan.pair
-    return out
-
-
-__all__ = ["FocusedFrames", "FocusedOutput", "FrameInputs", "PASSES", "Submitted",
-           "TIMED_PASSES", "tile_words"]
+__all__ = ["PASSES", "ROUND_PASSES", "TIMED_PASSES", "FocusedFrames", "FocusedOutput",
+           "FrameInputs", "Submitted"]

@@ -1,5 +1,6 @@
 """The pipeline state of every CInDeR pass, in one place: the paper's whole-scene passes 1-7
-(strategy ``"scene"``) and the focused passes F0-F4 (strategy ``"focused"``, the default).
+(strategy ``"scene"``) and the focused strategy's one rasterised pass, F3 (strategy
+``"focused"``, the default).
 
 This is Appendix A of the paper (with its swap of lines 34/37 and 35/38) and the OpenGL state of
 section 4.2.1, written as WebGPU state. A reader holding the paper should be able to check every
@@ -160,23 +161,15 @@ STENCIL_MASK = 0xFF
 # buffer to per-pixel lists written with storage atomics, so that every edge sample is tested at
 # its own depth: no edge hides another in its pixel.
 #
-# ======  ==========================  ======  ===========  =======  ======  =======================
-# pass    draws                       cull    depth        stencil  colour  writes
-# ======  ==========================  ======  ===========  =======  ======  =======================
-# F0      (compute) cluster bounds    -       -            -        -       bounds of changed shapes
-# F1      (compute) clusters per tile -       -            -        -       face / edge work items
-# F2      (compute) faces per cluster -       -            -        -       triangles clipped to tiles
-# F3      clipped faces of both       none    none         none     none    per pixel: winding outside
-#         bodies, all tiles                                                 the box, crossings inside
-# F5      (compute) listed crossings  -       -            -        -       records, per-tile counts
-# F4      (compute) edges per cluster -       -            -        -       records, per-tile counts
-# ======  ==========================  ======  ===========  =======  ======  =======================
+# The focused passes are listed, in the order they run, in pycinder.passes.frames.PASSES, and the
+# docs' table is generated from their classes (pycinder.passes.table). F3 is the only pass with
+# fixed-function state, below: no depth or stencil attachment, no culling, no colour writes.
 #
 # F3 is the only rasterised pass. It has no depth or stencil attachment: a face crossing a pixel's
 # ray in front of the tile's box (for tiles counting towards the back: behind it) adds +1 (front
 # face) or -1 (back face) to that body's winding at the pixel, as passes 2 and 3 do; a face crossing
-# it within the box's depth range is listed with its depth, facing and face. F5 then tests every
-# listed crossing (a point exactly on one body's surface) and F4 every edge sample at depth z by
+# it within the box's depth range is listed with its depth, facing and face. F4 then tests every
+# listed crossing (a point exactly on one body's surface) and F5 every edge sample at depth z by
 # counting the other body's listed crossings between z and the counting side.
 
 

@@ -42,20 +42,29 @@ class PassInfo:
         return f"{self.number} {self.name}"
 
 
+HEADER = ("pass", "name", "kind", "depth / stencil / cull", "runs", "purpose")
+"""The columns of a pass table."""
+
+
+def rows(infos: Iterable[PassInfo]) -> list[tuple[str, ...]]:
+    """One row of :data:`HEADER`'s columns per pass."""
+    return [(i.number, i.name, i.kind, i.state, i.when, i.purpose) for i in infos]
+
+
 def pass_table(infos: Iterable[PassInfo]) -> str:
-    """The passes as a reStructuredText grid table (number, name, kind, state, when, purpose)."""
-    header = ("pass", "name", "kind", "depth / stencil / cull", "runs", "purpose")
-    rows = [header] + [(i.number, i.name, i.kind, i.state, i.when, i.purpose) for i in infos]
-    widths = [max(len(r[k]) for r in rows) for k in range(len(header))]
+    """The passes as a reStructuredText grid table (:data:`HEADER`'s columns)."""
+    header = HEADER
+    rows_ = [header] + rows(infos)
+    widths = [max(len(r[k]) for r in rows_) for k in range(len(header))]
     rule = "+" + "+".join("-" * (w + 2) for w in widths) + "+"
 
     def line(row: tuple[str, ...]) -> str:
         return "|" + "|".join(f" {c:<{w}} " for c, w in zip(row, widths)) + "|"
 
-    out = [rule, line(rows[0]), rule.replace("-", "=")]
-    for row in rows[1:]:
+    out = [rule, line(rows_[0]), rule.replace("-", "=")]
+    for row in rows_[1:]:
         out += [line(row), rule]
     return "\n".join(out)
 
 
-__all__ = ["PassInfo", "pass_table"]
+__all__ = ["HEADER", "PassInfo", "pass_table", "rows"]
