@@ -4,7 +4,8 @@ kinematics, and a short run of the benchmark scored against exact geometry."""
 import numpy as np
 import pytest
 
-from pycinder.benchmarks import batch, robot
+from pycinder.benchmarks import batch
+from pycinder.benchmarks import robots as robot
 
 pybullet = pytest.importorskip("pybullet", reason="the test and bench extras bring pybullet")
 

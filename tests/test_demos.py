@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from pycinder.demos import normals, snow, stairs
+from pycinder.demos import edge_colours as normals
+from pycinder.demos import snow, stairs
 from pycinder.demos.run import run
 
 
@@ -357,7 +358,7 @@ def test_window_without_a_display_says_so(monkeypatch):
 
 
 def test_missing_pygfx_says_what_to_install(monkeypatch):
-    from pycinder.demos.device import import_pygfx
+    from pycinder.demos.shared import import_pygfx
 
     monkeypatch.setitem(sys.modules, "pygfx", None)
     with pytest.raises(ImportError, match=r"pip install 'pycinder\[demo\]'"):

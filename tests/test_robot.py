@@ -12,7 +12,7 @@ pytest.importorskip("yourdfpy", reason="pycinder.robot needs yourdfpy (the robot
 pytest.importorskip("pybullet_data", reason="the robots come from pybullet_data (pybullet)")
 pytest.importorskip("fcl", reason="answers are compared with python-fcl's")
 
-from pycinder.benchmarks import robot as R  # noqa: E402
+from pycinder.benchmarks import robots as R  # noqa: E402
 from pycinder.robot import (AllowedCollisionMatrix, Environment, Robot,  # noqa: E402
                             matrix_from_samples)
 

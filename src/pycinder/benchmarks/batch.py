@@ -36,7 +36,7 @@ import numpy as np
 
 from ..robot import Robot
 from .peers import FCL
-from .robot import ROBOTS, FclRobot, environment, load, score, write_meshes
+from .robots import ROBOTS, FclRobot, environment, load, score, write_meshes
 from .scenes import Scene
 
 CONFIGURATIONS = 10_000

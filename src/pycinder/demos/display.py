@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from .device import import_pygfx, shared_device
+from .shared import import_pygfx, shared_device
 
 
 @dataclass(frozen=True)

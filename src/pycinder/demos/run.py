@@ -76,7 +76,7 @@ def make_demo(name: str, *, seed: int = 0, tolerance: float | None = None,
                                     "and normal", "normal"),
                         _swatch("frozen flake (no longer checked)", snow.FROZEN_COLOUR)])
     if name == "normals":
-        from . import normals
+        from . import edge_colours as normals
 
         sim = normals.NormalsSim(spheres or 24, seed, tolerance)
         return Demo(name, sim, normals.LOOK, "Edges coloured by normals", normals.FPS,
@@ -157,7 +157,7 @@ def run(name: str, *, frames: int = 120, out: str | None = None, window: bool = 
                           scan=scan, close_holes=close_holes, size=size)
     display = None
     if out:
-        from .device import shared_device
+        from .shared import shared_device
 
         shared_device()  # before the simulation's detector takes a device of its own
     demo = make_demo(name, seed=seed, tolerance=tolerance, spheres=spheres, scan=scan,
@@ -216,7 +216,7 @@ def run_window(name: str, frames: int | None = None, size: tuple[int, int] = (64
     """An interactive window through rendercanvas: drag to orbit the camera, scroll to zoom;
     in the snow-bunny demo the a and d keys turn the bunny. Closes after ``frames`` frames if
     given, else when closed."""
-    from .device import shared_device
+    from .shared import shared_device
 
     shared_device()
     demo = make_demo(name, **kwargs)
