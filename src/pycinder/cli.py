@@ -2,6 +2,9 @@
 
     pycinder check FILE... [--tolerance T] [--strict] [--json] [--split] [--max-file-size SIZE]
                    [--max-triangles N] [--strategy scene [--resolution N]]
+                   [--min-depth D | --clearance C]
+    pycinder check A.ifc [B.ifc ...] [--a SELECTOR] [--a-file FILE] [--b SELECTOR]
+                   [--b-file FILE] [--bcf OUT.bcf] [--json] [--min-depth D | --clearance C]
     pycinder debug-buffers [FILE...] --out DIR [--resolution N] [--self-interference MODE]
     pycinder demo {stairs,snow-bunny,normals} [--frames N] [--out FILE.mp4|FILE.gif|DIR]
     pycinder bench [SCENE...] [--repeat N] [--peers ...] [--out DIR]
@@ -31,8 +34,8 @@ from typing import Any
 import numpy as np
 
 from . import __version__
-from .files import (DEFAULT_MAX_BYTES, DEFAULT_MAX_TRIANGLES, FileBody, Limits, human_bytes,
-                    parse_size)
+from .files import (DEFAULT_MAX_BYTES, DEFAULT_MAX_TRIANGLES, FileBody, Limits, display_name,
+                    human_bytes, parse_size)
 from .request import CollisionRequest
 from .text import plural
 
@@ -75,6 +78,16 @@ a body whose components overlap each other gets an OverlappingComponentsWarning.
   errors      [TEXT], one per bad file or other error; [] when the check ran
 After an error, only collision (null), pairs ([]), warnings and errors are there.
 """
+
+
+IFC_HELP = """\
+IFC files (IFC2X3, IFC4) give one body per element (IfcElement other than IfcFeatureElement),
+named 'Name [GlobalId]', tessellated in metres with openings applied, and cached per file by
+content (a re-check after a change in one file re-tessellates only that file). Several files
+form one model. A clash set tests group A against group B (--a/--a-file against
+--b/--b-file), or A against itself (--a alone); default: every element against every other.
+--json gives for each pair both names, GlobalIds, classes and files, the mode, and the depth
+or distance where the mode gives one."""
 
 
 def _cli_words(message: str, strict: bool) -> str:
@@ -137,8 +150,42 @@ def _request(args: argparse.Namespace) -> CollisionRequest:
     """``pycinder check``'s options as a request, checked (before any file is read) by
     :class:`~pycinder.CollisionRequest`, whose messages :func:`_cli_words` puts in the command
     line's words."""
-    return CollisionRequest(strict=args.strict, strategy=args.strategy,
-                            tolerance=args.tolerance, resolution=args.resolution)
+    options = dict(strict=args.strict, strategy=args.strategy, tolerance=args.tolerance,
+                   resolution=args.resolution)
+    mode, extra = _mode(args)
+    try:
+        return CollisionRequest(**options, **extra)
+    except TypeError as exc:
+        if mode in str(exc):
+            raise _mode_unavailable(mode, exc) from None
+        raise
+
+
+_MODE_FLAGS = {"min_depth": "--min-depth", "clearance": "--clearance"}
+
+
+def _mode(args: argparse.Namespace) -> tuple[str, dict[str, float]]:
+    """``check``'s query mode ("default", "min_depth", "clearance") and the options that ask
+    for it (:func:`pycinder.ifc.mode_options`, in the command line's words)."""
+    from .ifc import mode_options
+
+    try:
+        return mode_options(getattr(args, "min_depth", None), getattr(args, "clearance", None))
+    except ValueError as exc:
+        message = str(exc).replace("min_depth and clearance", "--min-depth and --clearance")
+        for name, flag in _MODE_FLAGS.items():
+            message = message.replace(f"{name} must", f"{flag} must")
+        raise ValueError(message) from None
+
+
+def _mode_unavailable(mode: str, exc: BaseException) -> RuntimeError:
+    """The error for a mode this pycinder's detector does not take yet."""
+    from .ifc import ModeUnavailableError
+
+    return ModeUnavailableError(
+        f"{_MODE_FLAGS[mode]} is not available yet in this version of pycinder (its detector "
+        f"does not take {mode}: {exc}); without it, check reports pairs by the default "
+        "tolerance contract")
 
 
 _ERRORS = (ValueError, RuntimeError, OSError, TypeError, ImportError, MemoryError)
@@ -156,9 +203,13 @@ def cmd_check(args: argparse.Namespace) -> int:
     from .detector import Detector
     from .records import pair_keys
 
+    ifc_files = [str(f).lower().endswith(".ifc") for f in args.files]
+    if any(ifc_files):
+        return cmd_check_ifc(args, mixed=not all(ifc_files))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
+            _no_ifc_options(args)
             request = _request(args)
             with _progress(args.progress, "loading") as update:
                 bodies = _load(args, update)
@@ -193,6 +244,8 @@ def cmd_check(args: argparse.Namespace) -> int:
             report["candidates"] = st.candidates
         else:
             report["resolution"] = st.resolution[0]
+        if request_mode(args) != "default":
+            report["mode"] = request_mode(args)
         report.update(adapter=st.adapter, warnings=notes, errors=[])
         print(json.dumps(report, indent=2))
     else:
@@ -204,6 +257,110 @@ def cmd_check(args: argparse.Namespace) -> int:
         else:
             print("no collisions")
     return 1 if pairs else 0
+
+
+def request_mode(args: argparse.Namespace) -> str:
+    """``check``'s mode: "min_depth", "clearance" or "default"."""
+    if getattr(args, "min_depth", None) is not None:
+        return "min_depth"
+    return "clearance" if getattr(args, "clearance", None) is not None else "default"
+
+
+_IFC_ONLY = (("a", "--a"), ("b", "--b"), ("a_file", "--a-file"), ("b_file", "--b-file"),
+             ("a_exclude", "--a-exclude"), ("b_exclude", "--b-exclude"), ("bcf", "--bcf"))
+
+
+def _no_ifc_options(args: argparse.Namespace) -> None:
+    """A ValueError for IFC's options (clash sets, --bcf) given with mesh files."""
+    given = [flag for name, flag in _IFC_ONLY if getattr(args, name, None)]
+    if given:
+        raise ValueError(f"{', '.join(given)} applies to IFC files (.ifc): clash sets and BCF "
+                         "need elements with GlobalIds")
+
+
+def _groups(args: argparse.Namespace) -> tuple[Any, Any]:
+    """``check``'s clash set: groups A and B (:class:`pycinder.ifc.Group`, or None)."""
+    from .ifc import Group
+
+    def group(side: str) -> Any:
+        selector = getattr(args, side)
+        files = getattr(args, f"{side}_file")
+        exclude = getattr(args, f"{side}_exclude")
+        if selector is None and not files and exclude is None:
+            return None
+        return Group(files=files or None, selector=selector, exclude=exclude)
+
+    a, b = group("a"), group("b")
+    if a is None and b is not None:
+        raise ValueError("--b needs --a (or --a-file): group B is tested against group A")
+    return a, b
+
+
+def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
+    """``check`` on IFC files: one body per element, a clash set, the mode's pairs as text or
+    JSON, and a BCF file with --bcf; returns 0 (no clash), 1 (clashes) or 2 (an error)."""
+    from .ifc import ModeUnavailableError, find_clashes, make_detector, read_ifc
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            if mixed:
+                raise ValueError("IFC files (.ifc) are checked on their own: give IFC files "
+                                 "alone, or mesh files alone")
+            if args.split:
+                raise ValueError("--split applies to mesh files: each IFC element is a body "
+                                 "already")
+            if args.strategy != "focused":
+                raise ValueError("IFC files are checked with --strategy focused")
+            mode, extra = _mode(args)
+            a, b = _groups(args)
+            try:
+                det = make_detector(strict=args.strict, tolerance=args.tolerance, **extra)
+            except ModeUnavailableError as exc:
+                raise _mode_unavailable(mode, getattr(exc, "reason", exc)) from None
+            with _progress(args.progress, "reading IFC") as update:
+                model = read_ifc(args.files, cache=False if args.no_cache else args.cache_dir,
+                                 progress=update, limits=_limits(args))
+                update(len(args.files), len(args.files) + 1,
+                       f"checking {plural(len(model.bodies), 'element')}")
+                clashes = find_clashes(model, a, b, detector=det)
+            if args.bcf:
+                from .bcf import write_bcf
+
+                write_bcf(clashes, args.bcf, project=", ".join(model.files))
+        except _ERRORS as exc:
+            return _fail(args, _messages(exc), caught)
+    notes = [_warning_entry(w, args.strict) for w in caught]
+    if args.json:
+        report: dict[str, Any] = {
+            "collision": bool(clashes),
+            "pairs": [c.as_dict() for c in clashes],
+            "bodies": model.names,
+            "files": model.files,
+            "clash_set": {"a": a.describe() if a else "every element",
+                          "b": b.describe() if b else None},
+            "mode": mode,
+            "min_depth": args.min_depth, "clearance": args.clearance,
+            "tolerance": args.tolerance,
+            "tessellated": model.tessellated,
+            "bcf": str(args.bcf) if args.bcf else None,
+            "strategy": "focused",
+            "adapter": det.gpu.description,
+            "warnings": notes, "errors": []}
+        print(json.dumps(report, indent=2))
+    else:
+        for note in notes:
+            print(f"warning: {note['message']}", file=sys.stderr)
+        for c in clashes:
+            figure = (f"  depth {c.depth:.4g} m" if c.depth is not None else
+                      f"  distance {c.distance:.4g} m" if c.distance is not None else "")
+            print(f"{c.a.name} ({c.a.ifc_class})  <->  {c.b.name} ({c.b.ifc_class}){figure}")
+        if not clashes:
+            print("no clashes")
+        if args.bcf:
+            print(f"wrote {display_name(args.bcf)} ({plural(len(clashes), 'topic')})",
+                  file=sys.stderr)
+    return 1 if clashes else 0
 
 
 def _tolerance_range(bodies: Sequence[FileBody], st: Any, request: CollisionRequest
@@ -412,6 +569,16 @@ def _size(text: str) -> int:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _distance(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not np.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a positive distance")
+    return value
+
+
 def _count(text: str) -> int:
     try:
         value = int(text.replace("_", "").replace(",", ""))
@@ -463,7 +630,8 @@ def build_parser() -> argparse.ArgumentParser:
                                      "(exit 0: none, 1: some, 2: error); scene files give one "
                                      "body per part, named FILE:NODE",
                        description="Print the pairs of bodies that collide among mesh files "
-                                   "(STL, OBJ, PLY, OFF, glTF/GLB, 3MF).",
+                                   "(STL, OBJ, PLY, OFF, glTF/GLB, 3MF), or the clashing "
+                                   "elements of IFC files.",
                        epilog=CHECK_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("files", nargs="+", metavar="FILE",
                    help="meshes in world coordinates; scene files give one body per part")
@@ -482,6 +650,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--split", action="store_true",
                    help="test each body's disconnected components (two boxes in one STL) as "
                         "bodies of their own, named FILE[0], FILE[1], ...")
+    modes = p.add_mutually_exclusive_group()
+    modes.add_argument("--min-depth", type=_distance, default=None, metavar="D",
+                       help="hard clashes: report pairs that penetrate deeper than D (world "
+                            "units; metres for IFC), never touching pairs")
+    modes.add_argument("--clearance", type=_distance, default=None, metavar="C",
+                       help="clearance: report pairs closer than C (world units; metres for "
+                            "IFC), touching and overlapping pairs included")
+    ifc = p.add_argument_group("IFC files (pip install 'pycinder[bim]')", IFC_HELP)
+    for side, other in (("a", "B"), ("b", "A")):
+        ifc.add_argument(f"--{side}", default=None, metavar="SELECTOR",
+                         help=f"clash set: group {side.upper()}'s elements, by IFC class or an "
+                              "IfcClash-style selector, e.g. 'IfcPipeSegment, IfcDuctSegment'")
+        ifc.add_argument(f"--{side}-file", action="append", default=None, metavar="FILE",
+                         help=f"clash set: group {side.upper()} holds this file's elements "
+                              "(repeat for several)")
+        ifc.add_argument(f"--{side}-exclude", default=None, metavar="SELECTOR",
+                         help=f"clash set: leave these elements out of group {side.upper()}")
+    ifc.add_argument("--bcf", default=None, metavar="OUT.bcf",
+                     help="write the clashes as a BCF 2.1 file: a topic per clash, both "
+                          "GlobalIds as components, a viewpoint at the clash")
+    ifc.add_argument("--cache-dir", default=None, metavar="DIR",
+                     help="folder of the tessellation cache (default: $PYCINDER_CACHE_DIR/ifc "
+                          "or the user's cache folder, pycinder/ifc)")
+    ifc.add_argument("--no-cache", action="store_true",
+                     help="tessellate every file, and cache nothing")
     _add_file_limits(p)
     _add_progress(p)
     p.set_defaults(func=cmd_check)
@@ -534,8 +727,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenes", nargs="*", metavar="SCENE",
                    help="floor, stairs, many, deforming, narrow, sweep-extent, sweep-bodies, "
                         "sweep-triangles, sweep-tolerance, manager, contacts, contract, modes, "
-                        "batch, broadphase, soak "
-                        "(default: all; the soak alone takes several minutes)")
+                        "batch, broadphase, soak, building, building-small "
+                        "(default: all but the building benchmarks, which need "
+                        "'pycinder[bim]'; the soak alone takes several minutes)")
     p.add_argument("--repeat", type=int, default=5, help="frames timed per scene")
     p.add_argument("--peers", nargs="*", default=["python-fcl", "coal", "trimesh", "warp"],
                    help="systems to compare (default: python-fcl coal trimesh warp); one that "

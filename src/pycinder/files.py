@@ -5,7 +5,9 @@
           -> checks after loading (triangles, NaN vertices) -> FileBody list
 
 * **Formats**: STL, OBJ, PLY, OFF, glTF (``.gltf`` and ``.glb``) and 3MF (which needs lxml:
-  ``pip install 'pycinder[files]'``). Point clouds and 2-D drawings are not meshes.
+  ``pip install 'pycinder[files]'``). Point clouds and 2-D drawings are not meshes. IFC files
+  (``.ifc``) are read by :mod:`pycinder.ifc`, one body per element (``pip install
+  'pycinder[bim]'``).
 * **Scene files** (glTF, 3MF, OBJ with several ``o`` objects) give one body per geometry instance,
   named ``file:node`` after the scene graph, with the instance's transform; a file with one body
   is named after the file alone.
@@ -45,7 +47,7 @@ import numpy as np
 from .text import plural
 
 MESH_FORMATS = {"stl": "STL", "obj": "OBJ", "ply": "PLY", "off": "OFF", "glb": "glTF",
-                "gltf": "glTF", "3mf": "3MF"}
+                "gltf": "glTF", "3mf": "3MF", "ifc": "IFC"}
 """The file extensions read, and the format each names."""
 
 DEFAULT_MAX_BYTES = 512 * 2**20
@@ -380,9 +382,16 @@ def _check_3mf(c: _Check, head: bytes) -> None:
     c.triangles(triangles, "its models have")
 
 
+def _check_ifc(c: _Check, head: bytes) -> None:
+    """An IFC file is STEP text (ISO 10303-21); its elements are read by :mod:`pycinder.ifc`."""
+    if not head.lstrip().startswith(b"ISO-10303-21"):
+        raise c.fail("is not an IFC file in STEP form (it does not start with ISO-10303-21; "
+                     "ifcXML and ifcZIP are not read)")
+
+
 _CHECKS: dict[str, Callable[[_Check, bytes], None]] = {
     "stl": _check_stl, "obj": _check_obj, "off": _check_off, "ply": _check_ply,
-    "glb": _check_glb, "gltf": _check_gltf, "3mf": _check_3mf}
+    "glb": _check_glb, "gltf": _check_gltf, "3mf": _check_3mf, "ifc": _check_ifc}
 
 
 def check_file(path: str, label: str, limits: Limits) -> str:
@@ -525,6 +534,10 @@ def load_file(path: str, label: str, limits: Limits = Limits()) -> list[FileBody
     import trimesh
 
     ext = check_file(path, label, limits)
+    if ext == "ifc":  # one body per element, by IfcOpenShell (pycinder[bim])
+        from .ifc import load_file as load_ifc
+
+        return load_ifc(path, label, limits)
     scene, logged = _load_scene(path, ext, label)
     for message in logged:
         warnings.warn(f"{label}: trimesh: {message}", FileWarning, stacklevel=2)
