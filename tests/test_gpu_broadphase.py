@@ -260,7 +260,7 @@ def test_a_sweep_past_its_budget_is_finished_on_the_host():
 
 def test_dense_drifting_spheres(bp):
     # The benchmark's scene: many columns across the sweep axis, pairs across their borders.
-    from pycinder.benchmarks.broadphase import drifting_spheres
+    from pycinder.benchmarks.broadbench import drifting_spheres
 
     lo, hi, r, poses = drifting_spheres(10_000, 2)
     for t in poses:
@@ -326,7 +326,7 @@ def test_dispatches_over_several_rows_of_workgroups(monkeypatch):
 
 
 def test_benchmark_scene_compares_answers_and_reports():
-    from pycinder.benchmarks.broadphase import markdown, run_broadphase
+    from pycinder.benchmarks.broadbench import markdown, run_broadphase
 
     r = run_broadphase(counts=(500,), frames=2)
     (row,) = r["rows"]

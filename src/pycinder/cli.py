@@ -751,7 +751,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_buffer_resolution(p)
     _add_progress(p)
     p.set_defaults(func=cmd_example, strict=False, json=False)
-    from .batch.cli import add_parser as add_batch_parser
+    from .batch.command import add_parser as add_batch_parser
 
     add_batch_parser(sub)
     return parser

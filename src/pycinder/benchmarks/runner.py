@@ -445,7 +445,7 @@ def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAUL
             results["batch"] = run_batch(progress=say)
             continue
         if name == "broadphase":
-            from .broadphase import run_broadphase
+            from .broadbench import run_broadphase
 
             results["broadphase"] = run_broadphase(frames=repeat, progress=say)
             continue

@@ -37,7 +37,7 @@ from .crossings import Crossings
 from .crossingtest import CrossingTest
 from .cull import Cull
 from .edgetest import EdgeTest
-from .output import FocusedOutput, FrameInputs, FrameReadback, Submitted, tile_words
+from .frameio import FocusedOutput, FrameInputs, FrameReadback, Submitted, tile_words
 from .retry import CountAgain, RetryChoice
 from .scope import ComputeScope
 from .surfacetest import SurfaceTest
