@@ -15,7 +15,7 @@ from pycinder import bcf, ifc  # noqa: E402
 from pycinder.benchmarks import building as B  # noqa: E402
 from pycinder.cli import main  # noqa: E402
 from pycinder.files import FileErrors, load_bodies  # noqa: E402
-from pycinder.request import body_sizes, pair_tolerance  # noqa: E402
+from pycinder.tolerance import body_sizes, pair_tolerance  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -6,8 +6,9 @@ import pytest
 import trimesh
 
 import pycinder
-from pycinder.request import (DEFAULT_RELATIVE_TOLERANCE, FOUND_RECORDS_PER_PAIR, RecordMode,
-                              body_sizes, pair_tolerance, record_mode)
+from pycinder.request import FOUND_RECORDS_PER_PAIR, RecordMode, record_mode
+from pycinder.testing import pair_tolerances
+from pycinder.tolerance import DEFAULT_RELATIVE_TOLERANCE, body_sizes, pair_tolerance
 from pycinder.testing import pair_tolerances
 
 from conftest import assert_matches_truth

@@ -13,7 +13,8 @@ from .errors import ClippedBodyWarning, DegenerateFaceWarning, LossWarning, Open
 from .gpu.device import ForkedProcessError, NoAdapterError, share_default_device
 from .manager import CollisionManager, ContactData, DistanceData, scene_to_collision
 from .records import RECORD_DTYPE
-from .request import DEFAULT_RELATIVE_TOLERANCE, MAX_BODIES, CollisionRequest
+from .request import MAX_BODIES, CollisionRequest
+from .tolerance import DEFAULT_RELATIVE_TOLERANCE
 from .result import CollisionResult, FocusedStats, SceneStats, Stats
 from .scene import PreparedBodies
 from .quiet import quiet_native_probes

@@ -152,7 +152,7 @@ def undecided_tiles(plan: TilePlan, tile_counts: np.ndarray, found: np.ndarray,
     capacity, base_capacity : int
         List entries per pixel of the last run, and of a first run.
     budget_of : callable
-        Atlas pixels per round for lists of a given capacity.
+        Atlas pixels per round (the memory budget) for lists of a given capacity.
 
     Returns
     -------
@@ -162,15 +162,16 @@ def undecided_tiles(plan: TilePlan, tile_counts: np.ndarray, found: np.ndarray,
         How to run them again (None when there are none).
     """
     undecided = tile_counts[:, 1] > 0
-    budget = (tile_counts[:, 1] & UNDECIDED_BUDGET_BIT) != 0
+    out_of_steps = (tile_counts[:, 1] & UNDECIDED_BUDGET_BIT) != 0   # pass F6's loop budget
     again = undecided if every_tile else undecided & ~found[plan.pair]
     if not again.any():
         return again, None
     which = np.flatnonzero(again)
-    overflowed = bool((again & ~budget).any())
+    overflowed = bool((again & ~out_of_steps).any())
     if capacity == base_capacity:
         capacity *= RETRY_LISTS
-        retry = split_depth(plan, which, budget_of(capacity), cut=bool(budget[which].any()))
+        retry = split_depth(plan, which, budget_of(capacity),
+                            cut=bool(out_of_steps[which].any()))
     else:
         retry = split_depth(plan, which, budget_of(capacity))
     return again, Undecided(retry, which, capacity, overflowed)

@@ -367,7 +367,7 @@ def _tolerance_range(bodies: Sequence[FileBody], st: Any, request: CollisionRequ
                      ) -> list[float] | None:
     """``check --json``'s ``tolerance``: [smallest, largest] over the candidate pairs; with no
     candidate pair, what any pair of the bodies would have had; None with fewer than two."""
-    from .request import body_sizes, pair_tolerance
+    from .tolerance import body_sizes, pair_tolerance
 
     if st.candidates:
         return [float(t) for t in st.tolerance]

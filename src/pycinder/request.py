@@ -28,9 +28,10 @@ centre, at most ``0.71 t`` from the edge (still promise 1): an edge point ``1.6 
 always within reach of a sample.
 
 Without a tolerance, each pair gets ``DEFAULT_RELATIVE_TOLERANCE`` (1%) of the smaller body's
-size (the length of its bounding box's diagonal in world units, :func:`body_sizes`): the promises
+size (the length of its bounding box's diagonal in world units,
+:func:`~pycinder.tolerance.body_sizes`): the promises
 then hold per pair at that scale, again independent of the rest of the scene
-(:func:`pair_tolerance`).
+(:func:`~pycinder.tolerance.pair_tolerance`; the whole policy is :mod:`pycinder.tolerance`).
 
 Open bodies. A body that is not a closed solid (it has holes, or faces wound inconsistently: any
 edge walked more often one way than the other) has no inside, so ray parity is never used for it.
@@ -46,7 +47,7 @@ It is tested as a surface:
 
 Precision. Pixels are resolved in single precision on the GPU: a pair's tolerance must be at
 least 2**-20 of its larger body's size and 2**-48 of its distance from the world origin (see
-:func:`pycinder.focused.resolvable_tolerance`). A default tolerance below that is raised to it
+:func:`pycinder.tolerance.resolvable_tolerance`). A default tolerance below that is raised to it
 with a :class:`~pycinder.errors.PrecisionWarning`; a tolerance given below it raises. Each body's
 vertices are re-centred in double precision before they are rounded, so a mesh stored far from
 its own origin keeps its detail. Bodies up to 1e30 units across are supported.
@@ -73,18 +74,12 @@ RECORD_MODES = ("found", "all", "none")
 BROAD_PHASES = ("auto", "gpu", "numpy")
 
 GPU_BROAD_PHASE_BODIES = 2000
-"""Bodies from which ``broad_phase="auto"`` finds the candidate pairs on the GPU. Measured on
-lavapipe, the query's broad-phase stage on drifting bodies (the ``many`` scene at other counts;
-the GPU's own submission and map included; the world boxes the tile planner needs are computed
-on the host either way): 5.5-5.7 ms with NumPy against 5.1-7.6 on the GPU at 1,000 bodies,
-15-19 against 9-10 at 2,000, 52-59 against 17-18 at 4,000; ``pycinder bench broadphase``: 231
-against 22.5 ms at 10,000. Below 2,000 the GPU saves nothing and costs a second round trip."""
+"""Bodies from which ``broad_phase="auto"`` finds the candidate pairs on the GPU: below that the
+GPU saves nothing and costs a second round trip (the measurements are in the benchmarks'
+README, "Measurements behind the constants")."""
 
 FOUND_RECORDS_PER_PAIR = 16
 """Records kept per pair with ``records="found"`` (the first samples found)."""
-
-DEFAULT_RELATIVE_TOLERANCE = 0.01
-"""Default tolerance of a pair, as a fraction of the smaller body's bounding-box diagonal."""
 
 DEFAULT_TIMEOUT = 60.0
 """Seconds a query may wait for the GPU (see :class:`CollisionRequest`)."""
@@ -144,33 +139,6 @@ def record_mode(records: str) -> RecordMode:
     other."""
     _one_of("records", records, RECORD_MODES)
     return _RECORD_MODES[records]
-
-
-def body_sizes(local_lo: np.ndarray, local_hi: np.ndarray, transforms: np.ndarray
-               ) -> np.ndarray:
-    """(N,) each body's size: the world length of its bounding-box diagonal.
-
-    Parameters
-    ----------
-    local_lo, local_hi : (N, 3) float
-        Corners of each body's bounding box in its own coordinates.
-    transforms : (N, 4, 4) float
-        Each body's world-from-body transform (its linear part scales the diagonal).
-    """
-    diag = np.asarray(local_hi, np.float64) - np.asarray(local_lo, np.float64)
-    linear = np.asarray(transforms, np.float64)[:, :3, :3]
-    return np.linalg.norm(np.einsum("nij,nj->ni", linear, diag), axis=1)
-
-
-def pair_tolerance(size_a: np.ndarray, size_b: np.ndarray, tolerance: float | None = None
-                   ) -> np.ndarray:
-    """(K,) tolerance of pairs of bodies ``size_a`` and ``size_b`` ((K,) :func:`body_sizes`)
-    across: ``tolerance`` where given, else :data:`DEFAULT_RELATIVE_TOLERANCE` of the smaller
-    body's size."""
-    smaller = np.minimum(np.asarray(size_a, np.float64), np.asarray(size_b, np.float64))
-    if tolerance is not None:
-        return np.full(smaller.shape, float(tolerance))
-    return DEFAULT_RELATIVE_TOLERANCE * smaller
 
 
 _SCENE_ONLY = ("resolution", "self_interference", "readback", "mipmap_levels", "edge_offset")

@@ -27,7 +27,7 @@ import numpy as np
 import trimesh
 
 from .optional import require
-from .request import body_sizes, pair_tolerance
+from .tolerance import body_sizes, pair_tolerance
 
 SURFACE_SAMPLES = 1500
 """Evenly spaced surface points per body (besides its vertices) for the depth test."""
@@ -57,7 +57,7 @@ def _manifold(mesh: trimesh.Trimesh) -> Any:
 def pair_tolerances(meshes: list, transforms: list | np.ndarray | None, pairs: np.ndarray,
                     tolerance: float | None) -> np.ndarray:
     """(K,) tolerance of each pair ((K, 2) body indices): ``tolerance``, or the documented
-    default (:func:`pycinder.request.pair_tolerance`: 1% of the smaller body's bounding-box
+    default (:func:`pycinder.tolerance.pair_tolerance`: 1% of the smaller body's bounding-box
     diagonal in world units), from the meshes' own vertices and ``transforms``."""
     vertices = [np.asarray(m.vertices if hasattr(m, "vertices") else m[0], np.float64)
                 for m in meshes]

@@ -22,9 +22,38 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import PrecisionWarning, warn_at_caller
-from .request import DEFAULT_RELATIVE_TOLERANCE, body_sizes, pair_tolerance
 from .scene import Scene
 from .text import plural
+
+DEFAULT_RELATIVE_TOLERANCE = 0.01
+"""Default tolerance of a pair, as a fraction of the smaller body's bounding-box diagonal."""
+
+def body_sizes(local_lo: np.ndarray, local_hi: np.ndarray, transforms: np.ndarray
+               ) -> np.ndarray:
+    """(N,) each body's size: the world length of its bounding-box diagonal.
+
+    Parameters
+    ----------
+    local_lo, local_hi : (N, 3) float
+        Corners of each body's bounding box in its own coordinates.
+    transforms : (N, 4, 4) float
+        Each body's world-from-body transform (its linear part scales the diagonal).
+    """
+    diag = np.asarray(local_hi, np.float64) - np.asarray(local_lo, np.float64)
+    linear = np.asarray(transforms, np.float64)[:, :3, :3]
+    return np.linalg.norm(np.einsum("nij,nj->ni", linear, diag), axis=1)
+
+
+def pair_tolerance(size_a: np.ndarray, size_b: np.ndarray, tolerance: float | None = None
+                   ) -> np.ndarray:
+    """(K,) tolerance of pairs of bodies ``size_a`` and ``size_b`` ((K,) :func:`body_sizes`)
+    across: ``tolerance`` where given, else :data:`DEFAULT_RELATIVE_TOLERANCE` of the smaller
+    body's size."""
+    smaller = np.minimum(np.asarray(size_a, np.float64), np.asarray(size_b, np.float64))
+    if tolerance is not None:
+        return np.full(smaller.shape, float(tolerance))
+    return DEFAULT_RELATIVE_TOLERANCE * smaller
+
 
 MAX_PIXELS_ACROSS = 2.0**20
 """Most pixels a pair's body may span: single-precision tile coordinates then stay within a

@@ -205,7 +205,7 @@ class Readback:
         The staging buffer is only ever written by copy commands of a command buffer already
         submitted, so the empty submission wgpu-py makes before mapping for reading (for data
         written by ``queue.write_buffer`` and not yet flushed) is skipped: it costs a round trip
-        of its own (0.8 ms of 1 ms on lavapipe)."""
+        of its own (see the benchmarks' README, "Measurements behind the constants")."""
         buffer = self.buf.buffer
         try:
             return buffer.map_async(_READ_NOSYNC, 0, nbytes)
