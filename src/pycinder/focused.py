@@ -19,6 +19,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from functools import partial
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -40,6 +41,9 @@ from .scene.normals import world_edge_normals, world_face_normals
 from .scene.pack import ShapePack, pack_shapes, shape_layout
 from .text import plural
 from .tolerance import pair_tolerances
+
+if TYPE_CHECKING:
+    from .clearance import Clearance
 from .tiles import LEAD_FROM, LEAD_PAIRS, TilePlan, concat_plans, likely_pairs, plan_tiles
 
 
@@ -63,6 +67,7 @@ class FocusedStrategy:
                                      gpu.max_resolution * 2048))
         self._pack: ShapePack | None = None
         self._broad: GpuBroadPhase | None = None  # made on first use
+        self._clearance: Clearance | None = None  # made on first clearance query
         self.recently_retried = False
         """Whether the last query ran tiles again (their samples were left undecided)."""
 
@@ -76,7 +81,9 @@ class FocusedStrategy:
         :func:`pycinder.tolerance.pair_tolerances`)."""
         return pair_tolerances(scene, pairs, self.request.tolerance, given)
 
-    def _shapes(self, scene: Scene, stats: Stats) -> ShapePack:
+    def pack(self, scene: Scene, stats: Stats) -> ShapePack:
+        """The scene's shapes packed and uploaded (packed again when the set of shapes
+        changed)."""
         if self._pack is None or self._pack.layout != shape_layout(scene.shapes):
             self._pack = pack_shapes(scene.shapes)
         stats.uploaded_vertex_bytes = self.frames.upload(self._pack, scene.shapes)
@@ -95,8 +102,28 @@ class FocusedStrategy:
                records: str | None = None, within: np.ndarray | None = None,
                tolerance: np.ndarray | None = None, stop_at_first: bool = False
                ) -> PendingFocused:
-        """:meth:`run` up to the first frame's submission: the broad phase, the tiles, the
-        upload and the frame's command buffer. The GPU then works while the caller does.
+        """:meth:`run` up to the first frame's submission (see :meth:`submit_interference`);
+        a clearance query (the request's ``clearance``) runs whole here
+        (:class:`~pycinder.clearance.Clearance`)."""
+        c = self.request.clearance
+        if c is None:
+            return self.submit_interference(scene, stats, groups, records, within, tolerance,
+                                            stop_at_first)
+        if self._clearance is None:
+            from .clearance import Clearance
+
+            self._clearance = Clearance(self)
+        return PendingFocused(self, self._clearance.run(scene, stats, c, groups, records,
+                                                        within, tolerance))
+
+    def submit_interference(self, scene: Scene, stats: Stats,
+                            groups: np.ndarray | None = None, records: str | None = None,
+                            within: np.ndarray | None = None,
+                            tolerance: np.ndarray | None = None, stop_at_first: bool = False
+                            ) -> PendingFocused:
+        """The interference test up to the first frame's submission: the broad phase, the
+        tiles, the upload and the frame's command buffer. The GPU then works while the caller
+        does.
 
         ``stop_at_first``: the query asks only whether anything collides; every tile is flagged
         :data:`~pycinder.layout.FLAG_STOP_AT_FIRST`, so that the GPU skips what has not started
@@ -134,7 +161,7 @@ class FocusedStrategy:
         stats.add_ms("tiles", (t2 - t1) * 1e3)
         if len(plan) == 0:
             return PendingFocused(self, CollisionResult.empty(stats))
-        pack = self._shapes(scene, stats)
+        pack = self.pack(scene, stats)
         retry = retry_on_gpu(self.recently_retried, mode, plan,
                              self._budget(self.frames.capacity * RETRY_LISTS))
         first = self.frames.submit(self._inputs(plan, scene, pack, len(pairs), mode, None,
@@ -247,7 +274,7 @@ class FocusedStrategy:
                 if submitted is not None:
                     return plan, self.frames.finish(submitted)
                 # A frame submitted since may have replaced the shapes on the GPU.
-                pack = self._shapes(scene, Stats())
+                pack = self.pack(scene, Stats())
                 return plan, self.frames.run(self._inputs(plan, scene, pack, n_pairs, records,
                                                           capacity))
             except RoundTooLarge as exc:

@@ -209,6 +209,11 @@ class CollisionRequest:
         ``Detector(contacts=True)``, or ``contacts=True`` per call. ``contacts=True`` with
         ``records`` other than ``"all"`` is an error, as is ``contacts=True`` with the scene
         strategy (its one image has no tiles to measure contacts in).
+    clearance : float, optional
+        Focused strategy: report every pair whose surfaces are closer than this many world
+        units, overlapping pairs included, with its distance; never a pair more than
+        ``clearance * 9/8`` apart (see :mod:`pycinder.clearance`). The tolerance of the
+        interference test inside it is ``clearance / 4`` unless a finer one is given.
     """
 
     strategy: Literal["focused", "scene"] = "focused"
@@ -227,6 +232,7 @@ class CollisionRequest:
     max_pixels: int = DEFAULT_MAX_PIXELS
     broad_phase: str = "auto"
     contacts: bool = False
+    clearance: float | None = None
 
     def __post_init__(self) -> None:
         _one_of("strategy", self.strategy, STRATEGIES)
@@ -252,6 +258,19 @@ class CollisionRequest:
         if not _positive_int(self.memory_budget) or self.memory_budget < 2**20:
             raise ValueError(f"memory_budget must be a whole number of bytes, at least 1 MiB, "
                              f"got {self.memory_budget!r}")
+        if self.clearance is not None:
+            if isinstance(self.clearance, bool) or not isinstance(self.clearance, numbers.Real) \
+                    or not math.isfinite(self.clearance) or self.clearance <= 0:
+                raise ValueError(f"clearance must be a positive number of world units, got "
+                                 f"{self.clearance!r}")
+            object.__setattr__(self, "clearance", float(self.clearance))
+            if self.strategy != "focused":
+                raise ValueError("clearance applies to strategy='focused': distances are "
+                                 "measured per candidate pair")
+            if self.contacts:
+                raise ValueError("contacts=True and clearance are not available together: a "
+                                 "clearance query's figure is each pair's distance "
+                                 "(result.distances)")
         if self.strategy == "focused":
             given = [n for n in _SCENE_ONLY if getattr(self, n) != _DEFAULTS[n]]
             if given:

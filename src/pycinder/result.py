@@ -192,6 +192,11 @@ class CollisionResult:
     records_kept : {"found", "all", "none"} or None
         The records the focused query kept (its ``records``, ``"all"`` when it was asked for
         contacts); None for the scene strategy. :meth:`contacts` needs ``"all"``.
+    distances : (K,) float64 or None
+        A clearance query (``clearance=c``): each pair's distance between surfaces, 0 where the
+        bodies overlap (see :mod:`pycinder.clearance`); None for other queries.
+    distance_errors : (K,) float64 or None
+        The bound on each of :attr:`distances`' error.
 
     Notes
     -----
@@ -217,6 +222,8 @@ class CollisionResult:
         self.tiles = tiles
         self.scene = scene
         self.records_kept = records_kept
+        self.distances: np.ndarray | None = None
+        self.distance_errors: np.ndarray | None = None
         self._contacts: Contacts | None = None
         self._decode: Callable[[], np.ndarray] | None = None
         self._records: np.ndarray | None = None

@@ -169,7 +169,11 @@ def split(result: CollisionResult, joined: Scene, counts: np.ndarray,
         scene = Scene(joined.shapes, joined.body_shape[a:b], joined.transforms[a:b], list(n))
         stats = copy.deepcopy(result.stats)  # with its strategy's part (replace() drops it)
         stats.bodies, stats.records = int(counts[s]), len(part)
-        out.append(CollisionResult(result.pairs[pair_cut[s]:pair_cut[s + 1]] - a, part, stats,
-                                   tiles=result.tiles, scene=scene,
-                                   records_kept=result.records_kept))
+        one = CollisionResult(result.pairs[pair_cut[s]:pair_cut[s + 1]] - a, part, stats,
+                              tiles=result.tiles, scene=scene, records_kept=result.records_kept)
+        if result.distances is not None:
+            cut = slice(pair_cut[s], pair_cut[s + 1])
+            one.distances = result.distances[cut]
+            one.distance_errors = result.distance_errors[cut]
+        out.append(one)
     return out

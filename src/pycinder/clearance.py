@@ -1,0 +1,226 @@
+"""Clearance queries: every pair of bodies closer than a distance ``c``, with its distance.
+
+``Detector(clearance=c)`` (or ``clearance=c`` on any entry point) answers "is A within c of B?",
+Navisworks' and IfcClash's clearance test, a robot link's padding. Its contract:
+
+1. A pair whose surfaces are closer than ``c`` is always reported; so is every pair that
+   overlaps (surfaces that cross or touch, or a body inside a closed other).
+2. A pair whose surfaces are more than ``c + c/8`` apart is never reported.
+3. Each reported pair carries its distance (``result.distances``): the distance between the two
+   surfaces, 0 for pairs that overlap, within ``result.distance_errors`` of the truth.
+
+How. The candidates are the pairs whose world boxes are within ``c``. For each, pass C1
+(:mod:`pycinder.passes.distance`) measures the distance between the two surfaces exactly, in
+single precision, over the pairs of face clusters whose world boxes are within ``c``: two
+triangles are closest at an edge and an edge or at a vertex and a face, or are 0 apart where an
+edge of one passes through the other. A distance of surfaces misses a body wholly inside another
+with their surfaces farther apart than ``c``; the focused interference test finds those, run at
+a tolerance ``t`` of ``c / 4`` (or the one given, if finer): such a body reaches at least
+``c = 4 t`` into the other, which the tolerance contract always reports (from ``2 t``). As that
+contract never reports a pair ``t`` apart, a pair it finds with surfaces at least ``2 t`` apart
+is a body inside the other (distance 0); one it finds with surfaces closer may be either, and
+its figure's bound covers both.
+
+Precision. Each pair is measured in a frame of its own, centred where its bodies can be within
+``c``; single precision then bounds the error of a distance by :data:`ERROR_SCALE` times ``L``,
+the farthest the pair's bodies reach from that centre (``result.distance_errors``). A pair is
+reported when its measured distance is below ``c`` plus that bound (promise 1), which keeps
+promise 2 while the bound is at most ``c / 16``: a smaller ``c`` for bodies that large raises a
+``ValueError`` naming the pair.
+
+Cost. The distance pass runs over cluster pairs (64 x 64 triangle pairs each) near the pair's
+closest approach, so its cost grows with the area of the surfaces within ``c`` of each other;
+the interference test at ``c / 4`` is coarser, and cheaper, than the default tolerance wherever
+``c`` is larger than 4% of the bodies.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .broadphase import sweep_and_prune
+from .passes.distance import FRAME, ITEM, Distance
+from .records import pair_keys
+from .result import CollisionResult, Stats
+from .scene import Scene
+from .scene.pack import ShapePack
+
+if TYPE_CHECKING:
+    from .focused import FocusedStrategy
+
+ERROR_SCALE = 2.0**-16
+"""Bound of a measured distance's error, per unit of the pair's reach from its frame's centre."""
+
+
+def cluster_boxes(pack: ShapePack) -> tuple[np.ndarray, np.ndarray]:
+    """Body-space box of every cluster of the packed shapes.
+
+    Returns
+    -------
+    lo, hi : (C, 3) float64
+    """
+    corners = pack.positions[pack.faces.reshape(-1)].reshape(-1, 3, 3).astype(np.float64)
+    face_lo, face_hi = corners.min(axis=1), corners.max(axis=1)
+    start = pack.clusters[:, 0].astype(np.int64)
+    if len(start) == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    return np.minimum.reduceat(face_lo, start), np.maximum.reduceat(face_hi, start)
+
+
+def _world(lo: np.ndarray, hi: np.ndarray, transform: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """World boxes (n, 3) of body-space boxes under one transform (4, 4)."""
+    centre = 0.5 * (lo + hi) @ transform[:3, :3].T + transform[:3, 3]
+    half = 0.5 * (hi - lo) @ np.abs(transform[:3, :3]).T
+    return centre - half, centre + half
+
+
+def _gap(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray) -> np.ndarray:
+    """Distance between boxes (broadcasting over leading axes): a lower bound of the distance
+    between anything inside them."""
+    apart = np.maximum(np.maximum(lo_a - hi_b, lo_b - hi_a), 0.0)
+    return np.sqrt((apart * apart).sum(axis=-1))
+
+
+def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, c: float,
+         boxes: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The work of pass C1: each pair's frame and its cluster pairs within ``c``.
+
+    Parameters
+    ----------
+    scene : Scene
+    pack : ShapePack
+    pairs : (K, 2) int
+    c : float
+    boxes : (C, 3) float, (C, 3) float
+        :func:`cluster_boxes` of ``pack``.
+
+    Returns
+    -------
+    items : (I,) structured array of :data:`~pycinder.passes.distance.ITEM`
+    frames : (K,) structured array of :data:`~pycinder.passes.distance.FRAME`
+    reach : (K,) float64
+        How far each pair's bodies reach from its frame's centre (``L`` of the error bound).
+    """
+    lo_all, hi_all = boxes
+    start = pack.cluster_start
+    face_start = pack.clusters[:, 0].astype(np.int64)
+    face_count = pack.clusters[:, 1].astype(np.int64)
+    world_lo, world_hi = scene.world_boxes()
+    frames = FRAME.zeros(len(pairs))
+    reach = np.zeros(len(pairs))
+    chunks = []
+    for k, (a, b) in enumerate(pairs.tolist()):
+        grown_lo = np.maximum(world_lo[a], world_lo[b]) - c
+        grown_hi = np.minimum(world_hi[a], world_hi[b]) + c
+        origin = 0.5 * (grown_lo + grown_hi)
+        corners = np.abs(np.stack([world_lo[a], world_hi[a], world_lo[b], world_hi[b]]) - origin)
+        reach[k] = float(np.sqrt((corners.max(axis=0) ** 2).sum()))
+        sides = []
+        for side, body, other in ((0, a, b), (1, b, a)):
+            m = scene.transforms[body].copy()
+            m[:3, 3] -= origin
+            frames["m0" if side == 0 else "m1"][k] = m[:3]
+            shape = int(scene.body_shape[body])
+            ids = np.arange(start[shape], start[shape + 1])
+            lo, hi = _world(lo_all[ids], hi_all[ids], scene.transforms[body])
+            near = _gap(lo, hi, world_lo[other], world_hi[other]) <= c
+            sides.append((ids[near], lo[near], hi[near]))
+        (ia, la, ha), (ib, lb, hb) = sides
+        if len(ia) == 0 or len(ib) == 0:
+            continue
+        close = _gap(la[:, None], ha[:, None], lb[None], hb[None]) <= c
+        ca, cb = np.nonzero(close)
+        item = ITEM.zeros(len(ca))
+        item["pair"] = k
+        item["a_start"], item["a_count"] = face_start[ia[ca]], face_count[ia[ca]]
+        item["b_start"], item["b_count"] = face_start[ib[cb]], face_count[ib[cb]]
+        chunks.append(item)
+    items = np.concatenate(chunks) if chunks else ITEM.zeros(0)
+    return items, frames, reach
+
+
+class Clearance:
+    """Clearance queries on a focused strategy's device and shapes.
+
+    Parameters
+    ----------
+    strategy : FocusedStrategy
+    """
+
+    def __init__(self, strategy: FocusedStrategy) -> None:
+        self.strategy = strategy
+        self.distance = Distance(strategy.gpu, timeout=strategy.request.timeout)
+        self._boxes: tuple[tuple, tuple[np.ndarray, np.ndarray]] | None = None
+
+    def run(self, scene: Scene, stats: Stats, c: float, groups: np.ndarray | None,
+            records: str | None, within: np.ndarray | None,
+            tolerance: np.ndarray | None) -> CollisionResult:
+        """The pairs within ``c`` of a validated scene (see the module's contract)."""
+        n = len(scene)
+        given = np.full(n, np.nan) if tolerance is None else np.asarray(tolerance, np.float64)
+        if self.strategy.request.tolerance is not None:
+            given = np.where(np.isnan(given), self.strategy.request.tolerance, given)
+        fine = np.where(np.isnan(given), c / 4, np.minimum(given, c / 4))
+        overlap = self.strategy.submit_interference(scene, stats, groups, records, within,
+                                                    fine).result()
+        overlap.pairs = np.asarray(overlap.pairs, np.int64).reshape(-1, 2)
+        if n < 2:
+            return _with_figures(overlap, overlap.pairs, np.zeros(0), np.zeros(0))
+        lo, hi = scene.world_boxes()
+        pairs = sweep_and_prune(lo - 0.5 * c, hi + 0.5 * c, within, groups)
+        pack = self.strategy.pack(scene, stats)
+        items, frames, reach = plan(scene, pack, pairs, c, self._cluster_boxes(pack, scene))
+        error = ERROR_SCALE * reach
+        too_fine = np.flatnonzero(error > c / 16)
+        if len(too_fine):
+            k = too_fine[np.argmax(error[too_fine])]
+            a, b = pairs[k]
+            raise ValueError(
+                f"clearance {c:g} is too small for {scene.label(int(a))} and "
+                f"{scene.label(int(b))} in single precision: their distance is measured within "
+                f"{error[k]:.3g}, and the contract needs at most clearance / 16; use a clearance "
+                f"of at least {16 * error[k]:.3g}, or query those bodies at their own scale")
+        t0 = time.perf_counter()
+        measured = self.distance.run(pack, items, frames).astype(np.float64)
+        stats.add_ms("distance", (time.perf_counter() - t0) * 1e3)
+        found = set(pair_keys(overlap.pairs[:, 0], overlap.pairs[:, 1]).tolist())
+        inside = np.isin(pair_keys(pairs[:, 0], pairs[:, 1]), list(found)) if found \
+            else np.zeros(len(pairs), bool)
+        tol = fine[pairs[:, 0]]
+        # Found by the interference test although its surfaces are at least 2 t apart: a body
+        # inside the other (promise 1 of the tolerance contract rules out a pair t apart).
+        contained = inside & (measured >= 2 * tol)
+        near = measured < c + error
+        keep = near | inside
+        distances = np.where(contained, 0.0, np.minimum(measured, np.finfo(np.float64).max))
+        # A pair the interference test found with surfaces closer than 2 t may be a body just
+        # inside the other (distance 0) or one just outside it: its figure is good to itself.
+        errors = error + np.where(inside & ~contained, distances, 0.0)
+        kept = pairs[keep]
+        order = np.lexsort((kept[:, 1], kept[:, 0]))
+        stats.candidates = max(stats.candidates, len(pairs))
+        return _with_figures(overlap, kept[order].astype(np.int64), distances[keep][order],
+                             errors[keep][order])
+
+    def _cluster_boxes(self, pack: ShapePack, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+        key = (id(pack), tuple(id(s) for s in scene.shapes))
+        if self._boxes is None or self._boxes[0] != key:
+            self._boxes = (key, cluster_boxes(pack))
+        return self._boxes[1]
+
+
+def _with_figures(overlap: CollisionResult, pairs: np.ndarray, distances: np.ndarray,
+                  errors: np.ndarray) -> CollisionResult:
+    """The interference result's records and stats, with the clearance's pairs and figures."""
+    result = CollisionResult(pairs, overlap.records, overlap.stats, tiles=overlap.tiles,
+                             scene=overlap.scene)
+    result.distances = distances
+    result.distance_errors = errors
+    return result
+
+
+__all__ = ["ERROR_SCALE", "Clearance", "cluster_boxes", "plan"]
