@@ -137,17 +137,19 @@ def markdown(results: dict[str, Any]) -> str:
         passes = sorted({k for _, st in stages for k in st["gpu_ms"]})
         lines += ["## Where pycinder's time goes", "",
                   "One extra frame per scene with GPU timestamps (wall ms per stage, GPU ms per "
-                  "pass) and what the frame did.", "",
-                  "| scene | " + " | ".join(("validate", "broad phase", "tiles", "upload", "gpu",
-                                             "decode", "total")) + " | "
+                  "pass) and what the frame did. `update`: a deforming scene's fresh vertices "
+                  "checked (PreparedBodies.update, before the query); `validate`: the query's "
+                  "own checks.", "",
+                  "| scene | " + " | ".join(("update", "validate", "broad phase", "tiles",
+                                             "upload", "gpu", "decode", "total")) + " | "
                   + " | ".join(passes) + " | candidates | tiles | pixels | triangles | samples |",
-                  "|" + "---|" * (13 + len(passes))]
+                  "|" + "---|" * (14 + len(passes))]
         for name, st in stages:
             w, g = st["wall_ms"], st["gpu_ms"]
             lines.append(
                 f"| {name} | " + " | ".join(_fmt(w.get(k, 0.0)) for k in
-                                            ("validate", "broad phase", "tiles", "upload", "gpu",
-                                             "decode", "total")) + " | "
+                                            ("update", "validate", "broad phase", "tiles",
+                                             "upload", "gpu", "decode", "total")) + " | "
                 + " | ".join(_fmt(g.get(p, 0.0)) for p in passes)
                 + f" | {st['candidates']} | {st['tiles']} | {st['pixels']} | {st['triangles']} "
                   f"| {st['samples']} |")
@@ -212,7 +214,7 @@ def markdown(results: dict[str, Any]) -> str:
 
         lines += batch_markdown(results["batch"])
     if results.get("broadphase"):
-        from .broadphase import markdown as broadphase_markdown
+        from .broadbench import markdown as broadphase_markdown
 
         lines += broadphase_markdown(results["broadphase"])
     loops = {"soak": "three small bodies passed as fresh (vertices, faces) arrays every frame",

@@ -92,9 +92,9 @@ class PreparedBodies(Sequence):
         vertices : (V, 3) real, or a sequence of them
             Its vertices, or one array per body (V may change as far as the faces allow). They
             are checked and copied now (not hashed: they are taken to be new), so editing an
-            array later changes nothing until it is passed here again; a result's
-            :meth:`~pycinder.CollisionResult.contacts`, computed later, runs its query again on
-            the bodies as they are then.
+            array later changes nothing until it is passed here again (a result's
+            :meth:`~pycinder.CollisionResult.contacts` come from its own records: results made
+            before are unchanged).
 
         Raises
         ------
