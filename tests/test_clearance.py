@@ -200,3 +200,19 @@ def test_result_with_distances_pickles():
     copy = pickle.loads(pickle.dumps(result))
     assert copy.distances.tolist() == result.distances.tolist()
     assert copy.distance_errors.tolist() == result.distance_errors.tolist()
+
+
+def test_cli_check_with_clearance(tmp_path, capsys):
+    import json
+
+    from pycinder.cli import main
+
+    for name, x in (("a.stl", 0.0), ("b.stl", 1.05), ("c.stl", 3.0)):
+        BOX.copy().apply_translation((x, 0, 0)).export(tmp_path / name)
+    code = main(["check", "--json", "--clearance", "0.1",
+                 *(str(tmp_path / n) for n in ("a.stl", "b.stl", "c.stl"))])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 1 and report["mode"] == "clearance"
+    (pair,) = report["pairs"]
+    assert (pair["a"], pair["b"]) == ("a.stl", "b.stl")
+    assert abs(pair["distance"] - 0.05) <= pair["distance_error"]

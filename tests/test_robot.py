@@ -94,8 +94,10 @@ def test_errors_name_the_link_and_the_file(tmp_path):
 
 def test_options_checked(robots):
     panda = robots["panda"]
-    with pytest.raises(NotImplementedError, match="padding needs the clearance mode"):
-        panda.check(np.zeros((1, 8)), padding=0.01)
+    with pytest.raises(ValueError, match="padding must be non-negative"):
+        panda.check(np.zeros((1, 8)), padding=-0.01)
+    with pytest.raises(ValueError, match="neither links nor attached objects"):
+        panda.check(np.zeros((1, 8)), padding={"panda_link99": 0.01})
     with pytest.raises(ValueError, match=r"\(C, 8\) joint values"):
         panda.check(np.zeros((2, 7)))
     with pytest.raises(ValueError, match="batch must be a positive"):
@@ -226,6 +228,41 @@ def test_attached_object_in_both_checks(robots):
     finally:
         panda.detach("box")
     assert "box" not in panda.attached
+
+
+def test_padding_against_exact_distances(robots):
+    """MoveIt's padding through the clearance mode: per configuration, every checked pair whose
+    exact surfaces (python-fcl) are closer than the sum of its paddings is reported, and none
+    farther than that sum plus an eighth of the largest sum; the table has no padding."""
+    from pycinder.testing import surface_distance
+
+    panda = robots["panda"]
+    panda.allowed = adjacent_only(panda)
+    env = R.environment("panda")
+    padding = {"panda_hand": 0.03, "panda_leftfinger": 0.03, "panda_rightfinger": 0.03,
+               "panda_link7": 0.02, "panda_link6": 0.02, "panda_link5": 0.01}
+    largest = 0.06
+    q = panda.random_configurations(12, seed=21)
+    _, ours = panda.check(q, environment=env, return_pairs=True, padding=padding)
+    _, plain = panda.check(q, environment=env, return_pairs=True)
+    poses = R.FclRobot(panda, env).poses(q)
+    names = panda.checked_pairs(env)
+    padded_only = 0
+    for c in range(len(q)):
+        world = R.world_meshes(panda, env, poses[c])
+        for a, b in names:
+            pad = padding.get(a, 0.0) + padding.get(b, 0.0)
+            if pad == 0.0:
+                continue
+            d = surface_distance(world[a], world[b])
+            reported = tuple(sorted((a, b))) in set(ours[c])
+            if d < pad:
+                assert reported, f"configuration {c}: {a}-{b} {d:.4f} apart, padding {pad}"
+            if d > pad + largest / 8:
+                assert not reported, f"configuration {c}: {a}-{b} {d:.4f} apart reported"
+            padded_only += reported and tuple(sorted((a, b))) not in set(plain[c])
+        assert set(plain[c]) <= set(ours[c])
+    assert padded_only, "no pair was reported for its padding alone: the test shows nothing"
 
 
 def test_check_path_finds_the_first_colliding_index(robots):

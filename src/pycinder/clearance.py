@@ -168,6 +168,8 @@ class Clearance:
         overlap = self.strategy.submit_interference(scene, stats, groups, records, within,
                                                     fine).result()
         overlap.pairs = np.asarray(overlap.pairs, np.int64).reshape(-1, 2)
+        if not overlap.stats.tolerance[1]:  # no candidate overlapped: say what it would be
+            overlap.stats.tolerance = (float(np.nanmin(fine)), float(np.nanmax(fine)))
         if n < 2:
             return _with_figures(overlap, overlap.pairs, np.zeros(0), np.zeros(0))
         lo, hi = scene.world_boxes()

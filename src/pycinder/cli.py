@@ -64,7 +64,8 @@ a body whose components overlap each other gets an OverlappingComponentsWarning.
 --json prints one object:
   collision   true or false; null after an error
   pairs       the colliding pairs, [{"a": BODY, "b": BODY, "samples": N}]; samples: the
-              records of interfering edge samples read back for the pair
+              records of interfering edge samples read back for the pair; with --clearance,
+              also "distance" (0 where the bodies overlap) and "distance_error" (its bound)
   bodies      the bodies' names, in order
   strategy    "focused" or "scene"
   tolerance   focused only: [smallest, largest] tolerance in world units over the candidate
@@ -239,6 +240,10 @@ def cmd_check(args: argparse.Namespace) -> int:
             "bodies": names,
             "strategy": st.strategy,
         }
+        if result.distances is not None:
+            for pair, d, e in zip(report["pairs"], result.distances.tolist(),
+                                  result.distance_errors.tolist()):
+                pair["distance"], pair["distance_error"] = d, e
         if st.strategy == "focused":
             report["tolerance"] = _tolerance_range(bodies, st, request)
             report["candidates"] = st.candidates

@@ -21,8 +21,11 @@ Disallowed pairs are never put on the GPU: the pairs to check are covered by cli
 bodies whose every pair is checked), each a scene of the batched query, so a configuration's
 scenes test exactly its checked pairs.
 
-Padding (MoveIt's clearance per link) needs a clearance query mode that pycinder does not have
-yet: ``padding`` raises NotImplementedError until it has.
+Padding is MoveIt's: each link (and attached object) is grown by its padding, so a pair
+collides when its surfaces are closer than the sum of their paddings (environment bodies have
+none). It runs through the clearance mode (:mod:`pycinder.clearance`) at the largest sum, and
+each pair is kept by its own: a pair closer than its sum is always reported, one more than its
+sum plus an eighth of the largest sum apart never is.
 """
 
 from __future__ import annotations
@@ -730,8 +733,10 @@ class Robot:
         batch : int, optional
             Configurations per query (default: :data:`DEFAULT_BODIES_PER_QUERY` bodies per
             query). A batch too large for the device's pixel budget is split.
-        padding : None
-            Not available yet: padding needs the clearance mode, which pycinder does not have.
+        padding : float or dict of str to float, optional
+            MoveIt's padding, in world units: one for every link and attached object, or per
+            link or object name (missing names: 0). A pair collides when its surfaces are
+            closer than the sum of its two paddings (see the module's docstring).
 
         Returns
         -------
@@ -739,9 +744,6 @@ class Robot:
         pairs : list of list of (str, str)
             Only with ``return_pairs``.
         """
-        if padding is not None:
-            raise NotImplementedError("padding needs the clearance mode, not available yet; "
-                                      "check without padding, or pad the meshes themselves")
         if not isinstance(self_collision, bool) or not isinstance(return_pairs, bool):
             raise ValueError("self_collision and return_pairs must be True or False")
         if environment is not None and not isinstance(environment, Environment):
@@ -749,13 +751,47 @@ class Robot:
                             f"{type(environment).__name__}")
         qs = self._configurations(qs)
         plan, bodies = self._plan(environment, self_collision)
+        pads = self._paddings(padding, bodies)
         size = self._batch_size(batch, plan)
         collides = np.zeros(len(qs), dtype=bool)
         pairs: list[list[tuple[str, str]]] = [[] for _ in range(len(qs))]
         for start in range(0, len(qs), size):
             self._check_batch(qs[start:start + size], start, plan, bodies, environment,
-                              collides, pairs if return_pairs else None)
+                              collides, pairs if return_pairs else None, pads)
         return (collides, pairs) if return_pairs else collides
+
+    def _paddings(self, padding: Any, bodies: list[Body]) -> np.ndarray | None:
+        """(B,) the padding of each body of a check (None without padding)."""
+        if padding is None:
+            return None
+        robot = len(self.bodies) + len(self._attached)
+        if isinstance(padding, dict):
+            known = set(self.links) | set(self._attached)
+            unknown = sorted(set(padding) - known)
+            if unknown:
+                raise ValueError(f"{self.name}: padding names {unknown[:3]}, which are neither "
+                                 "links nor attached objects")
+            values = [padding.get(_owner(b), 0.0) if k < robot else 0.0
+                      for k, b in enumerate(bodies)]
+        else:
+            values = [padding if k < robot else 0.0 for k in range(len(bodies))]
+        pads = np.array([float(v) if isinstance(v, (int, float, np.floating))
+                         and not isinstance(v, bool) else np.nan for v in values])
+        if not np.isfinite(pads).all() or (pads < 0).any():
+            raise ValueError(f"{self.name}: padding must be non-negative world units, got "
+                             f"{padding!r}")
+        return pads if pads.any() else None
+
+    def _padded_detector(self, clearance: float) -> Detector:
+        """The detector of padded checks whose largest padding sum is ``clearance``."""
+        from .detector import Detector
+
+        cache = self.__dict__.setdefault("_padded", {})
+        if clearance not in cache:
+            cache.clear()
+            cache[clearance] = Detector(records="none", broad_phase="numpy",
+                                        clearance=clearance)
+        return cache[clearance]
 
     def _batch_size(self, batch: int | None, plan: _Plan) -> int:
         if batch is None:
@@ -767,7 +803,8 @@ class Robot:
 
     def _check_batch(self, qs: np.ndarray, start: int, plan: _Plan, bodies: list[Body],
                      environment: Environment | None, collides: np.ndarray,
-                     pairs: list[list[tuple[str, str]]] | None) -> None:
+                     pairs: list[list[tuple[str, str]]] | None,
+                     pads: np.ndarray | None = None) -> None:
         from .errors import GpuMemoryError
 
         if not plan.scenes or not len(qs):
@@ -783,14 +820,15 @@ class Robot:
         scenes = [(scene_meshes[k], poses[c, s], scene_names[k])
                   for c in range(len(qs)) for k, s in enumerate(plan.scenes)]
         try:
-            results = self.detector.find_collisions_batch(scenes, tolerance=self.tolerance)
+            results = self._query(scenes, plan, pads)
         except GpuMemoryError:
             if len(qs) == 1:
                 raise
             half = len(qs) // 2
-            self._check_batch(qs[:half], start, plan, bodies, environment, collides, pairs)
+            self._check_batch(qs[:half], start, plan, bodies, environment, collides, pairs,
+                              pads)
             self._check_batch(qs[half:], start + half, plan, bodies, environment, collides,
-                              pairs)
+                              pairs, pads)
             return
         k = len(plan.scenes)
         if plan.exact:
@@ -811,6 +849,23 @@ class Robot:
                         found.add(tuple(sorted((_owner(bodies[scene[a]]),
                                                 _owner(bodies[scene[b]])))))
                 pairs[start + c] = sorted(found)
+
+    def _query(self, scenes: list, plan: _Plan, pads: np.ndarray | None) -> list:
+        """The batch's results; with padding, each scene's pairs kept by their own padding."""
+        if pads is None:
+            return self.detector.find_collisions_batch(scenes, tolerance=self.tolerance)
+        sums = [pads[i] + pads[j] for sc in plan.scenes for i in sc for j in sc if i < j]
+        clearance = max(max(sums, default=0.0), 1e-12)
+        results = self._padded_detector(clearance).find_collisions_batch(
+            scenes, tolerance=self.tolerance)
+        for k, result in enumerate(results):
+            scene = np.asarray(plan.scenes[k % len(plan.scenes)])
+            limit = pads[scene[result.pairs[:, 0]]] + pads[scene[result.pairs[:, 1]]]
+            keep = result.distances < limit + result.distance_errors
+            result.pairs = result.pairs[keep]
+            result.distances = result.distances[keep]
+            result.distance_errors = result.distance_errors[keep]
+        return results
 
     def interpolate(self, qs: Any, resolution: float) -> np.ndarray:
         """A path through waypoints ``qs`` (W, J), linearly interpolated so that no joint moves
