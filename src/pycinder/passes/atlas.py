@@ -16,6 +16,7 @@ import wgpu
 from ..gpu.buffers import GrowableBuffer, Readback
 from ..layout import COUNTERS, INDIRECT_ARGS, RECORD
 from ..request import RecordMode
+from ..scene.pack import ShapePack
 from .blocks import ParamBlocks
 
 LIST_CAPACITY = 8
@@ -162,6 +163,46 @@ class AtlasBuffers:
         self.readbacks_more = [Readback(device, f"focused tiles and records {k}")
                                for k in range(SLOTS)]
         self.caps = Caps()
+        self.layout: tuple | None = None
+        """The layout of the shapes uploaded (index buffers are rewritten when it changes)."""
+        self.uploaded: list | None = None
+        """The shape objects whose vertices the positions buffer holds."""
+        self.bound_pending: np.ndarray | None = None
+        """Clusters whose bounds pass F0 recomputes at the start of the next frame."""
+
+    def upload(self, pack: ShapePack, shapes: list) -> int:
+        """Upload the shapes; returns the vertex bytes written.
+
+        Index buffers are written when the layout (topologies, vertex counts) changed; vertices
+        only for shapes that are new objects (a shape object is made for new vertex content).
+        Cluster bounds of those shapes are recomputed by pass F0 at the start of the next frame
+        (:attr:`bound_pending`).
+        """
+        if pack.layout != self.layout:
+            for buf, data in ((self.positions, pack.positions), (self.faces, pack.faces),
+                              (self.edges, pack.edges), (self.clusters, pack.clusters)):
+                buf.ensure(data.nbytes)
+                buf.write(data)
+            self.cluster_bounds.ensure(32 * len(pack.clusters))
+            self.layout = pack.layout
+            changed = list(range(len(shapes)))
+            written = pack.positions.nbytes
+        else:
+            changed = [k for k, s in enumerate(shapes) if s is not self.uploaded[k]]
+            written = 0
+            for k in changed:
+                # The pack's positions are those of the frame that made it: write the shape's own.
+                vertices = shapes[k].vertices
+                self.positions.write(vertices, offset=12 * int(pack.vertex_start[k]))
+                written += vertices.nbytes
+        self.uploaded = list(shapes)
+        if changed:
+            which = np.concatenate([np.arange(pack.cluster_start[k], pack.cluster_start[k + 1])
+                                    for k in changed]).astype(np.uint32)
+            if self.bound_pending is not None:
+                which = np.union1d(which, self.bound_pending).astype(np.uint32)
+            self.bound_pending = which
+        return written
 
     def records(self, slot: int = 0) -> GrowableBuffer:
         """The records buffer of frame slot ``slot`` (its limit is every slot's)."""

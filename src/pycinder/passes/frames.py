@@ -54,10 +54,9 @@ TIMED_PASSES = tuple(p.INFO.title for p in ROUND_PASSES)
 are timed once per frame)."""
 
 @dataclass
-class _Uploaded:
-    layout: tuple | None = None
-    shapes: list | None = None
-    bound_pending: np.ndarray | None = None
+class _Slots:
+    """The frames in flight, by slot, and the slot of the next frame."""
+
     next_slot: int = 0
     in_flight: list = field(default_factory=lambda: [None] * SLOTS)
 
@@ -102,7 +101,7 @@ class FocusedFrames:
         self.round_params = ParamBlocks(gpu.device, "round parameters",
                                         {"cull": Cull.PARAMS, "surface": SurfaceTest.PARAMS})
         self.readback = FrameReadback(gpu, self.buffers, self.profiler, self.timeout)
-        self._up = _Uploaded()
+        self._up = _Slots()
 
     @property
     def records_limit(self) -> int:
@@ -112,38 +111,8 @@ class FocusedFrames:
     # -- shapes -----------------------------------------------------------------------------
 
     def upload(self, pack: ShapePack, shapes: list) -> int:
-        """Upload the shapes; returns the vertex bytes written.
-
-        Index buffers are written when the layout (topologies, vertex counts) changed; vertices
-        only for shapes that are new objects (a shape object is made for new vertex content).
-        Cluster bounds of those shapes are recomputed by pass F0 at the start of the next frame.
-        """
-        b, up = self.buffers, self._up
-        if pack.layout != up.layout:
-            for buf, data in ((b.positions, pack.positions), (b.faces, pack.faces),
-                              (b.edges, pack.edges), (b.clusters, pack.clusters)):
-                buf.ensure(data.nbytes)
-                buf.write(data)
-            b.cluster_bounds.ensure(32 * len(pack.clusters))
-            up.layout = pack.layout
-            changed = list(range(len(shapes)))
-            written = pack.positions.nbytes
-        else:
-            changed = [k for k, s in enumerate(shapes) if s is not up.shapes[k]]
-            written = 0
-            for k in changed:
-                # The pack's positions are those of the frame that made it: write the shape's own.
-                vertices = shapes[k].vertices
-                b.positions.write(vertices, offset=12 * int(pack.vertex_start[k]))
-                written += vertices.nbytes
-        up.shapes = list(shapes)
-        if changed:
-            which = np.concatenate([np.arange(pack.cluster_start[k], pack.cluster_start[k + 1])
-                                    for k in changed]).astype(np.uint32)
-            if up.bound_pending is not None:
-                which = np.union1d(which, up.bound_pending).astype(np.uint32)
-            up.bound_pending = which
-        return written
+        """Upload the shapes (see :meth:`AtlasBuffers.upload`); the vertex bytes written."""
+        return self.buffers.upload(pack, shapes)
 
     # -- one frame --------------------------------------------------------------------------
 
@@ -196,8 +165,8 @@ class FocusedFrames:
                 b.caps = grown
                 sub.reruns += 1
                 shapes = sub.inputs.shapes
-                if shapes is not None and up.shapes is not None \
-                        and any(x is not y for x, y in zip(shapes, up.shapes)):
+                if shapes is not None and b.uploaded is not None \
+                        and any(x is not y for x, y in zip(shapes, b.uploaded)):
                     self.upload(sub.inputs.pack, shapes)  # a later frame replaced the vertices
                 self._submit(sub)
                 continue
@@ -259,7 +228,7 @@ class FocusedFrames:
         self.crossings.write_params(e)
         self.edge_test.write_params(e)
         self.crossing_test.write_params(e)
-        self.bounds.write_params(e, self._up.bound_pending)
+        self.bounds.write_params(e, self.buffers.bound_pending)
         self.retry_choice.write_params(e)
         self.round_params.write()
         self.frame_params.write()
@@ -297,10 +266,10 @@ class FocusedFrames:
 
     def _encode_and_submit(self, sub: Submitted, e: Encoding) -> None:
         """Encode the frame, submit it and start mapping its readback."""
-        s, b, up = e.state, e.buffers, self._up
+        s, b = e.state, e.buffers
         self.profiler.begin(3 + len(TIMED_PASSES) * s.rounds * (1 + s.retry))
         encoder = self.gpu.device.create_command_encoder()
-        self.bounds.encode(encoder, self.profiler, e, up.bound_pending)
+        self.bounds.encode(encoder, self.profiler, e, b.bound_pending)
         encoder.clear_buffer(b.counters)
         encoder.clear_buffer(b.tile_counts.buffer, 0, 8 * s.tiles + 4 * s.pairs)
         for r, _ in self._rounds(s, retry=False):
@@ -316,7 +285,7 @@ class FocusedFrames:
         s.speculative = self.readback.speculative(s)
         sub.layout = self.readback.copy(encoder, s)
         self.gpu.device.queue.submit([encoder.finish()])
-        up.bound_pending = None
+        b.bound_pending = None
         sub.pending = b.readbacks[s.slot].start(sub.layout.nbytes)
 
 
