@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..request import CollisionRequest
-from ..result import CollisionResult
+from ..result import CollisionResult, Stats
 from ..scene import Scene, prepare_scene
 
 if TYPE_CHECKING:
@@ -167,7 +167,7 @@ def split(result: CollisionResult, joined: Scene, counts: np.ndarray,
         part["penetrated"] -= a
         n = names[s] if names[s] is not None else [None] * int(counts[s])
         scene = Scene(joined.shapes, joined.body_shape[a:b], joined.transforms[a:b], list(n))
-        stats = copy.deepcopy(result.stats)  # with its strategy's part (replace() drops it)
+        stats = _copy_stats(result.stats)
         stats.bodies, stats.records = int(counts[s]), len(part)
         one = CollisionResult(result.pairs[pair_cut[s]:pair_cut[s + 1]] - a, part, stats,
                               tiles=result.tiles, scene=scene, records_kept=result.records_kept)
@@ -176,4 +176,13 @@ def split(result: CollisionResult, joined: Scene, counts: np.ndarray,
             one.distances = result.distances[cut]
             one.distance_errors = result.distance_errors[cut]
         out.append(one)
+    return out
+
+
+def _copy_stats(stats: Stats) -> Stats:
+    """A copy of a batch's stats for one of its scenes: its own dicts and strategy part (a deep
+    copy costs about 0.35 ms, which a batch of thousands of scenes pays per scene)."""
+    out = copy.copy(stats)
+    out.wall_ms, out.gpu_ms = dict(stats.wall_ms), dict(stats.gpu_ms)
+    object.__setattr__(out, "detail", copy.copy(stats.detail))
     return out
