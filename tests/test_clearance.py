@@ -216,3 +216,26 @@ def test_cli_check_with_clearance(tmp_path, capsys):
     (pair,) = report["pairs"]
     assert (pair["a"], pair["b"]) == ("a.stl", "b.stl")
     assert abs(pair["distance"] - 0.05) <= pair["distance_error"]
+
+
+def test_a_deforming_body_is_measured_as_it_is_now():
+    """The same detector, a box whose vertices change every query (same faces): each query
+    measures the box as it is then, not as the first query saw it."""
+    det = pycinder.Detector(clearance=0.1)
+    v, f = np.asarray(BOX.vertices), np.asarray(BOX.faces)
+    for width, gap in ((0.3, 0.15), (0.5, 0.05), (0.56, 0.02), (0.44, 0.08), (0.2, 0.2)):
+        stretched = v * [width, 1.0, 1.0]
+        # Box b spans width along x about its centre: its near face is gap from box a.
+        transforms = [move(), move(0.5 + gap + width / 2)]
+        result = det.find_collisions([BOX, (stretched.copy(), f)], transforms)
+        if gap < 0.1:
+            assert result.pairs.tolist() == [[0, 1]], (width, gap)
+            assert abs(result.distances[0] - gap) <= result.distance_errors[0], (width, gap)
+        else:
+            assert result.pairs.tolist() == [], (width, gap)
+
+
+def test_contacts_of_a_clearance_result_say_where_its_figures_are():
+    result = pycinder.Detector(clearance=0.1).find_collisions([BOX, BOX], [move(), move(0.9)])
+    with pytest.raises(ValueError, match=r"result\.distances"):
+        result.contacts()

@@ -305,13 +305,12 @@ def test_dispatches_over_several_rows_of_workgroups(monkeypatch):
     from pycinder.gpu.device import get_gpu, shader_source
     from pycinder.passes import bindings
 
-    device = id(get_gpu().device)
+    cache = bindings.Stage._cache.setdefault(get_gpu().device, {})
 
     def forget() -> None:
         shader_source.cache_clear()
-        for key in [k for k in bindings.Stage._modules
-                    if k[0] == device and k[1].startswith("broad_")]:
-            del bindings.Stage._modules[key]
+        for key in [k for k in cache if k[1].startswith("broad_")]:
+            del cache[key]
 
     monkeypatch.setattr(layout, "ROW", 3)  # the shaders' ROW (the WGSL prelude)
     monkeypatch.setattr(bindings, "ROW", 3)  # the dispatches' (workgroup_grid)

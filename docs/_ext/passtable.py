@@ -15,6 +15,7 @@ SOURCES = {
     "focused": ("pycinder.passes.frames", "PASSES"),
     "broad": ("pycinder.passes.broad", "PASSES"),
     "scene": ("pycinder.frame", "PASS_INFOS"),
+    "clearance": ("pycinder.clearance", "PASSES"),
 }
 """Where each strategy lists its pass classes (module, attribute)."""
 

@@ -51,18 +51,30 @@ from .scene.pack import ShapePack
 if TYPE_CHECKING:
     from .focused import FocusedStrategy
 
+PASSES = (Distance,)
+"""The clearance query's own pass, after the interference test's (the pass table is generated
+from it)."""
+
 ERROR_SCALE = 2.0**-16
 """Bound of a measured distance's error, per unit of the pair's reach from its frame's centre."""
 
 
-def cluster_boxes(pack: ShapePack) -> tuple[np.ndarray, np.ndarray]:
-    """Body-space box of every cluster of the packed shapes.
+def cluster_boxes(pack: ShapePack, shapes: list) -> tuple[np.ndarray, np.ndarray]:
+    """Body-space box of every cluster of the packed shapes, from the shapes' current vertices
+    (a pack keeps those of the frame that made it; a deforming shape has new ones).
+
+    Parameters
+    ----------
+    pack : ShapePack
+    shapes : list of Shape
+        The shapes packed, in the pack's order.
 
     Returns
     -------
     lo, hi : (C, 3) float64
     """
-    corners = pack.positions[pack.faces.reshape(-1)].reshape(-1, 3, 3).astype(np.float64)
+    positions = np.concatenate([s.vertices for s in shapes]) if shapes else pack.positions
+    corners = positions[pack.faces.reshape(-1)].reshape(-1, 3, 3).astype(np.float64)
     face_lo, face_hi = corners.min(axis=1), corners.max(axis=1)
     start = pack.clusters[:, 0].astype(np.int64)
     if len(start) == 0:
@@ -187,7 +199,9 @@ class Clearance:
                 f"{error[k]:.3g}, and the contract needs at most clearance / 16; use a clearance "
                 f"of at least {16 * error[k]:.3g}, or query those bodies at their own scale")
         t0 = time.perf_counter()
-        measured = self.distance.run(pack, items, frames).astype(np.float64)
+        buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
+        measured = self.distance.run(buffers.positions, buffers.faces, items,
+                                     frames).astype(np.float64)
         stats.add_ms("distance", (time.perf_counter() - t0) * 1e3)
         found = set(pair_keys(overlap.pairs[:, 0], overlap.pairs[:, 1]).tolist())
         inside = np.isin(pair_keys(pairs[:, 0], pairs[:, 1]), list(found)) if found \
@@ -209,9 +223,10 @@ class Clearance:
                              errors[keep][order])
 
     def _cluster_boxes(self, pack: ShapePack, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+        # A shape object is made for new vertex content: the shapes' identities are the key.
         key = (id(pack), tuple(id(s) for s in scene.shapes))
         if self._boxes is None or self._boxes[0] != key:
-            self._boxes = (key, cluster_boxes(pack))
+            self._boxes = (key, cluster_boxes(pack, scene.shapes))
         return self._boxes[1]
 
 
@@ -225,4 +240,4 @@ def _with_figures(overlap: CollisionResult, pairs: np.ndarray, distances: np.nda
     return result
 
 
-__all__ = ["ERROR_SCALE", "Clearance", "cluster_boxes", "plan"]
+__all__ = ["ERROR_SCALE", "PASSES", "Clearance", "cluster_boxes", "plan"]

@@ -657,11 +657,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "bodies of their own, named FILE[0], FILE[1], ...")
     modes = p.add_mutually_exclusive_group()
     modes.add_argument("--min-depth", type=_distance, default=None, metavar="D",
-                       help="hard clashes: report pairs that penetrate deeper than D (world "
-                            "units; metres for IFC), never touching pairs")
+                       help="hard clashes deeper than D (world units; metres for IFC): not "
+                            "available yet in this version, it says so and exits 2")
     modes.add_argument("--clearance", type=_distance, default=None, metavar="C",
                        help="clearance: report pairs closer than C (world units; metres for "
-                            "IFC), touching and overlapping pairs included")
+                            "IFC), touching and overlapping pairs included, none farther than "
+                            "9C/8, each with its distance")
     ifc = p.add_argument_group("IFC files (pip install 'pycinder[bim]')", IFC_HELP)
     for side, other in (("a", "B"), ("b", "A")):
         ifc.add_argument(f"--{side}", default=None, metavar="SELECTOR",

@@ -2,7 +2,7 @@
 
     scene -> world boxes -> sweep and prune (NumPy; on the GPU for large scenes)
           -> tolerance per pair -> tiles and atlas
-          -> passes F0-F6 (one submission) -> per-pair hit flags and records -> pairs and records
+          -> passes F0-F8 (one submission) -> per-pair hit flags and records -> pairs and records
 
 A pair collides when any of its tiles found a sample inside the other body. A tile whose samples
 could not all be decided (a pixel held more crossings within the tile's box than its list) and

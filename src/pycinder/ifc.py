@@ -16,7 +16,8 @@ cached per file by content hash -> one body per element, named ``Name [GlobalId]
   ``"IfcPipeSegment, IfcDuctSegment"``, ``"IfcElement, ! IfcWall"``,
   ``"IfcWall, Name=Wall east 0"``); see :class:`Group`.
 * **Modes**: ``min_depth=d`` (hard clashes) and ``clearance=c`` are passed to
-  :class:`~pycinder.Detector` as they are; where this pycinder's detector does not take them yet,
+  :class:`~pycinder.Detector` as they are. Clearance is available (each pair with its distance,
+  see :mod:`pycinder.clearance`); the hard-clash mode is not yet, and
   :class:`ModeUnavailableError` says so. Without either, the default query's tolerance contract
   holds (see :mod:`pycinder.request`): pairs at least ``t`` apart are never reported, pairs at
   least ``2 t`` deep always are, and touching pairs may go either way.
@@ -51,8 +52,7 @@ Progress = Callable[[int, int, str], None]
 
 
 class ModeUnavailableError(NotImplementedError):
-    """A query mode (``min_depth``, ``clearance``) that this pycinder's detector does not take
-    yet."""
+    """A query mode that this pycinder's detector does not take yet (``min_depth``)."""
 
 
 def _ifcopenshell() -> Any:
@@ -574,23 +574,15 @@ def make_detector(min_depth: float | None = None, clearance: float | None = None
 
 
 def _figures(result: Any, mode: str, count: int) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Each pair's depth and distance, where the result carries them (the query modes' per-pair
-    figures: ``result.depths`` / ``result.distances``, or ``depth`` / ``distance``)."""
-    out: list[np.ndarray | None] = []
-    for names in (("depths", "depth"), ("distances", "distance")):
-        found = None
-        for name in names:
-            value = getattr(result, name, None)
-            if value is not None and not callable(value):
-                arr = np.asarray(value, np.float64).reshape(-1)
-                if len(arr) == count:
-                    found = arr
-                    break
-        out.append(found)
-    depth, distance = out
+    """Each pair's depth and distance, where the mode's result carries them
+    (``result.depths`` of a hard-clash query, ``result.distances`` of a clearance query)."""
     if mode == "default":
         return None, None
-    return depth, distance
+    out = []
+    for name in ("depths", "distances"):
+        value = getattr(result, name, None)
+        out.append(None if value is None else np.asarray(value, np.float64).reshape(count))
+    return out[0], out[1]
 
 
 def _look_at(a: IfcBody, b: IfcBody) -> np.ndarray:
@@ -634,7 +626,7 @@ def find_clashes(model: IfcModel, a: Group | str | None = None, b: Group | str |
     Raises
     ------
     ModeUnavailableError
-        ``min_depth`` or ``clearance`` where this pycinder's detector does not take it yet.
+        ``min_depth``: this pycinder's detector does not take it yet.
     ValueError
         Both modes at once, a file that is not the model's, a selector IfcOpenShell cannot use.
 

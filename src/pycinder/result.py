@@ -341,7 +341,8 @@ class CollisionResult:
         ValueError
             For a result that kept fewer than every record (``records="found"``, the default,
             or ``"none"``): the message says to query with ``contacts=True``; for a result of
-            the scene strategy, whose image has no tiles to measure contacts in.
+            the scene strategy, whose image has no tiles to measure contacts in; for a
+            clearance query's result (its figures are :attr:`distances`).
 
         Examples
         --------
@@ -360,6 +361,10 @@ class CollisionResult:
             raise ValueError("contacts are measured in the focused strategy's tiles; this result "
                              "comes from strategy='scene'. Run the query with the default "
                              "strategy and contacts=True for contacts.")
+        if self.distances is not None:
+            raise ValueError("a clearance query's figure is each pair's distance "
+                             "(result.distances); it has no contacts (contacts=True and "
+                             "clearance are not available together)")
         if self.records_kept != "all":
             kept = f"records={self.records_kept!r}" if self.records_kept else \
                 "no word of which records it kept"

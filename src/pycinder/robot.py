@@ -21,11 +21,13 @@ Disallowed pairs are never put on the GPU: the pairs to check are covered by cli
 bodies whose every pair is checked), each a scene of the batched query, so a configuration's
 scenes test exactly its checked pairs.
 
-Padding is MoveIt's: each link (and attached object) is grown by its padding, so a pair
-collides when its surfaces are closer than the sum of their paddings (environment bodies have
-none). It runs through the clearance mode (:mod:`pycinder.clearance`) at the largest sum, and
-each pair is kept by its own: a pair closer than its sum is always reported, one more than its
-sum plus an eighth of the largest sum apart never is.
+Padding is MoveIt's: the robot checked against the environment is the padded robot (each link
+grown by its padding), and self-collision is checked with the unpadded robot, as MoveIt's
+``PlanningScene`` does. A link (or an attached object named in a padding dict) and an
+environment body collide when their surfaces are closer than the link's padding. It runs
+through the clearance mode (:mod:`pycinder.clearance`) at the largest padding, and each pair is
+kept by its own: a pair closer than its padding is always reported, one more than its padding
+plus an eighth of the largest padding apart never is.
 """
 
 from __future__ import annotations
@@ -362,6 +364,7 @@ class Robot:
     share_never_pairs: bool = False
     _attached: dict[str, _Attached] = field(default_factory=dict, repr=False)
     _detector: Any = field(default=None, repr=False)
+    _padded: dict = field(default_factory=dict, repr=False)
     _plans: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
@@ -734,9 +737,11 @@ class Robot:
             Configurations per query (default: :data:`DEFAULT_BODIES_PER_QUERY` bodies per
             query). A batch too large for the device's pixel budget is split.
         padding : float or dict of str to float, optional
-            MoveIt's padding, in world units: one for every link and attached object, or per
-            link or object name (missing names: 0). A pair collides when its surfaces are
-            closer than the sum of its two paddings (see the module's docstring).
+            MoveIt's padding, in world units: one for every link, or per link or attached
+            object name (names left out: 0). It applies against the environment: a link and an
+            environment body collide when their surfaces are closer than the link's padding;
+            self-collision is checked unpadded, as MoveIt checks it (see the module's
+            docstring).
 
         Returns
         -------
@@ -765,6 +770,7 @@ class Robot:
         if padding is None:
             return None
         robot = len(self.bodies) + len(self._attached)
+        links = len(self.bodies)
         if isinstance(padding, dict):
             known = set(self.links) | set(self._attached)
             unknown = sorted(set(padding) - known)
@@ -773,8 +779,8 @@ class Robot:
                                  "links nor attached objects")
             values = [padding.get(_owner(b), 0.0) if k < robot else 0.0
                       for k, b in enumerate(bodies)]
-        else:
-            values = [padding if k < robot else 0.0 for k in range(len(bodies))]
+        else:  # the links' padding (attached objects are padded only by name)
+            values = [padding if k < links else 0.0 for k in range(len(bodies))]
         pads = np.array([float(v) if isinstance(v, (int, float, np.floating))
                          and not isinstance(v, bool) else np.nan for v in values])
         if not np.isfinite(pads).all() or (pads < 0).any():
@@ -786,7 +792,7 @@ class Robot:
         """The detector of padded checks whose largest padding sum is ``clearance``."""
         from .detector import Detector
 
-        cache = self.__dict__.setdefault("_padded", {})
+        cache = self._padded
         if clearance not in cache:
             cache.clear()
             cache[clearance] = Detector(records="none", broad_phase="numpy",
@@ -851,16 +857,19 @@ class Robot:
                 pairs[start + c] = sorted(found)
 
     def _query(self, scenes: list, plan: _Plan, pads: np.ndarray | None) -> list:
-        """The batch's results; with padding, each scene's pairs kept by their own padding."""
+        """The batch's results; with padding, each scene's pairs kept by their own padding
+        (environment pairs by the robot body's, the robot's own pairs by none)."""
         if pads is None:
             return self.detector.find_collisions_batch(scenes, tolerance=self.tolerance)
-        sums = [pads[i] + pads[j] for sc in plan.scenes for i in sc for j in sc if i < j]
-        clearance = max(max(sums, default=0.0), 1e-12)
+        robot = len(self.bodies) + len(self._attached)
+        clearance = max(float(pads.max()), 1e-12)
         results = self._padded_detector(clearance).find_collisions_batch(
             scenes, tolerance=self.tolerance)
         for k, result in enumerate(results):
             scene = np.asarray(plan.scenes[k % len(plan.scenes)])
-            limit = pads[scene[result.pairs[:, 0]]] + pads[scene[result.pairs[:, 1]]]
+            a, b = scene[result.pairs[:, 0]], scene[result.pairs[:, 1]]
+            # Against the environment the padded robot; its own pairs unpadded (MoveIt's).
+            limit = np.where((a >= robot) | (b >= robot), pads[a] + pads[b], 0.0)
             keep = result.distances < limit + result.distance_errors
             result.pairs = result.pairs[keep]
             result.distances = result.distances[keep]

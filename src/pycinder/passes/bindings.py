@@ -10,6 +10,7 @@ in Python (:class:`~pycinder.gpu.structs.Struct`) and generated into its source.
 from __future__ import annotations
 
 import re
+import weakref
 from collections.abc import Mapping
 from typing import Any, Union
 
@@ -124,8 +125,9 @@ class Stage:
     ``fs``) and ``depth_stencil`` (the pipeline's depth-stencil state).
     """
 
-    _modules: dict[tuple[int, str, tuple[str, ...], str], wgpu.GPUShaderModule] = {}
-    _layouts: dict[tuple, tuple[wgpu.GPUBindGroupLayout, wgpu.GPUPipelineLayout]] = {}
+    _cache: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+    """Per device (held weakly: a device made after a reset never meets a dead one's objects
+    through a reused id): shader modules and declared layouts by what makes them."""
 
     def __init__(self, gpu: Gpu, shader: str, entry: str = "", *, render: dict | None = None,
                  label: str = "", structs: tuple[Struct, ...] = (),
@@ -139,11 +141,12 @@ class Stage:
         generated = const_declarations(consts or {})
         source = generated + source
         self.numbers = binding_numbers(source)
-        key = (id(self.device), shader, tuple(s.wgsl() for s in structs), generated)
-        module = self._modules.get(key)
+        self._device_cache = self._cache.setdefault(self.device, {})
+        key = ("module", shader, tuple(s.wgsl() for s in structs), generated)
+        module = self._device_cache.get(key)
         if module is None:
-            module = self._modules[key] = self.device.create_shader_module(label=shader,
-                                                                           code=source)
+            module = self._device_cache[key] = self.device.create_shader_module(label=shader,
+                                                                                code=source)
         self.bind_layout: wgpu.GPUBindGroupLayout | None = None
         pipeline_layout: Any = "auto"
         if layout == "declared":
@@ -170,15 +173,16 @@ class Stage:
                          ) -> tuple[wgpu.GPUBindGroupLayout, wgpu.GPUPipelineLayout]:
         """The bind group layout of every binding of ``source`` and its pipeline layout, made
         once per shader module and kind of pipeline."""
-        key = (*key, compute)
-        if key not in self._layouts:
+        key = ("layout", *key[1:], compute)
+        cache = self._device_cache
+        if key not in cache:
             stages = wgpu.ShaderStage
             visibility = stages.COMPUTE if compute else stages.VERTEX | stages.FRAGMENT
             bind_layout = self.device.create_bind_group_layout(
                 label=self.label, entries=declared_layout_entries(source, visibility))
-            self._layouts[key] = (bind_layout, self.device.create_pipeline_layout(
+            cache[key] = (bind_layout, self.device.create_pipeline_layout(
                 bind_group_layouts=[bind_layout]))
-        return self._layouts[key]
+        return cache[key]
 
     def group(self, key: str = "", /, **resources: Resource) -> wgpu.GPUBindGroup:
         """The bind group of ``resources`` (buffers, texture views, samplers) by binding name

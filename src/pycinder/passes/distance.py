@@ -12,7 +12,6 @@ import wgpu
 from ..gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ..gpu.device import Gpu
 from ..gpu.structs import Struct
-from ..scene.pack import ShapePack
 from .bindings import Stage, dispatch
 from .table import PassInfo
 
@@ -60,21 +59,21 @@ class Distance:
         def grow(label: str, usage: int = _U.STORAGE | _U.COPY_DST) -> GrowableBuffer:
             return GrowableBuffer(device, label, usage)
 
-        self.positions, self.faces = grow("distance positions"), grow("distance faces")
         self.items, self.frames = grow("distance items"), grow("pair frames")
         self.best = grow("pair distances", _U.STORAGE | _U.COPY_DST | _U.COPY_SRC)
         self.params = device.create_buffer(label="distance parameters", size=16,
                                            usage=_U.UNIFORM | _U.COPY_DST)
         self.readback = Readback(device, "pair distances")
-        self._layout: tuple | None = None
 
-    def run(self, pack: ShapePack, items: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    def run(self, positions: GrowableBuffer, faces: GrowableBuffer, items: np.ndarray,
+            frames: np.ndarray) -> np.ndarray:
         """Measure.
 
         Parameters
         ----------
-        pack : ShapePack
-            The shapes (their vertices are uploaded when the pack changed).
+        positions, faces : GrowableBuffer
+            The packed shapes as the focused passes hold them (their current vertices: see
+            :meth:`~pycinder.passes.atlas.AtlasBuffers.upload`).
         items : (I,) structured array of :data:`ITEM`
         frames : (K,) structured array of :data:`FRAME`
 
@@ -87,11 +86,6 @@ class Distance:
         k = len(frames)
         if k == 0:
             return np.zeros(0, np.float32)
-        if self._layout != (id(pack), pack.positions.nbytes):
-            for buf, data in ((self.positions, pack.positions), (self.faces, pack.faces)):
-                buf.ensure(data.nbytes)
-                buf.write(data)
-            self._layout = (id(pack), pack.positions.nbytes)
         self.items.ensure(max(items.nbytes, ITEM.size))
         if len(items):
             self.items.write(items)
@@ -106,8 +100,8 @@ class Distance:
         if len(items):
             cpass = encoder.begin_compute_pass(label=self.INFO.title)
             dispatch(cpass, self.stage, self.stage.group(
-                positions=self.positions, faces=self.faces, items=self.items,
-                frames=self.frames, best=self.best, params=(self.params, 0, 16)), len(items))
+                positions=positions, faces=faces, items=self.items, frames=self.frames,
+                best=self.best, params=(self.params, 0, 16)), len(items))
             cpass.end()
         staging = self.readback.ensure(4 * k)
         encoder.copy_buffer_to_buffer(self.best.buffer, 0, staging, 0, 4 * k)

@@ -66,7 +66,7 @@ class RaycastPasses:
         self.pipelines = {n: stage.pipeline for n, stage in self.stages.items()}
         self.frame = FRAME.zeros()
         self.frame_buffer = gpu.device.create_buffer(
-            label="frame", size=FRAME.size,
+            label="frame", size=-(-FRAME.size // 16) * 16,  # uniform bindings: whole 16 bytes
             usage=wgpu.BufferUsage.UNIFORM | wgpu.BufferUsage.COPY_DST)
         self._capture: Stage | None = None
         self._bundles: dict[tuple, list[wgpu.GPURenderBundle]] = {}

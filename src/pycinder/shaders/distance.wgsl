@@ -17,7 +17,7 @@
 @group(0) @binding(4) var<storage, read_write> best: array<atomic<u32>>;
 @group(0) @binding(5) var<uniform> params: DistanceParams;
 
-var<workgroup> tri_b: array<vec3f, 192>;  // 3 * CLUSTER_FACES corners
+var<workgroup> tri_b: array<vec3f, 3u * CLUSTER_FACES>;  // the corners of a cluster's faces
 
 fn vertex(i: u32) -> vec3f {
     return vec3f(positions[3u * i], positions[3u * i + 1u], positions[3u * i + 2u]);
