@@ -33,6 +33,7 @@ plus an eighth of the largest padding apart never is.
 from __future__ import annotations
 
 import math
+import time
 import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Sequence
@@ -55,8 +56,17 @@ REASONS = ("Adjacent", "Default", "Always", "Never", "User")
 """Reasons of MoveIt's ``<disable_collisions>`` elements, as its Setup Assistant writes them."""
 
 DEFAULT_BODIES_PER_QUERY = 12_000
-"""Bodies one batched query holds by default (configurations per query: this divided by the
-bodies one configuration's scenes hold)."""
+"""Most bodies one batched query holds by default (configurations per query: this divided by
+the bodies one configuration's scenes hold)."""
+
+QUERY_SECONDS = 2.0
+"""Wall seconds a batched query of :meth:`Robot.check` aims at when no ``batch`` is given:
+batches start at :data:`FIRST_BATCH` configurations and grow (at most doubling) while queries
+take less, up to :data:`DEFAULT_BODIES_PER_QUERY` bodies, so that a slow adapter (a CPU driver)
+gets small batches, far from the GPU timeout, and a fast GPU large ones."""
+
+FIRST_BATCH = 8
+"""Configurations of the first batched query of a check (see :data:`QUERY_SECONDS`)."""
 
 SPHERE_SUBDIVISIONS = 3
 CYLINDER_SECTIONS = 32
@@ -734,8 +744,10 @@ class Robot:
             Also return, per configuration, the colliding pairs of names (link, attached object
             or environment body names), each pair sorted, the list sorted.
         batch : int, optional
-            Configurations per query (default: :data:`DEFAULT_BODIES_PER_QUERY` bodies per
-            query). A batch too large for the device's pixel budget is split.
+            Configurations per query. Default: paced, from :data:`FIRST_BATCH` configurations
+            growing while queries take less than :data:`QUERY_SECONDS`, up to
+            :data:`DEFAULT_BODIES_PER_QUERY` bodies per query. A batch too large for the
+            device's pixel budget is split.
         padding : float or dict of str to float, optional
             MoveIt's padding, in world units: one for every link, or per link or attached
             object name (names left out: 0). It applies against the environment: a link and an
@@ -757,12 +769,19 @@ class Robot:
         qs = self._configurations(qs)
         plan, bodies = self._plan(environment, self_collision)
         pads = self._paddings(padding, bodies)
-        size = self._batch_size(batch, plan)
+        most = self._batch_size(batch, plan)
+        size = most if batch is not None else min(FIRST_BATCH, most)
         collides = np.zeros(len(qs), dtype=bool)
         pairs: list[list[tuple[str, str]]] = [[] for _ in range(len(qs))]
-        for start in range(0, len(qs), size):
+        start = 0
+        while start < len(qs):
+            t0 = time.perf_counter()
             self._check_batch(qs[start:start + size], start, plan, bodies, environment,
                               collides, pairs if return_pairs else None, pads)
+            start += size
+            if batch is None:  # paced: see QUERY_SECONDS
+                pace = QUERY_SECONDS / max(time.perf_counter() - t0, 1e-3)
+                size = max(1, min(most, int(size * min(pace, 2.0))))
         return (collides, pairs) if return_pairs else collides
 
     def _paddings(self, padding: Any, bodies: list[Body]) -> np.ndarray | None:
