@@ -36,7 +36,7 @@ import math
 import time
 import warnings
 import xml.etree.ElementTree as ET
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -769,20 +769,27 @@ class Robot:
         qs = self._configurations(qs)
         plan, bodies = self._plan(environment, self_collision)
         pads = self._paddings(padding, bodies)
-        most = self._batch_size(batch, plan)
-        size = most if batch is not None else min(FIRST_BATCH, most)
         collides = np.zeros(len(qs), dtype=bool)
         pairs: list[list[tuple[str, str]]] = [[] for _ in range(len(qs))]
+        for start, stop in self._batches(len(qs), batch, plan):
+            self._check_batch(qs[start:stop], start, plan, bodies, environment, collides,
+                              pairs if return_pairs else None, pads)
+        return (collides, pairs) if return_pairs else collides
+
+    def _batches(self, count: int, batch: int | None, plan: _Plan) -> Iterator[tuple[int, int]]:
+        """``(start, stop)`` of each query's configurations: ``batch`` at a time when given;
+        else paced (see :data:`QUERY_SECONDS`), the time between one range and the next being
+        the caller's query."""
+        most = self._batch_size(batch, plan)
+        size = most if batch is not None else min(FIRST_BATCH, most)
         start = 0
-        while start < len(qs):
+        while start < count:
             t0 = time.perf_counter()
-            self._check_batch(qs[start:start + size], start, plan, bodies, environment,
-                              collides, pairs if return_pairs else None, pads)
+            yield start, min(start + size, count)
             start += size
-            if batch is None:  # paced: see QUERY_SECONDS
+            if batch is None:
                 pace = QUERY_SECONDS / max(time.perf_counter() - t0, 1e-3)
                 size = max(1, min(most, int(size * min(pace, 2.0))))
-        return (collides, pairs) if return_pairs else collides
 
     def _paddings(self, padding: Any, bodies: list[Body]) -> np.ndarray | None:
         """(B,) the padding of each body of a check (None without padding)."""
@@ -938,10 +945,9 @@ class Robot:
         """
         path = self.interpolate(qs, resolution)
         plan, _ = self._plan(environment, self_collision)
-        size = self._batch_size(batch, plan)
-        for start in range(0, len(path), size):
-            hit = self.check(path[start:start + size], environment=environment,
-                             self_collision=self_collision, batch=size)
+        for start, stop in self._batches(len(path), batch, plan):
+            hit = self.check(path[start:stop], environment=environment,
+                             self_collision=self_collision, batch=stop - start)
             if hit.any():
                 return start + int(np.flatnonzero(hit)[0])
         return None
