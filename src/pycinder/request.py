@@ -244,26 +244,17 @@ class CollisionRequest:
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if self.tolerance is not None:
-            if isinstance(self.tolerance, bool) or not isinstance(self.tolerance, numbers.Real) \
-                    or not math.isfinite(self.tolerance) or self.tolerance <= 0:
-                raise ValueError(f"tolerance must be a positive number of world units, got "
-                                 f"{self.tolerance!r}")
-            object.__setattr__(self, "tolerance", float(self.tolerance))
-        if isinstance(self.timeout, bool) or not isinstance(self.timeout, numbers.Real) \
-                or not math.isfinite(self.timeout) or self.timeout <= 0:
-            raise ValueError(f"timeout must be a positive number of seconds, got {self.timeout!r}")
-        object.__setattr__(self, "timeout", float(self.timeout))
+            object.__setattr__(self, "tolerance",
+                               _positive_real("tolerance", self.tolerance, "world units"))
+        object.__setattr__(self, "timeout", _positive_real("timeout", self.timeout, "seconds"))
         if not _positive_int(self.max_pixels):
             raise ValueError(f"max_pixels must be a positive whole number, got {self.max_pixels!r}")
         if not _positive_int(self.memory_budget) or self.memory_budget < 2**20:
             raise ValueError(f"memory_budget must be a whole number of bytes, at least 1 MiB, "
                              f"got {self.memory_budget!r}")
         if self.clearance is not None:
-            if isinstance(self.clearance, bool) or not isinstance(self.clearance, numbers.Real) \
-                    or not math.isfinite(self.clearance) or self.clearance <= 0:
-                raise ValueError(f"clearance must be a positive number of world units, got "
-                                 f"{self.clearance!r}")
-            object.__setattr__(self, "clearance", float(self.clearance))
+            object.__setattr__(self, "clearance",
+                               _positive_real("clearance", self.clearance, "world units"))
             if self.strategy != "focused":
                 raise ValueError("clearance applies to strategy='focused': distances are "
                                  "measured per candidate pair")
@@ -389,6 +380,15 @@ def _records_for_contacts(strategy: str, records: str | None, contacts: Any) -> 
                          f"but records={records!r} was given: leave records out, or pass "
                          f"records='all'")
     return "all"
+
+
+def _positive_real(name: str, value: Any, unit: str) -> float:
+    """``value`` as a float; a ValueError naming the option unless it is a finite positive
+    number (not a bool)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) \
+            or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{name} must be a positive number of {unit}, got {value!r}")
+    return float(value)
 
 
 def _positive_int(value: Any) -> bool:
