@@ -16,6 +16,7 @@ SOURCES = {
     "broad": ("pycinder.passes.broad", "PASSES"),
     "scene": ("pycinder.frame", "PASS_INFOS"),
     "clearance": ("pycinder.clearance", "PASSES"),
+    "hardclash": ("pycinder.hardclash", "PASSES"),
 }
 """Where each strategy lists its pass classes (module, attribute)."""
 

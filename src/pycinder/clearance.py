@@ -42,7 +42,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .broadphase import sweep_and_prune
-from .passes.distance import FRAME, ITEM, Distance
+from .passes.distance import ITEM, Distance
+from .passes.pairwork import pair_frames
 from .records import pair_keys
 from .result import CollisionResult, Stats
 from .scene import Scene
@@ -112,8 +113,8 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, c: float,
 
     Returns
     -------
-    items : (I,) structured array of :data:`~pycinder.passes.distance.ITEM`
-    frames : (K,) structured array of :data:`~pycinder.passes.distance.FRAME`
+    items : (I,) structured array of :data:`~pycinder.passes.pairwork.ITEM`
+    frames : (K,) structured array of :data:`~pycinder.passes.pairwork.FRAME`
     reach : (K,) float64
         How far each pair's bodies reach from its frame's centre (``L`` of the error bound).
     """
@@ -122,20 +123,14 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, c: float,
     face_start = pack.clusters[:, 0].astype(np.int64)
     face_count = pack.clusters[:, 1].astype(np.int64)
     world_lo, world_hi = scene.world_boxes()
-    frames = FRAME.zeros(len(pairs))
-    reach = np.zeros(len(pairs))
+    a, b = pairs[:, 0], pairs[:, 1]
+    frames, reach = pair_frames(scene.transforms, pairs, world_lo, world_hi,
+                                np.maximum(world_lo[a], world_lo[b]) - c,
+                                np.minimum(world_hi[a], world_hi[b]) + c)
     chunks = []
     for k, (a, b) in enumerate(pairs.tolist()):
-        grown_lo = np.maximum(world_lo[a], world_lo[b]) - c
-        grown_hi = np.minimum(world_hi[a], world_hi[b]) + c
-        origin = 0.5 * (grown_lo + grown_hi)
-        corners = np.abs(np.stack([world_lo[a], world_hi[a], world_lo[b], world_hi[b]]) - origin)
-        reach[k] = float(np.sqrt((corners.max(axis=0) ** 2).sum()))
         sides = []
-        for side, body, other in ((0, a, b), (1, b, a)):
-            m = scene.transforms[body].copy()
-            m[:3, 3] -= origin
-            frames["m0" if side == 0 else "m1"][k] = m[:3]
+        for body, other in ((a, b), (b, a)):
             shape = int(scene.body_shape[body])
             ids = np.arange(start[shape], start[shape + 1])
             lo, hi = _world(lo_all[ids], hi_all[ids], scene.transforms[body])

@@ -44,6 +44,7 @@ from .tolerance import pair_tolerances
 
 if TYPE_CHECKING:
     from .clearance import Clearance
+    from .hardclash import HardClash
 from .tiles import LEAD_FROM, LEAD_PAIRS, TilePlan, concat_plans, likely_pairs, plan_tiles
 
 
@@ -68,6 +69,7 @@ class FocusedStrategy:
         self._pack: ShapePack | None = None
         self._broad: GpuBroadPhase | None = None  # made on first use
         self._clearance: Clearance | None = None  # made on first clearance query
+        self._hard_clash: HardClash | None = None  # made on first hard-clash query
         self.recently_retried = False
         """Whether the last query ran tiles again (their samples were left undecided)."""
 
@@ -103,18 +105,25 @@ class FocusedStrategy:
                tolerance: np.ndarray | None = None, stop_at_first: bool = False
                ) -> PendingFocused:
         """:meth:`run` up to the first frame's submission (see :meth:`submit_interference`);
-        a clearance query (the request's ``clearance``) runs whole here
-        (:class:`~pycinder.clearance.Clearance`)."""
-        c = self.request.clearance
-        if c is None:
-            return self.submit_interference(scene, stats, groups, records, within, tolerance,
-                                            stop_at_first)
-        if self._clearance is None:
-            from .clearance import Clearance
+        a clearance query (the request's ``clearance``) or a hard-clash query (its
+        ``min_depth``) runs whole here (:class:`~pycinder.clearance.Clearance`,
+        :class:`~pycinder.hardclash.HardClash`)."""
+        c, d = self.request.clearance, self.request.min_depth
+        if c is not None:
+            if self._clearance is None:
+                from .clearance import Clearance
 
-            self._clearance = Clearance(self)
-        return PendingFocused(self, self._clearance.run(scene, stats, c, groups, records,
-                                                        within, tolerance))
+                self._clearance = Clearance(self)
+            return PendingFocused(self, self._clearance.run(scene, stats, c, groups, records,
+                                                            within, tolerance))
+        if d is not None:
+            if self._hard_clash is None:
+                from .hardclash import HardClash
+
+                self._hard_clash = HardClash(self)
+            return PendingFocused(self, self._hard_clash.run(scene, stats, d, groups, within))
+        return self.submit_interference(scene, stats, groups, records, within, tolerance,
+                                        stop_at_first)
 
     def submit_interference(self, scene: Scene, stats: Stats,
                             groups: np.ndarray | None = None, records: str | None = None,

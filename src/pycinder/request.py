@@ -214,6 +214,12 @@ class CollisionRequest:
         units, overlapping pairs included, with its distance; never a pair more than
         ``clearance * 9/8`` apart (see :mod:`pycinder.clearance`). The tolerance of the
         interference test inside it is ``clearance / 4`` unless a finer one is given.
+    min_depth : float, optional
+        Focused strategy: hard clashes. Report every pair that penetrates deeper than this many
+        world units (the shortest translation that separates it is longer), with its depth;
+        never a pair of convex bodies at most ``min_depth / 2`` deep, touching and apart pairs
+        included (see :mod:`pycinder.hardclash`). The tolerance of the interference test inside
+        it is ``min_depth / 4`` unless a finer one is given. Not with ``clearance``.
     """
 
     strategy: Literal["focused", "scene"] = "focused"
@@ -233,6 +239,7 @@ class CollisionRequest:
     broad_phase: str = "auto"
     contacts: bool = False
     clearance: float | None = None
+    min_depth: float | None = None
 
     def __post_init__(self) -> None:
         _one_of("strategy", self.strategy, STRATEGIES)
@@ -252,16 +259,7 @@ class CollisionRequest:
         if not _positive_int(self.memory_budget) or self.memory_budget < 2**20:
             raise ValueError(f"memory_budget must be a whole number of bytes, at least 1 MiB, "
                              f"got {self.memory_budget!r}")
-        if self.clearance is not None:
-            object.__setattr__(self, "clearance",
-                               _positive_real("clearance", self.clearance, "world units"))
-            if self.strategy != "focused":
-                raise ValueError("clearance applies to strategy='focused': distances are "
-                                 "measured per candidate pair")
-            if self.contacts:
-                raise ValueError("contacts=True and clearance are not available together: a "
-                                 "clearance query's figure is each pair's distance "
-                                 "(result.distances)")
+        _check_mode(self)
         if self.strategy == "focused":
             given = [n for n in _SCENE_ONLY if getattr(self, n) != _DEFAULTS[n]]
             if given:
@@ -390,6 +388,27 @@ def _positive_real(name: str, value: Any, unit: str) -> float:
         raise ValueError(f"{name} must be a positive number of {unit}, got {value!r}")
     return float(value)
 
+
+_MODE_FIGURES = {"clearance": "each pair's distance (result.distances)",
+                 "min_depth": "each pair's depth (result.depths)"}
+
+
+def _check_mode(request: CollisionRequest) -> None:
+    """Check the query mode options (``clearance``, ``min_depth``): positive, one at most, on
+    the focused strategy, without contacts."""
+    given = [name for name in _MODE_FIGURES if getattr(request, name) is not None]
+    if len(given) > 1:
+        raise ValueError("min_depth and clearance ask different questions (hard clashes, or "
+                         "pairs within a distance): give one of them")
+    for name in given:
+        object.__setattr__(request, name,
+                           _positive_real(name, getattr(request, name), "world units"))
+        if request.strategy != "focused":
+            raise ValueError(f"{name} applies to strategy='focused': its figures are measured "
+                             "per candidate pair")
+        if request.contacts:
+            raise ValueError(f"contacts=True and {name} are not available together: a {name} "
+                             f"query's figure is {_MODE_FIGURES[name]}")
 
 def _positive_int(value: Any) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value > 0

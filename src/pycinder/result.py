@@ -197,6 +197,13 @@ class CollisionResult:
         bodies overlap (see :mod:`pycinder.clearance`); None for other queries.
     distance_errors : (K,) float64 or None
         The bound on each of :attr:`distances`' error.
+    depths : (K,) float64 or None
+        A hard-clash query (``min_depth=d``): each pair's penetration depth, an upper bound of
+        the shortest translation that separates it (see :mod:`pycinder.hardclash`); None for
+        other queries.
+    depth_errors : (K,) float64 or None
+        The bound on each of :attr:`depths`' error, for convex bodies (a non-convex pair's
+        depth is at most its figure plus the rounding part of this bound).
 
     Notes
     -----
@@ -224,6 +231,8 @@ class CollisionResult:
         self.records_kept = records_kept
         self.distances: np.ndarray | None = None
         self.distance_errors: np.ndarray | None = None
+        self.depths: np.ndarray | None = None
+        self.depth_errors: np.ndarray | None = None
         self._contacts: Contacts | None = None
         self._decode: Callable[[], np.ndarray] | None = None
         self._records: np.ndarray | None = None
@@ -342,7 +351,8 @@ class CollisionResult:
             For a result that kept fewer than every record (``records="found"``, the default,
             or ``"none"``): the message says to query with ``contacts=True``; for a result of
             the scene strategy, whose image has no tiles to measure contacts in; for a
-            clearance query's result (its figures are :attr:`distances`).
+            clearance query's result (its figures are :attr:`distances`) or a hard-clash
+            query's (its figures are :attr:`depths`).
 
         Examples
         --------
@@ -361,10 +371,12 @@ class CollisionResult:
             raise ValueError("contacts are measured in the focused strategy's tiles; this result "
                              "comes from strategy='scene'. Run the query with the default "
                              "strategy and contacts=True for contacts.")
-        if self.distances is not None:
-            raise ValueError("a clearance query's figure is each pair's distance "
-                             "(result.distances); it has no contacts (contacts=True and "
-                             "clearance are not available together)")
+        for figures, mode, what in ((self.distances, "clearance", "distance"),
+                                    (self.depths, "min_depth", "depth")):
+            if figures is not None:
+                raise ValueError(f"a {mode} query's figure is each pair's {what} "
+                                 f"(result.{what}s); it has no contacts (contacts=True and "
+                                 f"{mode} are not available together)")
         if self.records_kept != "all":
             kept = f"records={self.records_kept!r}" if self.records_kept else \
                 "no word of which records it kept"

@@ -12,10 +12,10 @@
 
 @group(0) @binding(0) var<storage, read> positions: array<f32>;
 @group(0) @binding(1) var<storage, read> faces: array<u32>;
-@group(0) @binding(2) var<storage, read> items: array<DistanceItem>;
+@group(0) @binding(2) var<storage, read> items: array<PairItem>;
 @group(0) @binding(3) var<storage, read> frames: array<PairFrame>;
 @group(0) @binding(4) var<storage, read_write> best: array<atomic<u32>>;
-@group(0) @binding(5) var<uniform> params: DistanceParams;
+@group(0) @binding(5) var<uniform> params: PairParams;
 
 var<workgroup> tri_b: array<vec3f, 3u * CLUSTER_FACES>;  // the corners of a cluster's faces
 

@@ -1,0 +1,189 @@
+"""Hard clashes: every pair of bodies that penetrate deeper than a depth ``d``, with its depth.
+
+``Detector(min_depth=d)`` (or ``min_depth=d`` on any entry point) answers "does A penetrate B by
+more than d?", Navisworks' hard clash with a tolerance and IfcClash's intersection mode. A pair's
+penetration depth is the length of the shortest translation that separates it (FCL's and coal's
+definition for convex bodies); a body inside another is as deep as the translation that takes it
+out. Its contract:
+
+1. A pair deeper than ``d`` is always reported, whatever its shapes: closed or open, convex or
+   not, one inside the other.
+2. A pair of convex bodies at most ``d / 2`` deep is never reported: touching pairs (face on
+   face, end on face, edge on face, butt joints) and pairs apart included. A non-convex pair is
+   reported only when its directional depth (below) exceeds ``d``; where the bodies interlock
+   that can exceed its penetration depth.
+3. Each reported pair carries its depth (``result.depths``), an upper bound of its penetration
+   depth (up to rounding); for convex bodies the penetration depth is within
+   ``result.depth_errors`` below it.
+
+How. Along a direction ``n``, moving body a by ``s n`` leaves all of body b behind it on every
+ray parallel to ``n`` once ``s`` exceeds the largest ``(farthest point of b) - (nearest point of
+a)`` over those rays: that ``U(n)`` is a translation that separates the pair, so it is never
+less than the penetration depth. Pass H1 (:mod:`pycinder.passes.depth`) finds it exactly over
+every face of a and face of b, both ways along 19 lines: the 13 through a cube's centre and its
+faces, edges and corners, and each body's own three axes. The pair's directional depth is the
+least of them (0 where a direction clears the pair: touching bodies). For convex bodies ``U(n)``
+is exactly the shortest separating translation along ``n``, at most the penetration depth over
+the cosine of the angle between ``n`` and the best direction; every direction is within
+:data:`DIRECTION_COS` of one of the 26, so the figure is at most ``1 / 0.886`` times the
+penetration depth, which keeps promise 2. A body of the 19 lines' own axes (a box turned any
+way, a beam along its axes) is measured exactly. Open bodies have no inside: their surfaces'
+points are the rays' extremes, so two surfaces crossing deeper than ``d`` are a clash.
+
+Precision. Each pair is measured in a frame of its own, centred where its world boxes meet;
+single precision bounds a figure's rounding by :data:`ERROR_SCALE` times ``L``, the farthest
+the pair's bodies reach from that centre. A pair is reported when its figure exceeds ``d`` less
+that bound, which keeps promise 2 while the bound is at most ``d / 16``: a smaller ``d`` for
+bodies that large raises a ``ValueError`` naming the pair.
+
+Cost. No pixels, tolerance or records: every candidate pair (world boxes that meet) is measured
+face pair by face pair, 19 lines each, so the cost of a pair grows with the product of its two
+bodies' face counts. Building elements and robot links (tens to a few thousand faces) are what
+it is for; two dense meshes of a hundred thousand faces each are ten billion face pairs, for the
+default query (pairs by the tolerance contract) or a clearance query rather.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .broadphase import sweep_and_prune
+from .clearance import ERROR_SCALE
+from .passes.depth import LINES, Depth
+from .passes.pairwork import ITEM, pair_frames
+from .records import empty_records
+from .result import CollisionResult, Stats
+from .scene import Scene
+from .scene.pack import ShapePack
+
+if TYPE_CHECKING:
+    from .focused import FocusedStrategy
+
+PASSES = (Depth,)
+"""The hard-clash query's one pass (the pass table is generated from it)."""
+
+DIRECTION_COS = 0.886
+"""Every direction is within this cosine of one of the 26 directions through a cube's centre and
+its faces, edges and corners (the least over all directions is 0.88645)."""
+
+
+def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray
+         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The work of pass H1: each pair's frame and every pair of its bodies' face clusters.
+
+    Parameters
+    ----------
+    scene : Scene
+    pack : ShapePack
+    pairs : (K, 2) int
+
+    Returns
+    -------
+    items : (I,) structured array of :data:`~pycinder.passes.pairwork.ITEM`
+    frames : (K,) structured array of :data:`~pycinder.passes.pairwork.FRAME`
+    reach : (K,) float64
+        How far each pair's bodies reach from its frame's centre (``L`` of the rounding bound).
+    """
+    lo, hi = scene.world_boxes()
+    a, b = pairs[:, 0], pairs[:, 1]
+    frames, reach = pair_frames(scene.transforms, pairs, lo, hi, np.maximum(lo[a], lo[b]),
+                                np.minimum(hi[a], hi[b]))
+    start = pack.cluster_start
+    shape_a, shape_b = scene.body_shape[a], scene.body_shape[b]
+    first_a, count_a = start[shape_a], start[shape_a + 1] - start[shape_a]
+    first_b, count_b = start[shape_b], start[shape_b + 1] - start[shape_b]
+    per_pair = count_a * count_b
+    pair = np.repeat(np.arange(len(pairs)), per_pair)
+    # Item i of its pair: cluster i // count_b of body a, cluster i % count_b of body b.
+    i = np.arange(len(pair)) - np.repeat(np.cumsum(per_pair) - per_pair, per_pair)
+    cluster_a = first_a[pair] + i // count_b[pair]
+    cluster_b = first_b[pair] + i % count_b[pair]
+    items = ITEM.zeros(len(pair))
+    items["pair"] = pair
+    items["a_start"], items["a_count"] = pack.clusters[cluster_a, 0], pack.clusters[cluster_a, 1]
+    items["b_start"], items["b_count"] = pack.clusters[cluster_b, 0], pack.clusters[cluster_b, 1]
+    return items, frames, reach
+
+
+def directional_depth(figures: np.ndarray) -> np.ndarray:
+    """Each pair's directional depth from pass H1's figures: the least translation, over every
+    line and both ways, that clears the pair (0 where one clears it already).
+
+    Parameters
+    ----------
+    figures : (K, LINES, 2) float
+        :meth:`~pycinder.passes.depth.Depth.run`'s figures (-inf where no ray meets both).
+
+    Returns
+    -------
+    (K,) float64
+    """
+    return np.maximum(figures.reshape(len(figures), 2 * LINES), 0.0).min(axis=1)
+
+
+class HardClash:
+    """Hard-clash queries on a focused strategy's device and shapes.
+
+    Parameters
+    ----------
+    strategy : FocusedStrategy
+    """
+
+    def __init__(self, strategy: FocusedStrategy) -> None:
+        self.strategy = strategy
+        self.depth = Depth(strategy.gpu, timeout=strategy.request.timeout)
+
+    def run(self, scene: Scene, stats: Stats, d: float, groups: np.ndarray | None,
+            within: np.ndarray | None) -> CollisionResult:
+        """The pairs deeper than ``d`` of a validated scene (see the module's contract)."""
+        if len(scene) < 2:
+            return _with_figures(CollisionResult.empty(stats), np.zeros(0), np.zeros(0))
+        t0 = time.perf_counter()
+        lo, hi = scene.world_boxes()
+        pairs = sweep_and_prune(lo, hi, within, groups)
+        stats.candidates = len(pairs)
+        stats.broad_phase = "numpy"
+        t1 = time.perf_counter()
+        stats.add_ms("broad phase", (t1 - t0) * 1e3)
+        pack = self.strategy.pack(scene, stats)
+        items, frames, reach = plan(scene, pack, pairs)
+        error = ERROR_SCALE * reach
+        _check_precision(scene, pairs, error, d)
+        t2 = time.perf_counter()
+        stats.add_ms("upload", (t2 - t1) * 1e3)
+        buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
+        figures = self.depth.run(buffers.positions, buffers.faces, items, frames)
+        stats.add_ms("depth", (time.perf_counter() - t2) * 1e3)
+        depth = directional_depth(figures)
+        keep = depth > d - error
+        result = CollisionResult(pairs[keep], empty_records(), stats, scene=scene,
+                                 records_kept="none")
+        depths = depth[keep]
+        return _with_figures(result, depths, depths * (1 - DIRECTION_COS) + error[keep])
+
+
+def _check_precision(scene: Scene, pairs: np.ndarray, error: np.ndarray, d: float) -> None:
+    """A ValueError naming the pair whose rounding bound is over ``d / 16``."""
+    too_fine = np.flatnonzero(error > d / 16)
+    if len(too_fine) == 0:
+        return
+    k = too_fine[np.argmax(error[too_fine])]
+    a, b = pairs[k]
+    raise ValueError(
+        f"min_depth {d:g} is too small for {scene.label(int(a))} and {scene.label(int(b))} in "
+        f"single precision: their depth is measured within {error[k]:.3g}, and the contract "
+        f"needs at most min_depth / 16; use a min_depth of at least {16 * error[k]:.3g}, or "
+        "query those bodies at their own scale")
+
+
+def _with_figures(result: CollisionResult, depths: np.ndarray, errors: np.ndarray
+                  ) -> CollisionResult:
+    result.depths = np.asarray(depths, np.float64)
+    result.depth_errors = np.asarray(errors, np.float64)
+    return result
+
+
+__all__ = ["DIRECTION_COS", "ERROR_SCALE", "PASSES", "HardClash", "directional_depth", "plan"]

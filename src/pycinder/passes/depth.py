@@ -1,0 +1,68 @@
+"""Pass H1, depth: for each candidate pair, how far body a must move along each of
+:data:`LINES` lines, either way, to leave body b behind on every ray parallel to it, exactly (in
+single precision) over every face of a and face of b (``depth.wgsl``). The hard-clash query's one
+pass; what its figures promise is in :mod:`pycinder.hardclash`."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+
+from ..gpu.buffers import GrowableBuffer
+from .pairwork import FRAME, ITEM, PARAMS, ClusterPairPass
+from .table import PassInfo
+
+WORLD_LINES = 13
+"""Lines fixed in the world: through a cube's centre and its faces, edges and corners."""
+LINES = WORLD_LINES + 6
+"""Lines per pair: the world's, then body a's three axes and body b's."""
+SLACK = 2.0**-18
+"""Rounding allowed in the shader's inside and crossing tests, relative to the faces' size."""
+
+
+def decode(words: np.ndarray) -> np.ndarray:
+    """Floats of the shader's order-preserving words (0, no figure, decodes to -inf).
+
+    Parameters
+    ----------
+    words : (...,) uint32
+
+    Returns
+    -------
+    (...,) float64
+    """
+    words = np.asarray(words, np.uint32)
+    high = (words & np.uint32(0x80000000)) != 0
+    bits = np.where(high, words & np.uint32(0x7FFFFFFF), ~words)
+    out = bits.view(np.float32).astype(np.float64)
+    return np.where(words == 0, -np.inf, out)
+
+
+class Depth(ClusterPairPass):
+    """H1: one workgroup per item (a cluster of body a and one of body b); per pair and line,
+    the largest ``depth_b - depth_a`` and ``depth_a - depth_b`` over the rays that meet both
+    bodies (atomicMax)."""
+
+    INFO: ClassVar[PassInfo] = PassInfo(
+        "H1", "depth", "how far one body of each candidate pair must move along each of 19 "
+        "lines, either way, to clear the other, face pair by face pair", when="hard-clash "
+        "queries")
+    SHADER, ENTRY, WORDS, START = "depth", "depth", 2 * LINES, 0
+    CONSTS: ClassVar[dict[str, int | float]] = {"LINES": LINES, "SLACK": SLACK}
+
+    def run(self, positions: GrowableBuffer, faces: GrowableBuffer, items: np.ndarray,
+            frames: np.ndarray) -> np.ndarray:
+        """Measure (arguments as :meth:`~pycinder.passes.pairwork.ClusterPairPass.words`).
+
+        Returns
+        -------
+        (K, LINES, 2) float64
+            Per pair and line, the translation of body a along the line's direction (``[..., 0]``)
+            and against it (``[..., 1]``) that clears body b on every ray the pair's items meet
+            (-inf where no ray meets both bodies).
+        """
+        return decode(self.words(positions, faces, items, frames)).reshape(-1, LINES, 2)
+
+
+__all__ = ["FRAME", "ITEM", "LINES", "PARAMS", "SLACK", "WORLD_LINES", "Depth", "decode"]
