@@ -156,6 +156,7 @@ class HardClash:
         stats.add_ms("upload", (t2 - t1) * 1e3)
         buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
         figures = self.depth.run(buffers.positions, buffers.faces, items, frames)
+        stats.bytes_read += figures.size * 4  # two words per line and pair
         stats.add_ms("depth", (time.perf_counter() - t2) * 1e3)
         depth = directional_depth(figures)
         keep = depth > d - error

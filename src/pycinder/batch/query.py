@@ -148,6 +148,10 @@ def find_collisions_batch(detector: Detector, scenes: Sequence[Any], *, toleranc
     return split(result, joined, counts, local_names)
 
 
+FIGURES = ("distances", "distance_errors", "depths", "depth_errors")
+"""Per-pair figures of a result (a clearance or a hard-clash query), cut with its pairs."""
+
+
 def split(result: CollisionResult, joined: Scene, counts: np.ndarray,
           names: Sequence[list | None]) -> list[CollisionResult]:
     """The result of a batch, one per scene of ``counts`` (S,) bodies, with local indices."""
@@ -171,10 +175,11 @@ def split(result: CollisionResult, joined: Scene, counts: np.ndarray,
         stats.bodies, stats.records = int(counts[s]), len(part)
         one = CollisionResult(result.pairs[pair_cut[s]:pair_cut[s + 1]] - a, part, stats,
                               tiles=result.tiles, scene=scene, records_kept=result.records_kept)
-        if result.distances is not None:
-            cut = slice(pair_cut[s], pair_cut[s + 1])
-            one.distances = result.distances[cut]
-            one.distance_errors = result.distance_errors[cut]
+        cut = slice(pair_cut[s], pair_cut[s + 1])
+        for name in FIGURES:
+            figures = getattr(result, name)
+            if figures is not None:
+                setattr(one, name, figures[cut])
         out.append(one)
     return out
 
