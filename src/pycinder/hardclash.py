@@ -38,8 +38,10 @@ bodies that large raises a ``ValueError`` naming the pair.
 
 Cost. No pixels, tolerance or records: every candidate pair (world boxes that meet) is measured
 face pair by face pair, 19 lines each, so the cost of a pair grows with the product of its two
-bodies' face counts. Building elements and robot links (tens to a few thousand faces) are what
-it is for; two dense meshes of a hundred thousand faces each are ten billion face pairs, for the
+bodies' face counts. A pair of small bodies is one workgroup's work, which stops at the first
+line that clears the pair: touching and apart pairs, most of a building's candidates, cost a
+line or a few. Building elements and robot links (tens to a few thousand faces) are what it is
+for; two dense meshes of a hundred thousand faces each are ten billion face pairs, for the
 default query (pairs by the tolerance contract) or a clearance query rather.
 """
 
@@ -52,7 +54,7 @@ import numpy as np
 
 from .broadphase import sweep_and_prune
 from .clearance import ERROR_SCALE
-from .passes.depth import LINES, Depth
+from .passes.depth import ITEM_FLIPPED, ITEM_WHOLE, LINES, WHOLE_FACES, WHOLE_WORK, Depth
 from .passes.pairwork import ITEM, pair_frames
 from .records import empty_records
 from .result import CollisionResult, Stats
@@ -72,7 +74,9 @@ its faces, edges and corners (the least over all directions is 0.88645)."""
 
 def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray
          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The work of pass H1: each pair's frame and every pair of its bodies' face clusters.
+    """The work of pass H1: each pair's frame and its items: its two bodies whole, when one has at
+    most :data:`~pycinder.passes.depth.WHOLE_FACES` faces and they make at most
+    :data:`~pycinder.passes.depth.WHOLE_WORK` face pairs, else every pair of their face clusters.
 
     Parameters
     ----------
@@ -91,20 +95,34 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray
     a, b = pairs[:, 0], pairs[:, 1]
     frames, reach = pair_frames(scene.transforms, pairs, lo, hi, np.maximum(lo[a], lo[b]),
                                 np.minimum(hi[a], hi[b]))
-    start = pack.cluster_start
+    faces = np.diff(pack.face_start)
     shape_a, shape_b = scene.body_shape[a], scene.body_shape[b]
-    first_a, count_a = start[shape_a], start[shape_a + 1] - start[shape_a]
-    first_b, count_b = start[shape_b], start[shape_b + 1] - start[shape_b]
+    fa, fb = faces[shape_a], faces[shape_b]
+    whole = (np.minimum(fa, fb) <= WHOLE_FACES) & (fa * fb <= WHOLE_WORK)
+    start = pack.cluster_start
+    count_a = np.where(whole, 1, start[shape_a + 1] - start[shape_a])
+    count_b = np.where(whole, 1, start[shape_b + 1] - start[shape_b])
     per_pair = count_a * count_b
     pair = np.repeat(np.arange(len(pairs)), per_pair)
     # Item i of its pair: cluster i // count_b of body a, cluster i % count_b of body b.
     i = np.arange(len(pair)) - np.repeat(np.cumsum(per_pair) - per_pair, per_pair)
-    cluster_a = first_a[pair] + i // count_b[pair]
-    cluster_b = first_b[pair] + i % count_b[pair]
+    cluster_a = start[shape_a][pair] + i // count_b[pair]
+    cluster_b = start[shape_b][pair] + i % count_b[pair]
     items = ITEM.zeros(len(pair))
     items["pair"] = pair
     items["a_start"], items["a_count"] = pack.clusters[cluster_a, 0], pack.clusters[cluster_a, 1]
     items["b_start"], items["b_count"] = pack.clusters[cluster_b, 0], pack.clusters[cluster_b, 1]
+    # A whole pair is one item of both bodies' faces, the body with fewer in workgroup memory.
+    w = np.flatnonzero(whole)
+    flip = fa[w] < fb[w]
+    first = np.cumsum(per_pair)[w] - 1  # a whole pair's one item
+    small = np.where(flip, shape_a[w], shape_b[w])
+    large = np.where(flip, shape_b[w], shape_a[w])
+    items["a_start"][first] = pack.face_start[large]
+    items["a_count"][first] = faces[large]
+    items["b_start"][first] = pack.face_start[small]
+    items["b_count"][first] = faces[small]
+    items["whole"][first] = ITEM_WHOLE | np.where(flip, ITEM_FLIPPED, 0)
     return items, frames, reach
 
 

@@ -218,8 +218,9 @@ class CollisionRequest:
         Focused strategy: hard clashes. Report every pair that penetrates deeper than this many
         world units (the shortest translation that separates it is longer), with its depth;
         never a pair of convex bodies at most ``min_depth / 2`` deep, touching and apart pairs
-        included (see :mod:`pycinder.hardclash`). The tolerance of the interference test inside
-        it is ``min_depth / 4`` unless a finer one is given. Not with ``clearance``.
+        included (see :mod:`pycinder.hardclash`). It is measured exactly, face pair by face pair,
+        with no pixels: ``tolerance`` and ``records`` do not apply (it keeps no records). Not
+        with ``clearance``.
     """
 
     strategy: Literal["focused", "scene"] = "focused"

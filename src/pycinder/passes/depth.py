@@ -19,6 +19,16 @@ LINES = WORLD_LINES + 6
 """Lines per pair: the world's, then body a's three axes and body b's."""
 SLACK = 2.0**-18
 """Rounding allowed in the shader's inside and crossing tests, relative to the faces' size."""
+WHOLE_FACES = 256
+"""Most faces of the body a whole item keeps in workgroup memory (the other's are shared among
+the threads)."""
+WHOLE_WORK = 2**16
+"""Most face pairs of a pair measured by one workgroup as a whole item (which stops at the first
+line that clears the pair); larger pairs are measured cluster pair by cluster pair."""
+ITEM_WHOLE = 1
+"""``whole`` bit of an item: its faces are its pair's two bodies whole (its only item)."""
+ITEM_FLIPPED = 2
+"""``whole`` bit of a whole item: body a's faces are the ones in workgroup memory."""
 
 
 def decode(words: np.ndarray) -> np.ndarray:
@@ -40,7 +50,7 @@ def decode(words: np.ndarray) -> np.ndarray:
 
 
 class Depth(ClusterPairPass):
-    """H1: one workgroup per item (a cluster of body a and one of body b); per pair and line,
+    """H1: one workgroup per item (the pair's bodies whole, or a cluster of each); per pair and line,
     the largest ``depth_b - depth_a`` and ``depth_a - depth_b`` over the rays that meet both
     bodies (atomicMax)."""
 
@@ -49,7 +59,9 @@ class Depth(ClusterPairPass):
         "lines, either way, to clear the other, face pair by face pair", when="hard-clash "
         "queries")
     SHADER, ENTRY, WORDS, START = "depth", "depth", 2 * LINES, 0
-    CONSTS: ClassVar[dict[str, int | float]] = {"LINES": LINES, "SLACK": SLACK}
+    CONSTS: ClassVar[dict[str, int | float]] = {
+        "LINES": LINES, "SLACK": SLACK, "WHOLE_FACES": WHOLE_FACES, "ITEM_WHOLE": ITEM_WHOLE,
+        "ITEM_FLIPPED": ITEM_FLIPPED}
 
     def run(self, positions: GrowableBuffer, faces: GrowableBuffer, items: np.ndarray,
             frames: np.ndarray) -> np.ndarray:
@@ -65,4 +77,5 @@ class Depth(ClusterPairPass):
         return decode(self.words(positions, faces, items, frames)).reshape(-1, LINES, 2)
 
 
-__all__ = ["FRAME", "ITEM", "LINES", "PARAMS", "SLACK", "WORLD_LINES", "Depth", "decode"]
+__all__ = ["FRAME", "ITEM", "ITEM_FLIPPED", "ITEM_WHOLE", "LINES", "PARAMS", "SLACK",
+           "WHOLE_FACES", "WHOLE_WORK", "WORLD_LINES", "Depth", "decode"]

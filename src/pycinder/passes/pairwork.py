@@ -26,10 +26,12 @@ from .table import PassInfo
 ITEM = Struct("PairItem", [
     ("pair", "u32", "the candidate pair (its frame and its figures)"),
     ("a_start", "u32", "first face of body a's cluster (packed)"),
-    ("a_count", "u32", "faces in it (at most CLUSTER_FACES)"),
+    ("a_count", "u32", "faces in it"),
     ("b_start", "u32", "first face of body b's cluster"),
     ("b_count", "u32", "faces in it"),
-], doc="A cluster of body a and a cluster of body b of one candidate pair.")
+    ("whole", "u32", "pass H1's bits: the pair's bodies whole (its only item), flipped"),
+], doc="Faces of body a and faces of body b of one candidate pair: a cluster of each (at most "
+       "CLUSTER_FACES faces), or for pass H1 the bodies whole.")
 
 FRAME = Struct("PairFrame", [
     ("m0", "array<vec4f, 3>", "pair-from-body rows of body a (origin where the pair meets)"),

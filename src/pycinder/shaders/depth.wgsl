@@ -12,8 +12,9 @@
 // other's projection, or a crossing of an edge of each. The same corners give the smallest value,
 // which is -U(-n), so each line serves both ways.
 //
-// One workgroup per item (a cluster of body a and one of body b): the b cluster's faces are in
-// workgroup memory, each thread takes one face of the a cluster. Depths are computed as convex
+// One workgroup per item: the faces of a pair's two bodies whole (when b has at most WHOLE_FACES),
+// or a cluster of each. b's faces are in workgroup memory; the threads share a's faces. An item
+// that is its pair's whole work stops at the first line that clears the pair. Depths are computed as convex
 // combinations of corner depths (barycentric weights clamped at 0), so a rounding error never
 // takes a figure outside the faces' own depth range. Figures are kept as order-preserving bits:
 // word 2 i holds max(depth_b - depth_a) along line i, word 2 i + 1 max(depth_a - depth_b); 0
@@ -29,9 +30,11 @@
 
 const NONE: f32 = -3.0e38;  // below every figure: no corner found yet
 
-var<workgroup> tri_b: array<vec3f, 3u * CLUSTER_FACES>;  // the corners of a cluster's faces
+var<workgroup> tri_b: array<vec3f, 3u * WHOLE_FACES>;    // the corners of b's faces
 var<workgroup> views: array<mat3x3f, LINES>;             // rows: screen x, screen y, n
 var<workgroup> kept: array<atomic<u32>, 2u * LINES>;      // the workgroup's figures
+var<workgroup> cleared: u32;                              // a line cleared the pair
+var<workgroup> whole_item: u32;                           // the item is its pair's whole work
 
 fn vertex(i: u32) -> vec3f {
     return vec3f(positions[3u * i], positions[3u * i + 1u], positions[3u * i + 2u]);
@@ -42,31 +45,30 @@ fn to_pair(m: array<vec4f, 3>, p: vec3f) -> vec3f {
     return vec3f(dot(m[0], q), dot(m[1], q), dot(m[2], q));
 }
 
-// The LINES directions: the 13 lines through a cube's centre and its faces, edges and corners
-// (every direction is within DIRECTION_COS of one of them, either way), then each body's own
-// three axes (its transform's columns), which follow the body when it is turned.
+// The LINES directions: each body's own three axes (its transform's columns), which follow the
+// body when it is turned and most often clear a touching pair at once, then the 13 lines through
+// a cube's centre and its faces, edges and corners (every direction is within DIRECTION_COS of
+// one of them, either way).
 fn line(i: u32, frame: PairFrame) -> vec3f {
     switch i {
-        case 0u: { return vec3f(1.0, 0.0, 0.0); }
-        case 1u: { return vec3f(0.0, 1.0, 0.0); }
-        case 2u: { return vec3f(0.0, 0.0, 1.0); }
-        case 3u: { return vec3f(1.0, 1.0, 0.0); }
-        case 4u: { return vec3f(1.0, -1.0, 0.0); }
-        case 5u: { return vec3f(1.0, 0.0, 1.0); }
-        case 6u: { return vec3f(1.0, 0.0, -1.0); }
-        case 7u: { return vec3f(0.0, 1.0, 1.0); }
-        case 8u: { return vec3f(0.0, 1.0, -1.0); }
-        case 9u: { return vec3f(1.0, 1.0, 1.0); }
-        case 10u: { return vec3f(1.0, 1.0, -1.0); }
-        case 11u: { return vec3f(1.0, -1.0, 1.0); }
-        case 12u: { return vec3f(-1.0, 1.0, 1.0); }
-        default: {
-            let j = (i - 13u) % 3u;
-            if (i < 16u) {
-                return vec3f(frame.m0[0][j], frame.m0[1][j], frame.m0[2][j]);
-            }
+        case 0u, 1u, 2u: { return vec3f(frame.m0[0][i], frame.m0[1][i], frame.m0[2][i]); }
+        case 3u, 4u, 5u: {
+            let j = i - 3u;
             return vec3f(frame.m1[0][j], frame.m1[1][j], frame.m1[2][j]);
         }
+        case 6u: { return vec3f(1.0, 0.0, 0.0); }
+        case 7u: { return vec3f(0.0, 1.0, 0.0); }
+        case 8u: { return vec3f(0.0, 0.0, 1.0); }
+        case 9u: { return vec3f(1.0, 1.0, 0.0); }
+        case 10u: { return vec3f(1.0, -1.0, 0.0); }
+        case 11u: { return vec3f(1.0, 0.0, 1.0); }
+        case 12u: { return vec3f(1.0, 0.0, -1.0); }
+        case 13u: { return vec3f(0.0, 1.0, 1.0); }
+        case 14u: { return vec3f(0.0, 1.0, -1.0); }
+        case 15u: { return vec3f(1.0, 1.0, 1.0); }
+        case 16u: { return vec3f(1.0, 1.0, -1.0); }
+        case 17u: { return vec3f(1.0, -1.0, 1.0); }
+        default: { return vec3f(-1.0, 1.0, 1.0); }
     }
 }
 
@@ -150,6 +152,14 @@ fn key(f: f32) -> u32 {
     return b | 0x80000000u;
 }
 
+// Whether the figures kept so far for line i say it clears the pair: no ray meets both bodies,
+// or one way along it leaves them apart already.
+fn clears(i: u32) -> bool {
+    let ahead = atomicLoad(&kept[2u * i]);
+    let behind = atomicLoad(&kept[2u * i + 1u]);
+    return ahead == 0u || ahead <= key(0.0) || behind <= key(0.0);
+}
+
 @compute @workgroup_size(WORKGROUP)
 fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
     let k = wg.y * ROW + wg.x;
@@ -158,10 +168,19 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
     }
     let item = items[k];
     let frame = frames[item.pair];
-    if (lid < item.b_count) {
-        let f = item.b_start + lid;
+    // A whole item keeps the body with fewer faces in workgroup memory: flipped, that is body a,
+    // and the figures of each line swap ways.
+    let flipped = (item.whole & ITEM_FLIPPED) != 0u;
+    var ma = frame.m0;
+    var mb = frame.m1;
+    if (flipped) {
+        ma = frame.m1;
+        mb = frame.m0;
+    }
+    for (var t = lid; t < item.b_count; t += WORKGROUP) {
+        let f = item.b_start + t;
         for (var j = 0u; j < 3u; j++) {
-            tri_b[3u * lid + j] = to_pair(frame.m1, vertex(faces[3u * f + j]));
+            tri_b[3u * t + j] = to_pair(mb, vertex(faces[3u * f + j]));
         }
     }
     if (lid < LINES) {
@@ -170,19 +189,22 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
     if (lid < 2u * LINES) {
         atomicStore(&kept[lid], 0u);
     }
-    workgroupBarrier();
-    if (lid < item.a_count) {
-        let f = item.a_start + lid;
-        let a0 = to_pair(frame.m0, vertex(faces[3u * f]));
-        let a1 = to_pair(frame.m0, vertex(faces[3u * f + 1u]));
-        let a2 = to_pair(frame.m0, vertex(faces[3u * f + 2u]));
-        for (var i = 0u; i < LINES; i++) {
-            let v = views[i];
-            let pa = array<vec3f, 3>(project(v, a0), project(v, a1), project(v, a2));
+    if (lid == 0u) {
+        whole_item = item.whole & ITEM_WHOLE;
+    }
+    let whole = workgroupUniformLoad(&whole_item);  // a barrier, and uniform
+    for (var i = 0u; i < LINES; i++) {
+        let v = views[i];
+        var most = NONE;   // max(depth_b - depth_a)
+        var least = NONE;  // max(depth_a - depth_b)
+        // Each thread takes every WORKGROUP-th face of a.
+        for (var fa = lid; fa < item.a_count; fa += WORKGROUP) {
+            let f = item.a_start + fa;
+            let pa = array<vec3f, 3>(project(v, to_pair(ma, vertex(faces[3u * f]))),
+                                     project(v, to_pair(ma, vertex(faces[3u * f + 1u]))),
+                                     project(v, to_pair(ma, vertex(faces[3u * f + 2u]))));
             let a_lo = min(pa[0].xy, min(pa[1].xy, pa[2].xy));
             let a_hi = max(pa[0].xy, max(pa[1].xy, pa[2].xy));
-            var most = NONE;   // max(depth_b - depth_a)
-            var least = NONE;  // max(depth_a - depth_b)
             for (var t = 0u; t < item.b_count; t++) {
                 let pb = array<vec3f, 3>(project(v, tri_b[3u * t]), project(v, tri_b[3u * t + 1u]),
                                          project(v, tri_b[3u * t + 2u]));
@@ -214,9 +236,20 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
                     }
                 }
             }
-            if (most > NONE) {
-                atomicMax(&kept[2u * i], key(most));
-                atomicMax(&kept[2u * i + 1u], key(least));
+        }
+        if (most > NONE) {
+            atomicMax(&kept[2u * i], key(most));
+            atomicMax(&kept[2u * i + 1u], key(least));
+        }
+        // An item that is its pair's whole work stops at the first line that clears the pair
+        // (its depth is then 0 whatever the other lines say).
+        if (whole != 0u) {
+            workgroupBarrier();
+            if (lid == 0u) {
+                cleared = u32(clears(i));
+            }
+            if (workgroupUniformLoad(&cleared) != 0u) {
+                break;
             }
         }
     }
@@ -224,7 +257,7 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
     if (lid < 2u * LINES) {
         let word = atomicLoad(&kept[lid]);
         if (word != 0u) {
-            atomicMax(&best[item.pair * 2u * LINES + lid], word);
+            atomicMax(&best[item.pair * 2u * LINES + (lid ^ u32(flipped))], word);
         }
     }
 }
