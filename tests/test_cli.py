@@ -305,3 +305,62 @@ def test_demo_prints_progress_while_it_runs(capsys):
     out = capsys.readouterr().out
     assert "stairs: frame 1/3" in out and "stairs: frame 3/3" in out
     assert "stairs: 3 frames" in out  # and the summary at the end
+
+
+def _pipe(centre, radius=0.05, length=1.0):
+    """A pipe along y (a 32-sided prism: its extent along x and z is exactly ``radius``)."""
+    pipe = trimesh.creation.cylinder(radius=radius, height=length, sections=32)
+    pipe.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (1, 0, 0)))
+    return pipe.apply_translation(centre)
+
+
+@pytest.fixture(scope="module")
+def beam_and_pipes(tmp_path_factory):
+    """A beam 4 x 0.3 x 0.4 m about the origin (its top at z = 0.2) and three pipes across it:
+    one through it 0.2 m deep (the shortest way out is up: 0.05 + 0.15), one resting on its top
+    (touching along a line), one 1 mm into its top."""
+    d = tmp_path_factory.mktemp("pipes")
+    trimesh.creation.box((4, 0.3, 0.4)).export(d / "beam.stl")
+    _pipe((-1, 0, 0.05)).export(d / "through.stl")
+    _pipe((0, 0, 0.25)).export(d / "resting.stl")
+    _pipe((1, 0, 0.249)).export(d / "grazing.stl")
+    return [d / n for n in ("beam.stl", "through.stl", "resting.stl", "grazing.stl")]
+
+
+def test_check_min_depth_reports_hard_clashes_with_their_depth(beam_and_pipes, capsys):
+    """--min-depth D: the pipe through the beam, with its depth; never the pipe resting on it
+    (touching) nor the one 1 mm into it (at most D/2 deep)."""
+    code = main(["check", "--json", "--min-depth", "0.01", *map(str, beam_and_pipes)])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 1 and report["mode"] == "min_depth" and report["errors"] == []
+    [pair] = report["pairs"]
+    assert (pair["a"], pair["b"]) == ("beam.stl", "through.stl")
+    # An upper bound of the penetration depth, within its error bound; exact here (up to
+    # rounding: STL holds float32), the beam and the pipe lying along the world's axes.
+    assert 0 <= pair["depth_error"] < pair["depth"]
+    assert pair["depth"] - pair["depth_error"] <= 0.2 <= pair["depth"] + 1e-5
+    assert pair["depth"] == pytest.approx(0.2, abs=1e-5)
+    assert "distance" not in pair
+    assert main(["check", "--min-depth", "0.01", *map(str, beam_and_pipes)]) == 1
+    [line] = capsys.readouterr().out.strip().splitlines()
+    assert line.startswith("beam.stl  <->  through.stl  depth 0.2")
+    # The pipes that touch or graze alone: nothing to report.
+    assert main(["check", "--min-depth", "0.01", *map(str, beam_and_pipes[::2]),
+                 str(beam_and_pipes[3])]) == 0
+    assert capsys.readouterr().out.strip() == "no collisions"
+    # Where the default contract may report the touching pair, --min-depth never does.
+    assert main(["check", "--json", "--min-depth", "0.001",
+                 *map(str, beam_and_pipes[::2])]) == 0
+    assert json.loads(capsys.readouterr().out)["pairs"] == []
+
+
+def test_check_min_depth_usage_errors(beam_and_pipes, capsys):
+    beam, through = map(str, beam_and_pipes[:2])
+    assert main(["check", "--min-depth", "0.01", "--strategy", "scene", beam, through]) == 2
+    assert "--min-depth applies to --strategy focused" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # argparse: one mode at most, a positive distance
+        main(["check", "--min-depth", "0.01", "--clearance", "0.1", beam, through])
+    assert "not allowed with argument" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["check", "--min-depth", "-1", beam, through])
+    assert "is not a positive distance" in capsys.readouterr().err

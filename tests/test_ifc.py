@@ -244,31 +244,106 @@ def test_bcf_builtin_writer(fed, tmp_path):
                       for v in t.viewpoints.values()) == sorted(sorted(g) for _, g in topics)
 
 
-def _mode_available(name: str) -> bool:
-    from pycinder.request import CollisionRequest
-
-    try:
-        CollisionRequest(**{name: 0.01})
-    except TypeError:
-        return False
-    return True
+def _deeper(house: B.Building, d: float) -> set[tuple[str, str]]:
+    """The pairs a hard-clash query at ``d`` must report, by the exact truth: deeper than ``d``
+    beyond the tessellation's error. None of the generated pairs lies between ``d / 2`` and
+    ``d`` for the ``d`` used here, so these are exactly the pairs reported."""
+    return {k for k, r in house.truth.items() if r.depth > d + r.error}
 
 
-@pytest.mark.parametrize("flag,name", [("--min-depth", "min_depth"),
-                                       ("--clearance", "clearance")])
-def test_cli_modes_passed_through(fed, capsys, flag, name):
-    code, out, err = _run(capsys, *fed.paths, "--json", flag, "0.01", "--cache-dir", fed.cache)
+@pytest.fixture(scope="module")
+def hard(fed):
+    """Hard clashes deeper than 1 cm, every element against every other."""
+    return ifc.find_clashes(fed.model, min_depth=B.DEPTH)
+
+
+def test_hard_clashes_against_exact_truth(house, hard):
+    """min_depth=d: every pair deeper than d, none at most d/2 deep (touching pairs, the 1 mm
+    duct in the slab), each with its depth: an upper bound of the exact one, within its error
+    bound (and exact here, up to the tessellation: every element lies along the world's axes,
+    which are among the lines measured)."""
+    d = B.DEPTH
+    assert all(not (d / 2 < r.depth <= d) for r in house.truth.values())  # none in between
+    reported = {_key(c) for c in hard}
+    assert reported == _deeper(house, d)
+    assert {house.truth[k].kind for k in reported} == {"deep", "contained", "shallow"}
+    assert B.score(house, reported, "min_depth")["false"] == 0
+    for c in hard:
+        r = house.truth[_key(c)]
+        assert c.mode == "min_depth" and c.distance is None and c.distance_error is None
+        assert c.depth_error is not None and 0 <= c.depth_error < c.depth, c
+        assert c.depth - c.depth_error <= r.depth + r.error, (c.a.name, c.b.name, r)
+        assert abs(c.depth - r.depth) <= r.error + 1e-3, (c.a.name, c.b.name, c.depth, r)
+    # The pipe through the south beam, 0.25 m deep; the pipe lying on the duct, and the pipe
+    # segments butted end to end and against the walls, are touching: never reported.
+    [through] = [c for c in hard if c.a.element_name.startswith("Pipe through beam")
+                 or c.b.element_name.startswith("Pipe through beam")]
+    assert through.depth == pytest.approx(0.25, abs=2e-3)
+    names = {frozenset((c.a.element_name.rsplit(" ", 1)[0], c.b.element_name.rsplit(" ", 1)[0]))
+             for c in hard}
+    assert not names & {frozenset(("Pipe under duct", "Duct 0")),
+                        frozenset(("Pipe under duct", "Duct 1"))}
+    assert not any(n <= {"Pipe 0", "Pipe 1", "Pipe 2", "Wall west", "Wall east"} for n in names)
+
+
+def _bcf_descriptions(path) -> list[str]:
+    """Each topic's description, read from the BCF file's XML (either writer's)."""
+    import xml.etree.ElementTree as ET
+    import zipfile
+
+    out = []
+    with zipfile.ZipFile(path) as z:
+        for name in z.namelist():
+            if name.endswith("/markup.bcf"):
+                out += [e.text or "" for e in ET.fromstring(z.read(name)).iter()
+                        if e.tag.rsplit("}", 1)[-1] == "Description"]
+    return out
+
+
+def test_cli_hard_clashes_json_and_bcf(house, fed, hard, capsys, tmp_path):
+    out_bcf = tmp_path / "hard.bcf"
+    code, out, err = _run(capsys, *fed.paths, "--json", "--min-depth", B.DEPTH, "--bcf",
+                          out_bcf, "--cache-dir", fed.cache)
+    assert code == 1, err
     report = json.loads(out)
-    if _mode_available(name):
-        assert code in (0, 1) and report["mode"] == name
-    else:
-        assert code == 2
-        assert report["errors"][0].startswith(f"{flag} is not available yet")
+    assert report["errors"] == [] and report["mode"] == "min_depth"
+    assert report["min_depth"] == B.DEPTH and report["clearance"] is None
+    pairs = report["pairs"]
+    assert {tuple(sorted((p["a_global_id"], p["b_global_id"]))) for p in pairs} == \
+        _deeper(house, B.DEPTH)
+    by_key = {_key(c): c for c in hard}
+    for p in pairs:
+        c = by_key[tuple(sorted((p["a_global_id"], p["b_global_id"])))]
+        assert p["mode"] == "min_depth" and p["distance"] is None
+        assert (p["depth"], p["depth_error"]) == (c.depth, c.depth_error)
+    descriptions = _bcf_descriptions(out_bcf)
+    assert len(descriptions) == len(pairs)
+    assert all("; depth " in t and "(error at most " in t and t.endswith("mode: min_depth")
+               for t in descriptions), descriptions
+    # Text: each clash with its depth; a clash set with none deeper than d exits 0.
+    code, out, _ = _run(capsys, *fed.paths, "--min-depth", B.DEPTH, "--a", "IfcPipeSegment",
+                        "--b", "IfcBeam", "--cache-dir", fed.cache)
+    [line] = out.strip().splitlines()
+    assert code == 1 and line.startswith("Pipe through beam 0 [") and "(IfcBeam)  depth " in line
+    assert float(line.rsplit("depth ", 1)[1].removesuffix(" m")) == pytest.approx(0.25, abs=2e-3)
+    code, out, _ = _run(capsys, *fed.paths, "--min-depth", B.DEPTH, "--a", "IfcPipeSegment",
+                        "--b", "IfcDuctSegment", "--cache-dir", fed.cache)
+    assert code == 0 and out.strip() == "no clashes"
+
+
+def test_cli_clearance_json(fed, capsys):
+    code, out, err = _run(capsys, *fed.paths, "--json", "--clearance", "0.01", "--cache-dir",
+                          fed.cache)
+    report = json.loads(out)
+    assert code == 1 and report["mode"] == "clearance", err
+    assert report["pairs"] and all(p["depth"] is None and p["distance"] is not None
+                                   and p["distance_error"] is not None
+                                   for p in report["pairs"])
 
 
 def test_modes_reach_the_detector(fed, monkeypatch):
     """find_clashes passes min_depth / clearance to the Detector, and takes each pair's figure
-    from the result."""
+    and its bound from the result."""
     seen = {}
 
     class Fake:
@@ -278,16 +353,23 @@ def test_modes_reach_the_detector(fed, monkeypatch):
 
         def find_collisions(self, bodies, transforms, names=None, groups=None):
             return types.SimpleNamespace(pairs=np.array([[0, 1]]), depths=np.array([0.25]),
-                                         distances=np.array([0.0]))
+                                         depth_errors=np.array([1e-6]),
+                                         distances=np.array([0.0]),
+                                         distance_errors=np.array([2e-6]))
 
     monkeypatch.setattr("pycinder.detector.Detector", Fake)
     [c] = ifc.find_clashes(fed.model, min_depth=0.01)
-    assert seen["min_depth"] == 0.01 and c.mode == "min_depth" and c.depth == 0.25
-    assert c.as_dict()["depth"] == 0.25
+    assert seen["min_depth"] == 0.01 and c.mode == "min_depth"
+    assert (c.depth, c.depth_error, c.distance, c.distance_error) == (0.25, 1e-6, None, None)
+    assert c.as_dict()["depth"] == 0.25 and c.as_dict()["depth_error"] == 1e-6
+    seen.clear()
     [c] = ifc.find_clashes(fed.model, clearance=0.05)
-    assert seen["clearance"] == 0.05 and c.mode == "clearance" and c.distance == 0.0
+    assert seen["clearance"] == 0.05 and "min_depth" not in seen and c.mode == "clearance"
+    assert (c.depth, c.depth_error, c.distance, c.distance_error) == (None, None, 0.0, 2e-6)
     with pytest.raises(ValueError, match="give one of them"):
         ifc.find_clashes(fed.model, min_depth=0.01, clearance=0.05)
+    with pytest.raises(ValueError, match="min_depth must be a positive distance"):
+        ifc.find_clashes(fed.model, min_depth=-1.0)
 
 
 def test_cli_errors(fed, capsys, tmp_path):

@@ -3,9 +3,10 @@
 Each topic is titled after both elements (``IfcPipeSegment/Pipe 0 and IfcBeam/Beam south``), as
 IfcClash titles them, and holds one viewpoint looking at the clash's point with both elements'
 GlobalIds as its selected components, as IfcClash and Navisworks export them; the depth or
-distance, where the mode gives one, is in the description. Written with bcf-client (IfcOpenShell's
-BCF library) where it is installed; otherwise by a small writer of BCF 2.1's own files
-(``bcf.version``, ``project.bcfp``, and per topic ``markup.bcf`` and ``viewpoint.bcfv``).
+distance, where the mode gives one, is in the description with the bound on its error. Written
+with bcf-client (IfcOpenShell's BCF library) where it is installed; otherwise by a small writer
+of BCF 2.1's own files (``bcf.version``, ``project.bcfp``, and per topic ``markup.bcf`` and
+``viewpoint.bcfv``).
 """
 
 from __future__ import annotations
@@ -31,10 +32,12 @@ def _title(c: Any) -> str:
 
 def _description(c: Any) -> str:
     text = f"{c.a.name} ({c.a.file}) clashes with {c.b.name} ({c.b.file})"
-    if c.depth is not None:
-        text += f"; depth {c.depth:.4g} m"
-    if c.distance is not None:
-        text += f"; distance {c.distance:.4g} m"
+    for name in ("depth", "distance"):
+        figure, bound = getattr(c, name, None), getattr(c, f"{name}_error", None)
+        if figure is not None:
+            text += f"; {name} {figure:.4g} m"
+            if bound is not None:
+                text += f" (error at most {bound:.2g} m)"
     return text + f"; mode: {c.mode}"
 
 

@@ -64,8 +64,10 @@ a body whose components overlap each other gets an OverlappingComponentsWarning.
 --json prints one object:
   collision   true or false; null after an error
   pairs       the colliding pairs, [{"a": BODY, "b": BODY, "samples": N}]; samples: the
-              records of interfering edge samples read back for the pair; with --clearance,
-              also "distance" (0 where the bodies overlap) and "distance_error" (its bound)
+              records of interfering edge samples read back for the pair; with --min-depth,
+              also "depth" (the penetration depth) and "depth_error" (its bound); with
+              --clearance, "distance" (0 where the bodies overlap) and "distance_error"
+  mode        with --min-depth or --clearance: "min_depth" or "clearance"
   bodies      the bodies' names, in order
   strategy    "focused" or "scene"
   tolerance   focused only: [smallest, largest] tolerance in world units over the candidate
@@ -88,15 +90,16 @@ content (a re-check after a change in one file re-tessellates only that file). S
 form one model. A clash set tests group A against group B (--a/--a-file against
 --b/--b-file), or A against itself (--a alone); default: every element against every other.
 --json gives for each pair both names, GlobalIds, classes and files, the mode, and the depth
-or distance where the mode gives one."""
+or distance where the mode gives one, with the bound on its error."""
 
 
 def _cli_words(message: str, strict: bool) -> str:
     """Library messages name the library's options; on the command line they are flags
-    (--strategy, --tolerance, --resolution, --strict), and under --strict the advice to pass it
-    is dropped."""
+    (--strategy, --tolerance, --resolution, --min-depth, --clearance, --strict), and under
+    --strict the advice to pass it is dropped."""
     message = re.sub(r"\bstrategy='(\w+)'", r"--strategy \1", message)
-    message = re.sub(r"^(tolerance|resolution)\b", r"--\1", message)
+    message = re.sub(r"^(tolerance|resolution|clearance)\b", r"--\1", message)
+    message = re.sub(r"^min_depth\b", "--min-depth", message)
     if strict:
         return re.sub(r",?\s*or ask for strict checking to make this an error", "", message)
     return message.replace("ask for strict checking", "pass --strict")
@@ -153,13 +156,8 @@ def _request(args: argparse.Namespace) -> CollisionRequest:
     line's words."""
     options = dict(strict=args.strict, strategy=args.strategy, tolerance=args.tolerance,
                    resolution=args.resolution)
-    mode, extra = _mode(args)
-    try:
-        return CollisionRequest(**options, **extra)
-    except TypeError as exc:
-        if mode in str(exc):
-            raise _mode_unavailable(mode, exc) from None
-        raise
+    _, extra = _mode(args)
+    return CollisionRequest(**options, **extra)
 
 
 _MODE_FLAGS = {"min_depth": "--min-depth", "clearance": "--clearance"}
@@ -177,16 +175,6 @@ def _mode(args: argparse.Namespace) -> tuple[str, dict[str, float]]:
         for name, flag in _MODE_FLAGS.items():
             message = message.replace(f"{name} must", f"{flag} must")
         raise ValueError(message) from None
-
-
-def _mode_unavailable(mode: str, exc: BaseException) -> RuntimeError:
-    """The error for a mode this pycinder's detector does not take yet."""
-    from .ifc import ModeUnavailableError
-
-    return ModeUnavailableError(
-        f"{_MODE_FLAGS[mode]} is not available yet in this version of pycinder (its detector "
-        f"does not take {mode}: {exc}); without it, check reports pairs by the default "
-        "tolerance contract")
 
 
 _ERRORS = (ValueError, RuntimeError, OSError, TypeError, ImportError, MemoryError)
@@ -240,10 +228,11 @@ def cmd_check(args: argparse.Namespace) -> int:
             "bodies": names,
             "strategy": st.strategy,
         }
-        if result.distances is not None:
-            for pair, d, e in zip(report["pairs"], result.distances.tolist(),
-                                  result.distance_errors.tolist()):
-                pair["distance"], pair["distance_error"] = d, e
+        for figures, bounds, name in ((result.depths, result.depth_errors, "depth"),
+                                      (result.distances, result.distance_errors, "distance")):
+            if figures is not None:
+                for pair, d, e in zip(report["pairs"], figures.tolist(), bounds.tolist()):
+                    pair[name], pair[f"{name}_error"] = d, e
         if st.strategy == "focused":
             report["tolerance"] = _tolerance_range(bodies, st, request)
             report["candidates"] = st.candidates
@@ -257,11 +246,21 @@ def cmd_check(args: argparse.Namespace) -> int:
         for note in notes:
             print(f"warning: {note['message']}", file=sys.stderr)
         if pairs:
-            for a, b in pairs:
-                print(f"{a}  <->  {b}")
+            for k, (a, b) in enumerate(pairs):
+                print(f"{a}  <->  {b}{_figure(result, k)}")
         else:
             print("no collisions")
     return 1 if pairs else 0
+
+
+def _figure(result: Any, k: int) -> str:
+    """Pair ``k``'s figure for ``check``'s text: its depth (--min-depth) or distance
+    (--clearance), in world units; "" in the default mode."""
+    if result.depths is not None:
+        return f"  depth {result.depths[k]:.4g}"
+    if result.distances is not None:
+        return f"  distance {result.distances[k]:.4g}"
+    return ""
 
 
 def request_mode(args: argparse.Namespace) -> str:
@@ -304,7 +303,7 @@ def _groups(args: argparse.Namespace) -> tuple[Any, Any]:
 def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
     """``check`` on IFC files: one body per element, a clash set, the mode's pairs as text or
     JSON, and a BCF file with --bcf; returns 0 (no clash), 1 (clashes) or 2 (an error)."""
-    from .ifc import ModeUnavailableError, find_clashes, make_detector, read_ifc
+    from .ifc import find_clashes, make_detector, read_ifc
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -319,10 +318,7 @@ def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
                 raise ValueError("IFC files are checked with --strategy focused")
             mode, extra = _mode(args)
             a, b = _groups(args)
-            try:
-                det = make_detector(strict=args.strict, tolerance=args.tolerance, **extra)
-            except ModeUnavailableError as exc:
-                raise _mode_unavailable(mode, getattr(exc, "reason", exc)) from None
+            det = make_detector(strict=args.strict, tolerance=args.tolerance, **extra)
             with _progress(args.progress, "reading IFC") as update:
                 model = read_ifc(args.files, cache=False if args.no_cache else args.cache_dir,
                                  progress=update, limits=_limits(args))
@@ -657,8 +653,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "bodies of their own, named FILE[0], FILE[1], ...")
     modes = p.add_mutually_exclusive_group()
     modes.add_argument("--min-depth", type=_distance, default=None, metavar="D",
-                       help="hard clashes deeper than D (world units; metres for IFC): not "
-                            "available yet in this version, it says so and exits 2")
+                       help="hard clashes: report pairs deeper than D (world units; metres "
+                            "for IFC), never convex pairs at most D/2 deep, touching pairs "
+                            "included, each with its depth")
     modes.add_argument("--clearance", type=_distance, default=None, metavar="C",
                        help="clearance: report pairs closer than C (world units; metres for "
                             "IFC), touching and overlapping pairs included, none farther than "

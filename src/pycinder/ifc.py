@@ -16,11 +16,13 @@ cached per file by content hash -> one body per element, named ``Name [GlobalId]
   ``"IfcPipeSegment, IfcDuctSegment"``, ``"IfcElement, ! IfcWall"``,
   ``"IfcWall, Name=Wall east 0"``); see :class:`Group`.
 * **Modes**: ``min_depth=d`` (hard clashes) and ``clearance=c`` are passed to
-  :class:`~pycinder.Detector` as they are. Clearance is available (each pair with its distance,
-  see :mod:`pycinder.clearance`); the hard-clash mode is not yet, and
-  :class:`ModeUnavailableError` says so. Without either, the default query's tolerance contract
-  holds (see :mod:`pycinder.request`): pairs at least ``t`` apart are never reported, pairs at
-  least ``2 t`` deep always are, and touching pairs may go either way.
+  :class:`~pycinder.Detector` as they are. A hard-clash query reports every pair deeper than
+  ``d``, never a pair of convex elements at most ``d / 2`` deep (touching pairs included), each
+  with its depth and the bound on its error (see :mod:`pycinder.hardclash`); a clearance query
+  every pair closer than ``c``, touching and overlapping ones included, each with its distance
+  and its bound (see :mod:`pycinder.clearance`). Without either, the default query's tolerance
+  contract holds (see :mod:`pycinder.request`): pairs at least ``t`` apart are never reported,
+  pairs at least ``2 t`` deep always are, and touching pairs may go either way.
 """
 
 from __future__ import annotations
@@ -42,17 +44,13 @@ from .files import (FileBody, FileError, FileErrors, FileWarning, Limits, check_
                     display_name, file_labels)
 from .optional import require
 
-__all__ = ["IfcBody", "IfcModel", "Group", "Clash", "ModeUnavailableError", "read_ifc",
-           "find_clashes", "default_cache_dir"]
+__all__ = ["IfcBody", "IfcModel", "Group", "Clash", "read_ifc", "find_clashes",
+           "default_cache_dir"]
 
 CACHE_FORMAT = 1
 """Version of the cache's file layout (part of every cache key)."""
 
 Progress = Callable[[int, int, str], None]
-
-
-class ModeUnavailableError(NotImplementedError):
-    """A query mode that this pycinder's detector does not take yet (``min_depth``)."""
 
 
 def _ifcopenshell() -> Any:
@@ -514,12 +512,20 @@ class Clash:
     mode : {"default", "min_depth", "clearance"}
         The question answered.
     depth : float or None
-        Penetration depth (``min_depth`` mode), where the detector gives it.
+        ``min_depth`` mode: the penetration depth in metres (``result.depths``: an upper bound
+        of the shortest translation that separates the two, exact for convex elements within
+        :attr:`depth_error`); None in the other modes.
     distance : float or None
-        Distance (``clearance`` mode), where the detector gives it.
+        ``clearance`` mode: the distance in metres (``result.distances``, 0 where the elements
+        overlap); None in the other modes.
     point : (3,) float
         Where to look: the centre of the two elements' bounding boxes' overlap (or of the gap
         between them), in metres.
+    depth_error : float or None
+        The bound on :attr:`depth`'s error (``result.depth_errors``), where there is a depth.
+    distance_error : float or None
+        The bound on :attr:`distance`'s error (``result.distance_errors``), where there is a
+        distance.
     """
 
     a: IfcBody
@@ -528,6 +534,8 @@ class Clash:
     depth: float | None
     distance: float | None
     point: np.ndarray
+    depth_error: float | None = None
+    distance_error: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The clash as plain data (``pycinder check --json``'s pair)."""
@@ -535,7 +543,8 @@ class Clash:
                 "a_global_id": self.a.global_id, "b_global_id": self.b.global_id,
                 "a_class": self.a.ifc_class, "b_class": self.b.ifc_class,
                 "a_file": self.a.file, "b_file": self.b.file, "mode": self.mode,
-                "depth": self.depth, "distance": self.distance,
+                "depth": self.depth, "depth_error": self.depth_error,
+                "distance": self.distance, "distance_error": self.distance_error,
                 "point": [round(float(x), 6) for x in self.point]}
 
 
@@ -555,34 +564,30 @@ def mode_options(min_depth: float | None = None, clearance: float | None = None
 
 def make_detector(min_depth: float | None = None, clearance: float | None = None,
                   **options: Any) -> Any:
-    """A :class:`~pycinder.Detector` for the mode, with ``options``; raises
-    :class:`ModeUnavailableError` where the detector does not take the mode's option yet."""
+    """A :class:`~pycinder.Detector` for the mode (:func:`mode_options`), with ``options``
+    (other options of :class:`~pycinder.CollisionRequest`)."""
     from .detector import Detector
 
-    mode, extra = mode_options(min_depth, clearance)
-    try:
-        return Detector(**options, **extra)
-    except TypeError as exc:
-        if mode != "default" and mode in str(exc):
-            error = ModeUnavailableError(
-                f"{mode}= is not available yet in this pycinder: its Detector does not take "
-                f"{mode} ({exc}); without it, the default query reports pairs by its tolerance "
-                "contract")
-            error.reason = str(exc)  # type: ignore[attr-defined]
-            raise error from None
-        raise
+    _, extra = mode_options(min_depth, clearance)
+    return Detector(**options, **extra)
 
 
-def _figures(result: Any, mode: str, count: int) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Each pair's depth and distance, where the mode's result carries them
-    (``result.depths`` of a hard-clash query, ``result.distances`` of a clearance query)."""
-    if mode == "default":
-        return None, None
-    out = []
-    for name in ("depths", "distances"):
-        value = getattr(result, name, None)
-        out.append(None if value is None else np.asarray(value, np.float64).reshape(count))
-    return out[0], out[1]
+_FIGURES = {"min_depth": ("depths", "depth_errors"),
+            "clearance": ("distances", "distance_errors")}
+"""The result's figures of each mode and the bounds on their errors."""
+
+
+def _figures(result: Any, mode: str, count: int) -> dict[str, np.ndarray | None]:
+    """Each pair's figures where the mode's result carries them: ``depth`` and ``depth_error``
+    of a hard-clash query (``result.depths``, ``result.depth_errors``), ``distance`` and
+    ``distance_error`` of a clearance query; None for every figure the result does not hold."""
+    out: dict[str, np.ndarray | None] = {}
+    for name, (figure, bound) in _FIGURES.items():
+        for key, attr in ((name, figure), (f"{name}_error", bound)):
+            value = getattr(result, attr, None) if mode == name else None
+            out[key] = None if value is None else np.asarray(value, np.float64).reshape(count)
+    return {"depth": out["min_depth"], "depth_error": out["min_depth_error"],
+            "distance": out["clearance"], "distance_error": out["clearance_error"]}
 
 
 def _look_at(a: IfcBody, b: IfcBody) -> np.ndarray:
@@ -607,10 +612,15 @@ def find_clashes(model: IfcModel, a: Group | str | None = None, b: Group | str |
         Group B; default: A against itself. An element in both groups is tested against the
         others of both.
     min_depth : float, optional
-        Hard clashes: pairs deeper than this (metres) are reported, touching pairs never.
-        Passed to :class:`~pycinder.Detector` as ``min_depth``.
+        Hard clashes: every pair deeper than this (metres) is reported, with its depth
+        (:attr:`Clash.depth`); a pair of convex elements at most ``min_depth / 2`` deep never
+        is, touching pairs included; a non-convex pair only where its depth along one of the
+        directions tried exceeds ``min_depth``. Passed to :class:`~pycinder.Detector` as
+        ``min_depth`` (see :mod:`pycinder.hardclash`).
     clearance : float, optional
-        Clearance: pairs closer than this (metres) are reported. Passed as ``clearance``.
+        Clearance: every pair closer than this (metres) is reported, touching and overlapping
+        ones included, with its distance (:attr:`Clash.distance`). Passed as ``clearance``
+        (see :mod:`pycinder.clearance`).
     tolerance : float, optional
         The detector's tolerance in metres (default: the detector's own).
     detector : Detector, optional
@@ -625,10 +635,9 @@ def find_clashes(model: IfcModel, a: Group | str | None = None, b: Group | str |
 
     Raises
     ------
-    ModeUnavailableError
-        ``min_depth``: this pycinder's detector does not take it yet.
     ValueError
-        Both modes at once, a file that is not the model's, a selector IfcOpenShell cannot use.
+        Both modes at once, a mode's value that is not a positive distance, a file that is not
+        the model's, a selector IfcOpenShell cannot use.
 
     Examples
     --------
@@ -637,6 +646,9 @@ def find_clashes(model: IfcModel, a: Group | str | None = None, b: Group | str |
         model = read_ifc(["structure.ifc", "mep.ifc"])
         for c in find_clashes(model, "IfcPipeSegment, IfcDuctSegment", "IfcBeam, IfcColumn"):
             print(c.a.name, c.b.name)
+        # Hard clashes deeper than 1 cm, each with its depth (touching elements are not):
+        for c in find_clashes(model, "IfcPipeSegment", "IfcBeam", min_depth=0.01):
+            print(c.a.name, c.b.name, f"{c.depth:.3f} m")
     """
     in_a = model.select(a)
     in_b = model.select(b) if b is not None else in_a
@@ -663,7 +675,7 @@ def find_clashes(model: IfcModel, a: Group | str | None = None, b: Group | str |
     result = detector.find_collisions([x.mesh for x in bodies], None,
                                       names=[x.name for x in bodies], groups=groups)
     pairs = result.pairs.reshape(-1, 2)
-    depth, distance = _figures(result, mode, len(pairs))
+    figures = _figures(result, mode, len(pairs))
     out = []
     for k, (i, j) in enumerate(pairs.tolist()):
         gi, gj = used[i], used[j]
@@ -673,9 +685,11 @@ def find_clashes(model: IfcModel, a: Group | str | None = None, b: Group | str |
             if not (in_a[gi] and in_b[gj]):  # a from group A, b from group B
                 gi, gj = gj, gi
         ba, bb = model.bodies[gi], model.bodies[gj]
-        out.append(Clash(ba, bb, mode,
-                         None if depth is None else float(depth[k]),
-                         None if distance is None else float(distance[k]), _look_at(ba, bb)))
+        each = {name: None if value is None else float(value[k])
+                for name, value in figures.items()}
+        out.append(Clash(ba, bb, mode, each["depth"], each["distance"], _look_at(ba, bb),
+                         depth_error=each["depth_error"],
+                         distance_error=each["distance_error"]))
     return out
 
 

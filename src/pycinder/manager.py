@@ -22,6 +22,13 @@ errors as trimesh's class (which runs python-fcl). What backs each answer:
   both meshes are convex (as trimesh), pycinder's contact depth otherwise (where python-fcl
   reports 0, or nothing for a body inside another). Needs python-fcl: ``pip install
   'pycinder[distance]'``.
+* **Query modes**: the options are those of :class:`~pycinder.CollisionRequest`, the mode
+  options included. ``CollisionManager(min_depth=d)`` makes ``in_collision_*`` report hard
+  clashes (pairs deeper than ``d``, never touching convex pairs; see
+  :mod:`pycinder.hardclash`), ``CollisionManager(clearance=c)`` pairs closer than ``c`` (see
+  :mod:`pycinder.clearance`); their names and booleans answer that question. Such a manager
+  measures no contacts: ``return_data=True``, and ``min_distance_*`` where non-convex objects
+  overlap, raise a ``ValueError`` (use a manager without the mode for them).
 """
 
 from __future__ import annotations
@@ -499,6 +506,14 @@ class CollisionManager:
 
     def _query(self, objs: Sequence[CollisionObject], labels: list[str],
                groups: np.ndarray | None, contacts: bool) -> CollisionResult:
+        mode = next((m for m in ("min_depth", "clearance")
+                     if getattr(self._request, m) is not None), None)
+        if contacts and mode is not None:
+            raise ValueError(
+                f"this CollisionManager was made with {mode}={getattr(self._request, mode)!r}: "
+                f"its queries report that mode's pairs and measure no contacts, which "
+                f"return_data=True (and min_distance_* where non-convex objects overlap) "
+                f"needs; use a CollisionManager without {mode} for them")
         bodies, transforms, names = self._bodies(objs, labels)
         if contacts:
             return self._detector.find_collisions(bodies, transforms, names=names, groups=groups,
