@@ -141,6 +141,37 @@ class Contacts:
         return cls(np.zeros((0, 2), np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0),
                    np.zeros((0, 2), np.int64), np.zeros((0, 2, 3)), np.zeros(0, np.int64))
 
+    @classmethod
+    def measured(cls, pair: np.ndarray, point: np.ndarray, normal: np.ndarray,
+                 depth: np.ndarray) -> Contacts:
+        """One contact per pair measured whole rather than reduced from records (no faces, no
+        deepest records, no samples).
+
+        Parameters
+        ----------
+        pair : (C, 2) int
+        point, normal : (C, 3) float
+        depth : (C,) float
+        """
+        c = len(pair)
+        return cls(np.asarray(pair, np.int64).reshape(c, 2), np.asarray(point, np.float64),
+                   np.asarray(normal, np.float64), np.asarray(depth, np.float64),
+                   np.full((c, 2), -1, np.int64), np.full((c, 2, 3), np.nan),
+                   np.zeros(c, np.int64))
+
+    def select(self, keep: np.ndarray) -> Contacts:
+        """The contacts ``keep`` (a (C,) mask or indices)."""
+        return Contacts(self.pair[keep], self.point[keep], self.normal[keep], self.depth[keep],
+                        self.face[keep], self.deepest[keep], self.samples[keep], self.names)
+
+    def joined(self, other: Contacts) -> Contacts:
+        """These contacts, then ``other``'s."""
+        if not len(other):
+            return self
+        fields = ("pair", "point", "normal", "depth", "face", "deepest", "samples")
+        return Contacts(*(np.concatenate([getattr(self, f), getattr(other, f)]) for f in fields),
+                        names=self.names)
+
     def restricted_to(self, pairs: np.ndarray) -> Contacts:
         """The contacts of ``pairs`` ((K, 2) int, ``i < j``) only."""
         if not len(self):
@@ -149,8 +180,7 @@ class Contacts:
                        pair_keys(pairs[:, 0], pairs[:, 1]))
         if keep.all():
             return self
-        return Contacts(self.pair[keep], self.point[keep], self.normal[keep], self.depth[keep],
-                        self.face[keep], self.deepest[keep], self.samples[keep], self.names)
+        return self.select(keep)
 
 
 def _components(key: np.ndarray, cells: np.ndarray) -> np.ndarray:

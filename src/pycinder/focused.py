@@ -44,6 +44,7 @@ from .tolerance import pair_tolerances
 
 if TYPE_CHECKING:
     from .clearance import Clearance
+    from .contacts import Contacts
     from .hardclash import HardClash
 from .tiles import LEAD_FROM, LEAD_PAIRS, TilePlan, concat_plans, likely_pairs, plan_tiles
 
@@ -117,11 +118,7 @@ class FocusedStrategy:
             return PendingFocused(self, self._clearance.run(scene, stats, c, groups, records,
                                                             within, tolerance))
         if d is not None:
-            if self._hard_clash is None:
-                from .hardclash import HardClash
-
-                self._hard_clash = HardClash(self)
-            return PendingFocused(self, self._hard_clash.run(scene, stats, d, groups, within))
+            return PendingFocused(self, self._hard_clashes().run(scene, stats, d, groups, within))
         return self.submit_interference(scene, stats, groups, records, within, tolerance,
                                         stop_at_first)
 
@@ -260,15 +257,52 @@ class FocusedStrategy:
         # Records are decoded when first read (most callers read only the pairs); normals come
         # from the bodies' vertices, which the caller may change once the query returns.
         records = decode() if self.request.encode == "normal" else (stats.records, decode)
+        measured = None
         if stats.dropped_records:
+            bare = self._pairs_without_records(result_pairs, rows)
+            if q.records.every_tile and len(bare):
+                measured = self._measured_contacts(q.scene, stats, bare)
             warn_at_caller(
                 f"{stats.dropped_records} records were dropped: more than one buffer of this "
                 f"device holds ({self.frames.records_limit} records); every pair is "
-                "reported, but contacts come from the records kept; see stats.dropped_records",
-                LossWarning)
+                f"reported, but contacts come from the records kept"
+                + (f", and for the {plural(len(bare), 'pair')} left with none, from a depth "
+                   "measured per pair (result.measured_contacts)" if measured else "")
+                + "; see stats.dropped_records", LossWarning)
         stats.add_ms("decode", (time.perf_counter() - t4) * 1e3)
-        return CollisionResult(result_pairs, records, stats,
-                               tiles=concat_plans([p for p, _ in rows]), scene=q.scene)
+        result = CollisionResult(result_pairs, records, stats,
+                                 tiles=concat_plans([p for p, _ in rows]), scene=q.scene)
+        result.measured_contacts = measured
+        return result
+
+    @staticmethod
+    def _pairs_without_records(pairs: np.ndarray, rows: list[tuple[TilePlan, np.ndarray]]
+                               ) -> np.ndarray:
+        """(P, 2) the ``pairs`` (K, 2) none of whose records was kept."""
+        kept = [plan.bodies[r["tile"].astype(np.int64)] for plan, r in rows if len(r)]
+        if not kept or not len(pairs):
+            return pairs
+        bodies = np.concatenate(kept)
+        return pairs[~_member(pairs, unique_pairs(bodies[:, 0], bodies[:, 1]))]
+
+    def _measured_contacts(self, scene: Scene, stats: Stats, pairs: np.ndarray) -> Contacts:
+        """One contact per pair of ``pairs`` (P, 2) measured whole by pass H1: its directional
+        depth, along the direction that clears it, at the middle of its bodies' box overlap."""
+        from .contacts import Contacts
+
+        depth, normal, _ = self._hard_clashes().measure(scene, stats, pairs)
+        lo, hi = scene.world_boxes()
+        a, b = pairs[:, 0], pairs[:, 1]
+        point = 0.5 * (np.maximum(lo[a], lo[b]) + np.minimum(hi[a], hi[b]))
+        return Contacts.measured(pairs, point, normal, depth)
+
+    def _hard_clashes(self) -> HardClash:
+        """The hard-clash queries' pass on this strategy (made on first use)."""
+        if self._hard_clash is None:
+            from .hardclash import HardClash
+
+            self._hard_clash = HardClash(self)
+        return self._hard_clash
 
     def _run_plan(self, plan: TilePlan, scene: Scene, pack: ShapePack, n_pairs: int,
                   records: RecordMode, capacity: int, submitted: Submitted | None = None

@@ -54,7 +54,8 @@ import numpy as np
 
 from .broadphase import sweep_and_prune
 from .clearance import ERROR_SCALE
-from .passes.depth import ITEM_FLIPPED, ITEM_WHOLE, LINES, WHOLE_FACES, WHOLE_WORK, Depth
+from .passes.depth import (ITEM_FLIPPED, ITEM_WHOLE, LINES, WHOLE_FACES, WHOLE_WORK, Depth,
+                           lines)
 from .passes.pairwork import ITEM, pair_frames
 from .records import empty_records
 from .result import CollisionResult, Stats
@@ -126,22 +127,6 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray
     return items, frames, reach
 
 
-def directional_depth(figures: np.ndarray) -> np.ndarray:
-    """Each pair's directional depth from pass H1's figures: the least translation, over every
-    line and both ways, that clears the pair (0 where one clears it already).
-
-    Parameters
-    ----------
-    figures : (K, LINES, 2) float
-        :meth:`~pycinder.passes.depth.Depth.run`'s figures (-inf where no ray meets both).
-
-    Returns
-    -------
-    (K,) float64
-    """
-    return np.maximum(figures.reshape(len(figures), 2 * LINES), 0.0).min(axis=1)
-
-
 class HardClash:
     """Hard-clash queries on a focused strategy's device and shapes.
 
@@ -164,24 +149,55 @@ class HardClash:
         pairs = sweep_and_prune(lo, hi, within, groups)
         stats.candidates = len(pairs)
         stats.broad_phase = "numpy"
+        stats.add_ms("broad phase", (time.perf_counter() - t0) * 1e3)
+        depth, _, error = self.measure(scene, stats, pairs, d)
+        keep = depth > d - error
+        result = CollisionResult(pairs[keep], empty_records(), stats, scene=scene,
+                                 records_kept="none")
+        depths = depth[keep]
+        return _with_figures(result, depths, depths * (1 - DIRECTION_COS) + error[keep])
+
+    def measure(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float | None = None
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each pair's directional depth, the direction it is measured along, and the bound on
+        its rounding (pass H1 on the shapes as the strategy uploads them).
+
+        Parameters
+        ----------
+        scene : Scene
+        stats : Stats
+        pairs : (K, 2) int
+        d : float, optional
+            The query's depth: a ValueError names the pair whose rounding bound is over
+            ``d / 16``.
+
+        Returns
+        -------
+        depth : (K,) float64
+        normal : (K, 3) float64
+            Unit direction from body a into body b: moving a by ``-depth * normal`` clears the
+            pair (any direction where ``depth`` is 0 and no ray meets both bodies).
+        error : (K,) float64
+        """
         t1 = time.perf_counter()
-        stats.add_ms("broad phase", (t1 - t0) * 1e3)
         pack = self.strategy.pack(scene, stats)
         items, frames, reach = plan(scene, pack, pairs)
         error = ERROR_SCALE * reach
-        _check_precision(scene, pairs, error, d)
+        if d is not None:
+            _check_precision(scene, pairs, error, d)
         t2 = time.perf_counter()
         stats.add_ms("upload", (t2 - t1) * 1e3)
         buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
         figures = self.depth.run(buffers.positions, buffers.faces, items, frames)
         stats.bytes_read += figures.size * 4  # two words per line and pair
         stats.add_ms("depth", (time.perf_counter() - t2) * 1e3)
-        depth = directional_depth(figures)
-        keep = depth > d - error
-        result = CollisionResult(pairs[keep], empty_records(), stats, scene=scene,
-                                 records_kept="none")
-        depths = depth[keep]
-        return _with_figures(result, depths, depths * (1 - DIRECTION_COS) + error[keep])
+        flat = np.maximum(figures.reshape(len(pairs), 2 * LINES), 0.0)
+        best = np.argmin(flat, axis=1)
+        direction = lines(scene.transforms[pairs[:, 0]], scene.transforms[pairs[:, 1]])
+        along = direction[np.arange(len(pairs)), best // 2]
+        # Moving a along +n clears the pair (word 2 i): b lies behind a, along -n.
+        normal = np.where((best % 2 == 0)[:, None], -along, along)
+        return flat[np.arange(len(pairs)), best], normal, error
 
 
 def _check_precision(scene: Scene, pairs: np.ndarray, error: np.ndarray, d: float) -> None:
@@ -205,4 +221,4 @@ def _with_figures(result: CollisionResult, depths: np.ndarray, errors: np.ndarra
     return result
 
 
-__all__ = ["DIRECTION_COS", "ERROR_SCALE", "PASSES", "HardClash", "directional_depth", "plan"]
+__all__ = ["DIRECTION_COS", "ERROR_SCALE", "PASSES", "HardClash", "plan"]

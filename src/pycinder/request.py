@@ -342,8 +342,9 @@ class CollisionRequest:
         Raises
         ------
         ValueError
-            For a value not allowed, ``contacts=True`` with ``records`` other than ``"all"``,
-            and records or contacts per call with the scene strategy.
+            For a value not allowed, ``contacts=True`` with ``records`` other than ``"all"`` or
+            with a query mode (``clearance``, ``min_depth``), and records or contacts per call
+            with the scene strategy.
         """
         if contacts is not None and not isinstance(contacts, bool):
             raise ValueError(f"contacts must be True or False, got {contacts!r}")
@@ -357,6 +358,10 @@ class CollisionRequest:
         if contacts is None:
             return records or self.records
         if contacts:
+            for name, figure in _MODE_FIGURES.items():
+                if getattr(self, name) is not None:
+                    raise ValueError(f"contacts=True is not available with {name}: a {name} "
+                                     f"query's figure is {figure}")
             return _records_for_contacts(self.strategy, records, True)
         return records or ("found" if self.contacts else self.records)
 

@@ -204,6 +204,10 @@ class CollisionResult:
     depth_errors : (K,) float64 or None
         The bound on each of :attr:`depths`' error, for convex bodies (a non-convex pair's
         depth is at most its figure plus the rounding part of this bound).
+    measured_contacts : Contacts or None
+        Contacts of pairs whose every record was dropped (more records than one buffer of the
+        device holds): one per pair, measured whole by pass H1 (its depth, along the direction
+        that separates it; see :mod:`pycinder.hardclash`); :meth:`contacts` includes them.
 
     Notes
     -----
@@ -233,6 +237,7 @@ class CollisionResult:
         self.distance_errors: np.ndarray | None = None
         self.depths: np.ndarray | None = None
         self.depth_errors: np.ndarray | None = None
+        self.measured_contacts: Contacts | None = None
         self._contacts: Contacts | None = None
         self._decode: Callable[[], np.ndarray] | None = None
         self._records: np.ndarray | None = None
@@ -386,7 +391,10 @@ class CollisionResult:
                 f"find_collisions(..., contacts=True) (on a Detector too, or "
                 f"Detector(contacts=True) for every query; find_collisions_batch(..., "
                 f"contacts=True) for a batch)")
-        contacts = reduce_contacts(self).restricted_to(self.pairs)
+        contacts = reduce_contacts(self)
+        if self.measured_contacts is not None:
+            contacts = contacts.joined(self.measured_contacts)
+        contacts = contacts.restricted_to(self.pairs)
         contacts.names = self.names
         self._contacts = contacts
         return contacts

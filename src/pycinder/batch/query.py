@@ -180,6 +180,11 @@ def split(result: CollisionResult, joined: Scene, counts: np.ndarray,
             figures = getattr(result, name)
             if figures is not None:
                 setattr(one, name, figures[cut])
+        measured = result.measured_contacts
+        if measured is not None:
+            mine = measured.select(key[measured.pair[:, 0]] == s)
+            mine.pair = mine.pair - a
+            one.measured_contacts = mine
         out.append(one)
     return out
 

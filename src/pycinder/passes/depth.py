@@ -15,8 +15,8 @@ from .table import PassInfo
 
 WORLD_LINES = 13
 """Lines fixed in the world: through a cube's centre and its faces, edges and corners."""
-LINES = WORLD_LINES + 6
-"""Lines per pair: the world's, then body a's three axes and body b's."""
+LINES = 6 + WORLD_LINES
+"""Lines per pair: body a's three axes, body b's, then the world's (see :func:`lines`)."""
 SLACK = 2.0**-18
 """Rounding allowed in the shader's inside and crossing tests, relative to the faces' size."""
 WHOLE_FACES = 256
@@ -29,6 +29,33 @@ ITEM_WHOLE = 1
 """``whole`` bit of an item: its faces are its pair's two bodies whole (its only item)."""
 ITEM_FLIPPED = 2
 """``whole`` bit of a whole item: body a's faces are the ones in workgroup memory."""
+
+
+_WORLD = np.array([(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, -1, 0), (1, 0, 1), (1, 0, -1),
+                   (0, 1, 1), (0, 1, -1), (1, 1, 1), (1, 1, -1), (1, -1, 1), (-1, 1, 1)],
+                  np.float64)
+
+
+def lines(transform_a: np.ndarray, transform_b: np.ndarray) -> np.ndarray:
+    """The unit directions of each pair's lines, as the shader's ``line()`` makes them: body a's
+    three axes (its transform's columns), body b's, then the :data:`WORLD_LINES` world lines.
+
+    Parameters
+    ----------
+    transform_a, transform_b : (K, 4, 4) float
+        The pairs' world-from-body matrices.
+
+    Returns
+    -------
+    (K, LINES, 3) float64
+    """
+    k = len(transform_a)
+    out = np.empty((k, LINES, 3))
+    out[:, 0:3] = np.swapaxes(np.asarray(transform_a, np.float64)[:, :3, :3], 1, 2)
+    out[:, 3:6] = np.swapaxes(np.asarray(transform_b, np.float64)[:, :3, :3], 1, 2)
+    out[:, 6:] = _WORLD
+    length = np.linalg.norm(out, axis=2, keepdims=True)
+    return np.where(length > 0, out / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
 
 
 def decode(words: np.ndarray) -> np.ndarray:
@@ -78,4 +105,4 @@ class Depth(ClusterPairPass):
 
 
 __all__ = ["FRAME", "ITEM", "ITEM_FLIPPED", "ITEM_WHOLE", "LINES", "PARAMS", "SLACK",
-           "WHOLE_FACES", "WHOLE_WORK", "WORLD_LINES", "Depth", "decode"]
+           "WHOLE_FACES", "WHOLE_WORK", "WORLD_LINES", "Depth", "decode", "lines"]
