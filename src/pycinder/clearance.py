@@ -43,7 +43,7 @@ import numpy as np
 
 from .broadphase import sweep_and_prune
 from .passes.distance import ITEM, Distance
-from .passes.pairwork import pair_frames
+from .passes.pairwork import pair_frames, spread
 from .records import pair_keys
 from .result import CollisionResult, Stats
 from .scene import Scene
@@ -83,11 +83,12 @@ def cluster_boxes(pack: ShapePack, shapes: list) -> tuple[np.ndarray, np.ndarray
     return np.minimum.reduceat(face_lo, start), np.maximum.reduceat(face_hi, start)
 
 
-def _world(lo: np.ndarray, hi: np.ndarray, transform: np.ndarray
+def _world(lo: np.ndarray, hi: np.ndarray, transforms: np.ndarray
            ) -> tuple[np.ndarray, np.ndarray]:
-    """World boxes (n, 3) of body-space boxes under one transform (4, 4)."""
-    centre = 0.5 * (lo + hi) @ transform[:3, :3].T + transform[:3, 3]
-    half = 0.5 * (hi - lo) @ np.abs(transform[:3, :3]).T
+    """World boxes (n, 3) of body-space boxes, each under its transform (n, 4, 4)."""
+    linear = transforms[:, :3, :3]
+    centre = np.einsum("nij,nj->ni", linear, 0.5 * (lo + hi)) + transforms[:, :3, 3]
+    half = np.einsum("nij,nj->ni", np.abs(linear), 0.5 * (hi - lo))
     return centre - half, centre + half
 
 
@@ -127,26 +128,28 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, c: float,
     frames, reach = pair_frames(scene.transforms, pairs, world_lo, world_hi,
                                 np.maximum(world_lo[a], world_lo[b]) - c,
                                 np.minimum(world_hi[a], world_hi[b]) + c)
-    chunks = []
-    for k, (a, b) in enumerate(pairs.tolist()):
-        sides = []
-        for body, other in ((a, b), (b, a)):
-            shape = int(scene.body_shape[body])
-            ids = np.arange(start[shape], start[shape + 1])
-            lo, hi = _world(lo_all[ids], hi_all[ids], scene.transforms[body])
-            near = _gap(lo, hi, world_lo[other], world_hi[other]) <= c
-            sides.append((ids[near], lo[near], hi[near]))
-        (ia, la, ha), (ib, lb, hb) = sides
-        if len(ia) == 0 or len(ib) == 0:
-            continue
-        close = _gap(la[:, None], ha[:, None], lb[None], hb[None]) <= c
-        ca, cb = np.nonzero(close)
-        item = ITEM.zeros(len(ca))
-        item["pair"] = k
-        item["a_start"], item["a_count"] = face_start[ia[ca]], face_count[ia[ca]]
-        item["b_start"], item["b_count"] = face_start[ib[cb]], face_count[ib[cb]]
-        chunks.append(item)
-    items = np.concatenate(chunks) if chunks else ITEM.zeros(0)
+    # Per side, the clusters of each pair's body within c of the other body's world box.
+    near = []
+    for body, other in ((a, b), (b, a)):
+        shape = scene.body_shape[body]
+        row, j = spread(start[shape + 1] - start[shape])
+        ids = start[shape][row] + j
+        lo, hi = _world(lo_all[ids], hi_all[ids], scene.transforms[body[row]])
+        keep = _gap(lo, hi, world_lo[other[row]], world_hi[other[row]]) <= c
+        near.append((row[keep], ids[keep], lo[keep], hi[keep]))
+    (row_a, ia, la, ha), (row_b, ib, lb, hb) = near
+    # Every near cluster of a with every near cluster of b of the same pair, kept within c.
+    na, nb = np.bincount(row_a, minlength=len(pairs)), np.bincount(row_b, minlength=len(pairs))
+    pair, i = spread(na * nb)
+    first_a, first_b = np.cumsum(na) - na, np.cumsum(nb) - nb
+    ka = first_a[pair] + i // np.maximum(nb[pair], 1)
+    kb = first_b[pair] + i % np.maximum(nb[pair], 1)
+    close = _gap(la[ka], ha[ka], lb[kb], hb[kb]) <= c
+    pair, ca, cb = pair[close], ia[ka[close]], ib[kb[close]]
+    items = ITEM.zeros(len(pair))
+    items["pair"] = pair
+    items["a_start"], items["a_count"] = face_start[ca], face_count[ca]
+    items["b_start"], items["b_count"] = face_start[cb], face_count[cb]
     return items, frames, reach
 
 

@@ -56,7 +56,7 @@ from .broadphase import sweep_and_prune
 from .clearance import ERROR_SCALE
 from .passes.depth import (ITEM_FLIPPED, ITEM_WHOLE, LINES, WHOLE_FACES, WHOLE_WORK, Depth,
                            lines)
-from .passes.pairwork import ITEM, pair_frames
+from .passes.pairwork import ITEM, pair_frames, spread
 from .records import empty_records
 from .result import CollisionResult, Stats
 from .scene import Scene
@@ -104,9 +104,8 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray
     count_a = np.where(whole, 1, start[shape_a + 1] - start[shape_a])
     count_b = np.where(whole, 1, start[shape_b + 1] - start[shape_b])
     per_pair = count_a * count_b
-    pair = np.repeat(np.arange(len(pairs)), per_pair)
     # Item i of its pair: cluster i // count_b of body a, cluster i % count_b of body b.
-    i = np.arange(len(pair)) - np.repeat(np.cumsum(per_pair) - per_pair, per_pair)
+    pair, i = spread(per_pair)
     cluster_a = start[shape_a][pair] + i // count_b[pair]
     cluster_b = start[shape_b][pair] + i % count_b[pair]
     items = ITEM.zeros(len(pair))

@@ -43,6 +43,20 @@ PARAMS = Struct("PairParams", [("items", "u32", "items of the dispatch")], unifo
 _U = wgpu.BufferUsage
 
 
+def spread(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every element of rows holding ``counts`` (K,) elements each: its row and its index in
+    the row, rows in order.
+
+    Returns
+    -------
+    row, within : (sum(counts),) int64
+    """
+    counts = np.asarray(counts, np.int64)
+    row = np.repeat(np.arange(len(counts)), counts)
+    within = np.arange(len(row)) - np.repeat(np.cumsum(counts) - counts, counts)
+    return row, within
+
+
 def pair_frames(transforms: np.ndarray, pairs: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                 centre_lo: np.ndarray, centre_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each pair's own frame, centred on a box, and how far its bodies reach from that centre.
@@ -159,4 +173,4 @@ class ClusterPairPass:
         return np.ascontiguousarray(words[:self.WORDS * k]).reshape(k, self.WORDS).copy()
 
 
-__all__ = ["FRAME", "ITEM", "PARAMS", "ClusterPairPass", "pair_frames"]
+__all__ = ["FRAME", "ITEM", "PARAMS", "ClusterPairPass", "pair_frames", "spread"]
