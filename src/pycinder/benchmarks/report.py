@@ -217,6 +217,10 @@ def markdown(results: dict[str, Any]) -> str:
         from .broadbench import markdown as broadphase_markdown
 
         lines += broadphase_markdown(results["broadphase"])
+    if results.get("building"):
+        from .building import markdown as building_markdown
+
+        lines += building_markdown(results["building"]) + [""]
     loops = {"soak": "three small bodies passed as fresh (vertices, faces) arrays every frame",
              "soak-deforming": "a ball whose vertices change every frame, touching a box"}
     for key, what in loops.items():
