@@ -830,3 +830,61 @@ def test_contacts_of_pairs_whose_records_were_all_dropped_are_measured(monkeypat
         results = det.find_collisions_batch([([BOX, BOX], [move(), move(0.7)])] * 3)
     for one in results:
         assert set(map(tuple, one.contacts().pair.tolist())) == {(0, 1)}
+
+
+# The direction worst covered by the 26 world directions (cosine 0.88645 to the nearest).
+WORST = np.array([0.88645189, -0.36718039, -0.28174743]) / np.linalg.norm(
+    [0.88645189, -0.36718039, -0.28174743])
+
+
+def test_sliver_faces_on_the_contact_do_not_make_a_touching_pair_a_clash():
+    """A convex tetrahedron whose top face is split into thin slivers along its edges, and a
+    prism standing on that face overhanging its corners, touching along the direction the lines
+    cover worst: depth 0, never reported (a point beyond a sliver's sharp corner, along an edge's
+    line, is not inside it)."""
+    m = WORST
+    t1 = np.cross(m, [0, 0, 1.0])
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(m, t1)
+    c = np.array([np.cos(t) * t1 + np.sin(t) * t2 for t in np.radians([90, 210, 330])]) * 10
+    edge = np.linalg.norm(c[1] - c[0])
+    s = [0.5 * (c[j] + c[(j + 1) % 3])
+         * (1 - 2e-3 * edge / np.linalg.norm(c[j] + c[(j + 1) % 3])) for j in range(3)]
+    v = np.vstack([c, s, -8 * m])
+    f = [(0, 1, 3), (1, 2, 4), (2, 0, 5), (3, 4, 5), (0, 3, 5), (1, 4, 3), (2, 5, 4), (6, 1, 0),
+         (6, 2, 1), (6, 0, 2)]
+    f = [x if np.cross(v[x[1]] - v[x[0]], v[x[2]] - v[x[0]]) @ (v[list(x)].mean(0) - v.mean(0))
+         > 0 else x[::-1] for x in f]
+    a = trimesh.Trimesh(v, f, process=False)
+    p = np.array([c[j] + 0.003 * (c[j] - c[k]) for j in range(3) for k in ((j + 1) % 3,
+                                                                          (j + 2) % 3)])
+    b = trimesh.convex.convex_hull(np.vstack([p, p + 5 * m]))
+    assert a.is_watertight and a.is_convex and b.is_convex
+    result = pycinder.Detector(min_depth=0.01).find_collisions([a, b])
+    assert result.pairs.tolist() == []
+
+
+def test_edges_crossing_at_a_shallow_angle_on_a_touching_face_are_not_a_clash():
+    """Two unit cubes face to face along the worst-covered direction, one turned a few
+    micro-radians about the normal: their edges cross at shallow angles on screen, and both
+    depths of a crossing are taken at one point. At the smallest d single precision allows,
+    never reported."""
+    z = np.array([0, 0, 1.0])
+    turn = trimesh.transformations.rotation_matrix(np.arccos(z @ WORST), np.cross(z, WORST))
+    for delta in (*np.geomspace(4e-6, 2e-5, 5), 6.93e-6, 1.176e-5):
+        for off in ((1e-6, 0.0), (2e-6, 0.0), (5e-7, 0.0), (0.0, 1e-6)):
+            a = trimesh.creation.box((1, 1, 1))
+            a.apply_translation((0, 0, -0.5))
+            b = trimesh.creation.box((1, 1, 1))
+            b.apply_translation((0, 0, 0.5))
+            b.apply_transform(trimesh.transformations.rotation_matrix(delta, z))
+            b.apply_translation((*off, 0))
+            a.apply_transform(turn)
+            b.apply_transform(turn)
+            lo = np.maximum(a.bounds[0], b.bounds[0])
+            hi = np.minimum(a.bounds[1], b.bounds[1])
+            o = (lo + hi) / 2
+            reach = np.sqrt((np.abs(np.stack([*a.bounds, *b.bounds]) - o).max(0) ** 2).sum())
+            d = 16 * hardclash.ERROR_SCALE * reach * 1.001
+            result = pycinder.Detector(min_depth=d).find_collisions([a, b])
+            assert result.pairs.tolist() == [], (delta, off)

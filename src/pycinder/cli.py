@@ -72,7 +72,8 @@ a body whose components overlap each other gets an OverlappingComponentsWarning.
   strategy    "focused" or "scene"
   tolerance   focused only: [smallest, largest] tolerance in world units over the candidate
               pairs; with no candidate pair, what the pairs would have had (--tolerance, or 1%
-              of the smaller body's size); null with fewer than two bodies
+              of the smaller body's size); null with fewer than two bodies, and with
+              --min-depth (hard clashes are measured with no pixels)
   candidates  focused only: the pairs the broad phase passed on to the image test
   resolution  scene only: the image's width and height in pixels
   adapter     the GPU adapter that ran the query
@@ -99,7 +100,7 @@ def _cli_words(message: str, strict: bool) -> str:
     --strict the advice to pass it is dropped."""
     message = re.sub(r"\bstrategy='(\w+)'", r"--strategy \1", message)
     message = re.sub(r"^(tolerance|resolution|clearance)\b", r"--\1", message)
-    message = re.sub(r"^min_depth\b", "--min-depth", message)
+    message = re.sub(r"\bmin_depth\b", "--min-depth", message)
     if strict:
         return re.sub(r",?\s*or ask for strict checking to make this an error", "", message)
     return message.replace("ask for strict checking", "pass --strict")
@@ -234,7 +235,9 @@ def cmd_check(args: argparse.Namespace) -> int:
                 for pair, d, e in zip(report["pairs"], figures.tolist(), bounds.tolist()):
                     pair[name], pair[f"{name}_error"] = d, e
         if st.strategy == "focused":
-            report["tolerance"] = _tolerance_range(bodies, st, request)
+            # A hard-clash query has no tolerance: it measures depths with no pixels.
+            report["tolerance"] = None if request.min_depth is not None else \
+                _tolerance_range(bodies, st, request)
             report["candidates"] = st.candidates
         else:
             report["resolution"] = st.resolution[0]

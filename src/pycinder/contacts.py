@@ -90,11 +90,13 @@ class Contacts:
     pair : (C, 2) int64
         The two bodies ``(a, b)``, ``a < b``.
     point : (C, 3) float64
-        A point of the intersection.
+        A point of the intersection (of a contact measured whole, ``samples`` 0: the middle of
+        the two bodies' box overlap).
     normal : (C, 3) float64
         Unit normal pointing from ``a`` into ``b``.
     depth : (C,) float64
-        Penetration depth along the normal.
+        Penetration depth along the normal (of a contact measured whole: the pair's directional
+        depth, an upper bound; see :mod:`pycinder.hardclash`).
     face : (C, 2) int64
         Face of ``a`` and of ``b`` at the contact (-1 where not known).
     deepest : (C, 2, 3) float64
@@ -165,12 +167,15 @@ class Contacts:
                         self.face[keep], self.deepest[keep], self.samples[keep], self.names)
 
     def joined(self, other: Contacts) -> Contacts:
-        """These contacts, then ``other``'s."""
+        """These contacts and ``other``'s, ordered by pair (stably: each part's own order kept
+        within a pair)."""
         if not len(other):
             return self
         fields = ("pair", "point", "normal", "depth", "face", "deepest", "samples")
-        return Contacts(*(np.concatenate([getattr(self, f), getattr(other, f)]) for f in fields),
+        both = Contacts(*(np.concatenate([getattr(self, f), getattr(other, f)]) for f in fields),
                         names=self.names)
+        return both.select(np.argsort(pair_keys(both.pair[:, 0], both.pair[:, 1]),
+                                      kind="stable"))
 
     def restricted_to(self, pairs: np.ndarray) -> Contacts:
         """The contacts of ``pairs`` ((K, 2) int, ``i < j``) only."""

@@ -347,7 +347,7 @@ class Detector:
             except (GpuTimeoutError, wgpu.GPUError) as exc:
                 raise self._recover(exc) from exc
             result.stats.wall_ms["total"] = (time.perf_counter() - t0) * 1e3
-            if self.request.strategy == "focused":
+            if self.request.strategy == "focused" and result.depths is None:
                 result.records_kept = records or self.request.records
             return result
 

@@ -49,6 +49,12 @@ if TYPE_CHECKING:
 from .tiles import LEAD_FROM, LEAD_PAIRS, TilePlan, concat_plans, likely_pairs, plan_tiles
 
 
+MEASURED_FACE_PAIRS = 2**24
+"""Most face pairs (both bodies' face counts multiplied, summed over the pairs) that a query
+whose records overflowed measures whole, to give pairs left with no record a contact (pass H1;
+beyond it those pairs have none, and the LossWarning says how many)."""
+
+
 class FocusedStrategy:
     """Runs queries with one tile per candidate pair.
 
@@ -257,17 +263,25 @@ class FocusedStrategy:
         # Records are decoded when first read (most callers read only the pairs); normals come
         # from the bodies' vertices, which the caller may change once the query returns.
         records = decode() if self.request.encode == "normal" else (stats.records, decode)
-        measured = None
+        measured, unmeasured = None, 0
         if stats.dropped_records:
             bare = self._pairs_without_records(result_pairs, rows)
             if q.records.every_tile and len(bare):
-                measured = self._measured_contacts(q.scene, stats, bare)
+                faces = q.scene.face_counts
+                work = np.cumsum(faces[bare[:, 0]].astype(np.float64) * faces[bare[:, 1]])
+                affordable = work <= MEASURED_FACE_PAIRS
+                unmeasured = int((~affordable).sum())
+                if affordable.any():
+                    measured = self._measured_contacts(q.scene, stats, bare[affordable])
             warn_at_caller(
                 f"{stats.dropped_records} records were dropped: more than one buffer of this "
                 f"device holds ({self.frames.records_limit} records); every pair is "
                 f"reported, but contacts come from the records kept"
-                + (f", and for the {plural(len(bare), 'pair')} left with none, from a depth "
+                + (f", and for {plural(len(measured), 'pair')} left with none, from a depth "
                    "measured per pair (result.measured_contacts)" if measured else "")
+                + (f"; {plural(unmeasured, 'other pair')} left with none: no contact "
+                   f"(measuring them whole would take more than {MEASURED_FACE_PAIRS:.3g} face "
+                   "pairs)" if unmeasured else "")
                 + "; see stats.dropped_records", LossWarning)
         stats.add_ms("decode", (time.perf_counter() - t4) * 1e3)
         result = CollisionResult(result_pairs, records, stats,

@@ -26,9 +26,12 @@ least of them (0 where a direction clears the pair: touching bodies). For convex
 is exactly the shortest separating translation along ``n``, at most the penetration depth over
 the cosine of the angle between ``n`` and the best direction; every direction is within
 :data:`DIRECTION_COS` of one of the 26, so the figure is at most ``1 / 0.886`` times the
-penetration depth, which keeps promise 2. A body of the 19 lines' own axes (a box turned any
-way, a beam along its axes) is measured exactly. Open bodies have no inside: their surfaces'
-points are the rays' extremes, so two surfaces crossing deeper than ``d`` are a clash.
+penetration depth, which keeps promise 2. A pair whose shortest separating translation lies
+along one of the 19 lines (boxes and beams meeting face to face, whichever way they are turned)
+is measured exactly; where it lies elsewhere (two turned boxes meeting edge to edge) the figure
+is up to that factor high, within ``result.depth_errors``. Open bodies have no inside: their
+surfaces' points are the rays' extremes, so two surfaces crossing deeper than ``d`` are a
+clash.
 
 Precision. Each pair is measured in a frame of its own, centred where its world boxes meet;
 single precision bounds a figure's rounding by :data:`ERROR_SCALE` times ``L``, the farthest
@@ -67,6 +70,10 @@ if TYPE_CHECKING:
 
 PASSES = (Depth,)
 """The hard-clash query's one pass (the pass table is generated from it)."""
+
+CHUNK_PAIRS = 2**16
+"""Most pairs measured by one dispatch of pass H1 (their figures, 152 bytes a pair, are read
+back per chunk)."""
 
 DIRECTION_COS = 0.886
 """Every direction is within this cosine of one of the 26 directions through a cube's centre and
@@ -180,16 +187,21 @@ class HardClash:
         """
         t1 = time.perf_counter()
         pack = self.strategy.pack(scene, stats)
-        items, frames, reach = plan(scene, pack, pairs)
-        error = ERROR_SCALE * reach
-        if d is not None:
-            _check_precision(scene, pairs, error, d)
-        t2 = time.perf_counter()
-        stats.add_ms("upload", (t2 - t1) * 1e3)
         buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
-        figures = self.depth.run(buffers.positions, buffers.faces, items, frames)
-        stats.bytes_read += figures.size * 4  # two words per line and pair
-        stats.add_ms("depth", (time.perf_counter() - t2) * 1e3)
+        error = np.zeros(len(pairs))
+        figures = np.zeros((len(pairs), LINES, 2))
+        for start in range(0, max(len(pairs), 1), CHUNK_PAIRS):
+            part = slice(start, start + CHUNK_PAIRS)
+            items, frames, reach = plan(scene, pack, pairs[part])
+            error[part] = ERROR_SCALE * reach
+            if d is not None:
+                _check_precision(scene, pairs[part], error[part], d)
+            t2 = time.perf_counter()
+            stats.add_ms("upload", (t2 - t1) * 1e3)
+            figures[part] = self.depth.run(buffers.positions, buffers.faces, items, frames)
+            stats.bytes_read += figures[part].size * 4  # two words per line and pair
+            t1 = time.perf_counter()
+            stats.add_ms("depth", (t1 - t2) * 1e3)
         flat = np.maximum(figures.reshape(len(pairs), 2 * LINES), 0.0)
         best = np.argmin(flat, axis=1)
         direction = lines(scene.transforms[pairs[:, 0]], scene.transforms[pairs[:, 1]])

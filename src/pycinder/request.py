@@ -416,6 +416,7 @@ def _check_mode(request: CollisionRequest) -> None:
             raise ValueError(f"contacts=True and {name} are not available together: a {name} "
                              f"query's figure is {_MODE_FIGURES[name]}")
 
+
 def _positive_int(value: Any) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value > 0
 

@@ -291,6 +291,8 @@ class CollisionResult:
         if st.strategy == "focused":
             lo, hi = st.tolerance
             setting = f"tolerance {lo:.4g}" if lo == hi else f"tolerance {lo:.4g} to {hi:.4g}"
+            if self.depths is not None:
+                setting = "depths measured face pair by face pair"
             if not st.candidates:
                 setting = "no candidate pairs"
         else:

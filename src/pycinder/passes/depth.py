@@ -77,9 +77,9 @@ def decode(words: np.ndarray) -> np.ndarray:
 
 
 class Depth(ClusterPairPass):
-    """H1: one workgroup per item (the pair's bodies whole, or a cluster of each); per pair and line,
-    the largest ``depth_b - depth_a`` and ``depth_a - depth_b`` over the rays that meet both
-    bodies (atomicMax)."""
+    """H1: one workgroup per item (the pair's bodies whole, or a cluster of each); per pair and
+    line, the largest ``depth_b - depth_a`` and ``depth_a - depth_b`` over the rays that meet
+    both bodies (atomicMax)."""
 
     INFO: ClassVar[PassInfo] = PassInfo(
         "H1", "depth", "how far one body of each candidate pair must move along each of 19 "

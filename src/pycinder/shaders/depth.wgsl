@@ -104,11 +104,15 @@ fn length2(a: vec2f) -> f32 {
 
 // The depth of face t0 t1 t2 (projected) on the ray through p: x = 1 where p is inside the face's
 // projection (edges included, within rounding), y = the depth. A face seen edge-on covers no
-// area; its depths are reached through its edges.
+// area; its depths are reached through its edges. The weights are clamped at 0, so a point just
+// outside by rounding takes the depth of the nearest point of the face; a point the clamped
+// weights place farther than the rounding allows (beyond the sharp corner of a sliver face, along
+// an edge's line) is outside.
 fn depth_in(t0: vec3f, t1: vec3f, t2: vec3f, p: vec2f) -> vec2f {
     var o = vec3f(orient(t1.xy, t2.xy, p), orient(t2.xy, t0.xy, p), orient(t0.xy, t1.xy, p));
     let area = o.x + o.y + o.z;
-    let slack = SLACK * (length2(t1.xy - t0.xy) + length2(t2.xy - t1.xy) + length2(t0.xy - t2.xy));
+    let size2 = length2(t1.xy - t0.xy) + length2(t2.xy - t1.xy) + length2(t0.xy - t2.xy);
+    let slack = SLACK * size2;
     if (abs(area) <= slack) {
         return vec2f(0.0, 0.0);
     }
@@ -118,29 +122,39 @@ fn depth_in(t0: vec3f, t1: vec3f, t2: vec3f, p: vec2f) -> vec2f {
     if (min(o.x, min(o.y, o.z)) < -slack) {
         return vec2f(0.0, 0.0);
     }
-    let w = max(o, vec3f(0.0));
-    return vec2f(1.0, dot(w, vec3f(t0.z, t1.z, t2.z)) / (w.x + w.y + w.z));
+    let w = max(o, vec3f(0.0)) / (max(o.x, 0.0) + max(o.y, 0.0) + max(o.z, 0.0));
+    let q = w.x * t0.xy + w.y * t1.xy + w.z * t2.xy;
+    if (length2(q - p) > SLACK * SLACK * size2) {
+        return vec2f(0.0, 0.0);
+    }
+    return vec2f(1.0, dot(w, vec3f(t0.z, t1.z, t2.z)));
 }
 
 // depth_b - depth_a where edge p0 p1 of a crosses edge q0 q1 of b on screen; x = 1 where they do.
+// Both depths are taken at one screen point: the crossing found on edge a, and the point of edge
+// b nearest it (when it lies within rounding of edge b), so that edges crossing at a shallow angle,
+// whose crossing is ill-conditioned along them, still give the depths of one ray.
 fn crossing(p0: vec3f, p1: vec3f, q0: vec3f, q1: vec3f) -> vec2f {
     let r = p1.xy - p0.xy;
     let s = q1.xy - q0.xy;
     let den = r.x * s.y - r.y * s.x;
-    if (abs(den) <= SLACK * sqrt(length2(r) * length2(s))) {
+    let rr = length2(r);
+    let ss = length2(s);
+    if (abs(den) <= SLACK * sqrt(rr * ss)) {
         return vec2f(0.0, 0.0);  // parallel: where they overlap, corners lie on the other edge
     }
     let w = q0.xy - p0.xy;
     let ta = (w.x * s.y - w.y * s.x) / den;
-    let tb = (w.x * r.y - w.y * r.x) / den;
-    let lo = -SLACK;
-    let hi = 1.0 + SLACK;
-    if (ta < lo || ta > hi || tb < lo || tb > hi) {
+    if (ta < -SLACK || ta > 1.0 + SLACK) {
         return vec2f(0.0, 0.0);
     }
-    let za = mix(p0.z, p1.z, clamp(ta, 0.0, 1.0));
-    let zb = mix(q0.z, q1.z, clamp(tb, 0.0, 1.0));
-    return vec2f(1.0, zb - za);
+    let t = clamp(ta, 0.0, 1.0);
+    let x = p0.xy + t * r;
+    let tb = clamp(dot(x - q0.xy, s) / ss, 0.0, 1.0);
+    if (length2(q0.xy + tb * s - x) > SLACK * SLACK * (rr + ss)) {
+        return vec2f(0.0, 0.0);
+    }
+    return vec2f(1.0, mix(q0.z, q1.z, tb) - mix(p0.z, p1.z, t));
 }
 
 // Order-preserving bits of a float: larger floats give larger words.
