@@ -37,6 +37,10 @@ TRIANGLE_BYTES = 48
 SLOTS = 2
 """Frames that can be in flight at once (each has its own records and staging buffers)."""
 
+MERGED_WRITE_BYTES = 1 << 16
+"""Vertex bytes below which a shape's new vertices are written together with those of the
+shapes next to it in the positions buffer (one ``write_buffer`` for the run)."""
+
 _U = wgpu.BufferUsage
 
 
@@ -188,20 +192,41 @@ class AtlasBuffers:
             changed = list(range(len(shapes)))
             written = pack.positions.nbytes
         else:
-            changed = [k for k, s in enumerate(shapes) if s is not self.uploaded[k]]
-            written = 0
-            for k in changed:
-                # The pack's positions are those of the frame that made it: write the shape's own.
-                vertices = shapes[k].vertices
-                self.positions.write(vertices, offset=12 * int(pack.vertex_start[k]))
-                written += vertices.nbytes
+            uploaded = self.uploaded
+            changed = [k for k, s in enumerate(shapes) if s is not uploaded[k]]
+            written = self._write_vertices(pack, shapes, changed)
         self.uploaded = list(shapes)
         if changed:
-            which = np.concatenate([np.arange(pack.cluster_start[k], pack.cluster_start[k + 1])
-                                    for k in changed]).astype(np.uint32)
+            k = np.asarray(changed, dtype=np.int64)
+            which = _ranges(pack.cluster_start[k], pack.cluster_start[k + 1]).astype(np.uint32)
             if self.bound_pending is not None:
                 which = np.union1d(which, self.bound_pending).astype(np.uint32)
             self.bound_pending = which
+        return written
+
+    def _write_vertices(self, pack: ShapePack, shapes: list, changed: list[int]) -> int:
+        """Write the vertices of shapes ``changed`` where the pack puts them (the pack's own
+        positions are those of the frame that made it: each shape's are written); returns the
+        bytes written. Consecutive shapes are written together when they are small (each write
+        costs about as much as copying 64 kB)."""
+        written = 0
+        run: list[np.ndarray] = []
+        run_start = 0
+        for pos, k in enumerate(changed):
+            vertices = shapes[k].vertices
+            written += vertices.nbytes
+            if vertices.nbytes >= MERGED_WRITE_BYTES:
+                self.positions.write(vertices, offset=12 * int(pack.vertex_start[k]))
+                continue
+            if not run:
+                run_start = k
+            run.append(vertices)
+            last = pos + 1 == len(changed) or changed[pos + 1] != k + 1 \
+                or shapes[k + 1].vertices.nbytes >= MERGED_WRITE_BYTES
+            if last:
+                data = run[0] if len(run) == 1 else np.concatenate(run)
+                self.positions.write(data, offset=12 * int(pack.vertex_start[run_start]))
+                run = []
         return written
 
     def records(self, slot: int = 0) -> GrowableBuffer:
@@ -244,6 +269,20 @@ class AtlasBuffers:
         self.cuts.ensure(8 * caps.tris)
         self.edge_list.ensure(EDGE_ENTRY_BYTES * caps.edges)
         self.records(state.slot).ensure(RECORD.size * caps.records)
+
+
+def _ranges(starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """The integers of every range ``[starts[i], ends[i])``, range after range."""
+    counts = ends - starts
+    total = int(counts.sum())
+    if total == 0:
+        return np.zeros(0, dtype=np.int64)
+    # Each value is the previous one plus 1, or its range's start after a range ends.
+    steps = np.ones(total, dtype=np.int64)
+    firsts = np.cumsum(counts) - counts
+    kept = counts > 0
+    steps[firsts[kept]] = starts[kept] - np.concatenate([[0], (ends[kept] - 1)[:-1]])
+    return np.cumsum(steps)
 
 
 @dataclass(frozen=True)

@@ -39,12 +39,15 @@ class ParamBlocks:
         self.buffer = GrowableBuffer(device, label, wgpu.BufferUsage.UNIFORM |
                                      wgpu.BufferUsage.COPY_DST)
         self.host = np.zeros((1, len(structs), PARAM_STRIDE), dtype=np.uint8)
+        self._views: dict[tuple[str, int], np.ndarray] = {}
+        """The structured views of :meth:`__call__`, made once per host copy."""
 
     def begin(self, copies: int = 1) -> None:
         """Start a frame of ``copies`` copies of every block, all fields zero."""
         copies = max(int(copies), 1)
         if self.host.shape[0] != copies:
             self.host = np.zeros((copies, len(self.structs), PARAM_STRIDE), dtype=np.uint8)
+            self._views = {}
         else:
             self.host[:] = 0
         self.buffer.ensure(self.host.nbytes)
@@ -52,8 +55,12 @@ class ParamBlocks:
     def __call__(self, name: str, copy: int = 0) -> np.ndarray:
         """Block ``name`` of copy ``copy``, to write by field name (a one-element structured
         array of its struct, viewing the host copy)."""
-        struct = self.structs[name]
-        return self.host[copy, self._index[name], :struct.size].view(struct.dtype)
+        view = self._views.get((name, copy))
+        if view is None:
+            struct = self.structs[name]
+            view = self.host[copy, self._index[name], :struct.size].view(struct.dtype)
+            self._views[(name, copy)] = view
+        return view
 
     def write(self) -> None:
         """Upload every block of the frame."""

@@ -212,6 +212,10 @@ class FrameReadback:
                                          "records")
 
 
+_TILE_WORD = {name: TILE.dtype.fields[name][1] // 4 for name in TILE.dtype.names}
+"""The first 32-bit word of each field of :data:`~pycinder.layout.TILE`."""
+
+
 def tile_words(plan: TilePlan, matrices: np.ndarray) -> np.ndarray:
     """The tiles as the GPU reads them.
 
@@ -225,15 +229,21 @@ def tile_words(plan: TilePlan, matrices: np.ndarray) -> np.ndarray:
     -------
     (T,) structured array of :data:`~pycinder.layout.TILE`
     """
-    out = TILE.zeros(len(plan))
-    out["m0"] = matrices[:, 0]
-    out["m1"] = matrices[:, 1]
-    out["window"] = plan.window
-    out["slab"][:, :2] = plan.slab
-    out["bodies"] = plan.bodies
-    out["flags"] = plan.flags
-    out["pair"] = plan.pair
-    return out
+    n = len(plan)
+    # Written as rows of 32-bit words, field by field (the same casts as assigning the
+    # structured array's fields: float64 to float32 rounded, integers to uint32 wrapped).
+    words = np.empty((n, TILE.dtype.itemsize // 4), dtype=np.uint32)
+    floats = words.view(np.float32)
+    at = _TILE_WORD
+    floats[:, at["m0"]:at["m0"] + 12] = matrices[:, 0].reshape(n, 12)
+    floats[:, at["m1"]:at["m1"] + 12] = matrices[:, 1].reshape(n, 12)
+    words[:, at["window"]:at["window"] + 4] = plan.window
+    floats[:, at["slab"]:at["slab"] + 2] = plan.slab
+    words[:, at["slab"] + 2:at["slab"] + 4] = 0
+    words[:, at["bodies"]:at["bodies"] + 2] = plan.bodies
+    words[:, at["flags"]] = plan.flags
+    words[:, at["pair"]] = plan.pair
+    return words.view(TILE.dtype).reshape(n)
 
 
 __all__ = ["FocusedOutput", "FrameInputs", "FrameReadback", "ReadLayout", "SPECULATIVE_RECORDS",

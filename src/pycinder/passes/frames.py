@@ -24,7 +24,7 @@ import wgpu
 from ..again import grown_caps
 from ..gpu.buffers import DEFAULT_TIMEOUT
 from ..gpu.device import Gpu
-from ..layout import C_CUTS, C_EDGES, C_RECORDS, FLAG_OPEN, ROUND_COUNTERS
+from ..layout import C_AGAIN, C_CUTS, C_EDGES, C_RECORDS, FLAG_OPEN, ROUND_COUNTERS
 from ..scene.pack import ShapePack
 from .arguments import Arguments
 from .atlas import (LIST_CAPACITY, PIXEL_BYTES, SLOTS, AtlasBuffers, Encoding, FrameState,
@@ -52,6 +52,25 @@ ROUND_PASSES = (Cull, Clip, Crossings, SurfaceTest, EdgeTest, CrossingTest)
 TIMED_PASSES = tuple(p.INFO.title for p in ROUND_PASSES)
 """Names of the passes timed per round when profiling (F0, and "decisions" (passes F7 and F8),
 are timed once per frame)."""
+
+
+def _counter_ranges(reset: set[int], idle: set[int]) -> list[tuple[int, int]]:
+    """(offset, size) in bytes of the counters ``reset``, as few ranges as clear them: a range
+    may run over counters ``idle`` (zero while the rounds run)."""
+    ranges: list[list[int]] = []
+    for c in sorted(reset):
+        if ranges and all(i in idle for i in range(ranges[-1][1], c)):
+            ranges[-1][1] = c + 1
+        else:
+            ranges.append([c, c + 1])
+    return [(4 * lo, 4 * (hi - lo)) for lo, hi in ranges]
+
+
+ROUND_CLEARS = _counter_ranges({*range(ROUND_COUNTERS), C_CUTS, C_EDGES}, {C_AGAIN})
+"""The counters reset before every round but the frame's first (ROUND_COUNTERS, C_CUTS and
+C_EDGES; C_AGAIN, between them, is counted by pass F8 at the end of the frame, after every
+round): two clears instead of three."""
+
 
 @dataclass
 class _Slots:
@@ -183,17 +202,22 @@ class FocusedFrames:
         prefix over the frame) and the first cluster of its body."""
         inputs = sub.inputs
         plan, pack = inputs.plan, inputs.pack
-        shapes = inputs.body_shape[plan.bodies].reshape(-1)             # entry e = 2 * tile + side
-        count = np.diff(pack.cluster_start)[shapes]
-        prefix = np.concatenate([[0], np.cumsum(count)])
+        start = pack.cluster_start
+        shapes = inputs.body_shape.take(plan.bodies).reshape(-1)    # entry e = 2 * tile + side
+        count = (start[1:] - start[:-1]).take(shapes)
+        prefix = np.empty(len(shapes) + 1, dtype=count.dtype)
+        prefix[0] = 0
+        np.cumsum(count, out=prefix[1:])
         if prefix[-1] >= 2**32:
             raise ValueError("too many cluster tests in one frame; raise the tolerance or split "
                              "the scene into several queries")
-        entries = np.zeros((len(shapes) + 1, 2), dtype=np.uint32)
+        entries = np.empty((len(shapes) + 1, 2), dtype=np.uint32)
         entries[:, 0] = prefix
-        entries[:-1, 1] = pack.cluster_start[shapes]
+        entries[:-1, 1] = start.take(shapes)
+        entries[-1, 1] = 0
         round_tiles = np.searchsorted(plan.round, np.arange(len(plan.round_rows) + 1))
-        round_threads = np.diff(prefix[2 * round_tiles])
+        threads_at = prefix[2 * round_tiles]
+        round_threads = threads_at[1:] - threads_at[:-1]
         state = FrameState(
             tiles=len(plan), pairs=inputs.pairs, atlas_width=plan.atlas_width,
             round_rows=list(plan.round_rows), round_threads=round_threads,
@@ -247,12 +271,14 @@ class FocusedFrames:
                                   s.slot), k))
         return out
 
-    def _encode_round(self, encoder: wgpu.GPUCommandEncoder, e: Encoding, r: Round) -> None:
-        """Passes F1-F6 of round ``r``, in order."""
+    def _encode_round(self, encoder: wgpu.GPUCommandEncoder, e: Encoding, r: Round,
+                      first: bool = False) -> None:
+        """Passes F1-F6 of round ``r``, in order (``first``: the frame's first round, right
+        after every counter was cleared)."""
         b = e.buffers
-        encoder.clear_buffer(b.counters, 0, 4 * ROUND_COUNTERS)
-        encoder.clear_buffer(b.counters, 4 * C_CUTS, 4)
-        encoder.clear_buffer(b.counters, 4 * C_EDGES, 4)
+        if not first:
+            for offset, size in ROUND_CLEARS:
+                encoder.clear_buffer(b.counters, offset, size)
         encoder.clear_buffer(b.pixels.buffer, 0, PIXEL_BYTES * e.state.atlas_width * r.rows)
         scope = ComputeScope(encoder, self.profiler, f"round {r.block}")
         self.cull.encode(scope, e, r)
@@ -272,9 +298,11 @@ class FocusedFrames:
         self.bounds.encode(encoder, self.profiler, e, b.bound_pending)
         encoder.clear_buffer(b.counters)
         encoder.clear_buffer(b.tile_counts.buffer, 0, 8 * s.tiles + 4 * s.pairs)
+        first = True
         for r, _ in self._rounds(s, retry=False):
             if r.threads:
-                self._encode_round(encoder, e, r)
+                self._encode_round(encoder, e, r, first)
+                first = False
         if s.retry:
             self.retry_choice.encode(encoder, self.profiler, e)
             for r, _ in self._rounds(s, retry=True):

@@ -159,11 +159,101 @@ def mesh_arrays(body: Any, label: str) -> tuple[Any, Any]:
     )
 
 
+BLOCK = 256
+"""Vertices per row of the blocked views the vertex checks work on: NumPy is slow along an axis of
+3 (a (V, 3) array's rows) and fast along one of 3 * BLOCK, so a C-contiguous (V, 3) array is
+seen as (V // BLOCK, 3 * BLOCK) rows of whole vertices, and the rest."""
+
+
+def _blocks(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A C-contiguous (V, 3) array as (V // BLOCK, 3 * BLOCK) rows and the (V % BLOCK, 3)
+    vertices left (views)."""
+    m = len(v) - len(v) % BLOCK
+    return v[:m].reshape(-1, 3 * BLOCK), v[m:]
+
+
+def _blocked(v: np.ndarray) -> bool:
+    """Whether ``v`` (V, 3) is worth working on in blocks (and can be)."""
+    return len(v) >= 2 * BLOCK and v.flags.c_contiguous
+
+
 def _columns(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-column minimum and maximum of (V, 3) (column by column: far faster than axis=0)."""
+    """Per-column minimum and maximum of (V, 3), as float64 (NaN where a column has one).
+
+    Column by column (far faster than ``axis=0``), or over blocks of whole vertices (faster
+    still); a box with a zero side is taken column by column, as it always was: which of 0.0
+    and -0.0 a minimum keeps depends on the order it compares them in."""
+    if _blocked(v):
+        lo = _column_extreme(np.minimum, v).astype(np.float64)
+        hi = _column_extreme(np.maximum, v).astype(np.float64)
+        if (lo != 0).all() and (hi != 0).all():
+            return lo, hi
     lo = np.array([v[:, k].min() for k in range(3)], dtype=np.float64)
     hi = np.array([v[:, k].max() for k in range(3)], dtype=np.float64)
     return lo, hi
+
+
+def _column_extreme(op: np.ufunc, v: np.ndarray) -> np.ndarray:
+    """``op`` (np.minimum or np.maximum) reduced over each column of a blocked (V, 3) array
+    (see :func:`_blocked`): over its rows of whole vertices, the last BLOCK vertices (which
+    overlap them: an extreme is the same taken twice), then down to the 3 columns in two steps
+    (a reduction along an axis of 3 costs per row)."""
+    rows, _ = _blocks(v)
+    last = v[len(v) - BLOCK:].reshape(3 * BLOCK)
+    per = op(op.reduce(rows, axis=0), last)                          # (3 * BLOCK,)
+    per = op.reduce(per.reshape(BLOCK // 16, 48), axis=0)             # 16 vertices a row
+    return op.reduce(per.reshape(16, 3), axis=0)
+
+
+def _recentred(vertices: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """``(vertices - offset).astype(np.float32)`` in one pass (the same float64 difference,
+    rounded once)."""
+    out = np.empty(vertices.shape, dtype=np.float32)
+    if _blocked(vertices):
+        rows, tail = _blocks(vertices)
+        out_rows, out_tail = _blocks(out)
+        np.subtract(rows, np.tile(offset, BLOCK), out=out_rows, casting="unsafe")
+        np.subtract(tail, offset, out=out_tail, casting="unsafe")
+    else:
+        np.subtract(vertices, offset, out=out, casting="unsafe")
+    return out
+
+
+def _squared_distances(v32: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """(V,) float64 squared distances of vertices (V, 3) float32 from ``centre``, summed over x,
+    y and z in that order."""
+    sq = (v32.astype(np.float64) - centre) ** 2
+    d2 = sq[:, 0] + sq[:, 1]
+    d2 += sq[:, 2]
+    return d2
+
+
+_ONES32 = np.ones(3, dtype=np.float32)
+
+
+def _farthest(v32: np.ndarray, centre: np.ndarray) -> float:
+    """The largest of :func:`_squared_distances`, computed exactly for the vertices that single
+    precision finds within 1e-4 of it (the farthest is among them: its squared distance is off
+    by a few units of single precision's rounding, 6e-8, the centre being that of the
+    vertices' box), and for all of them where single precision could overflow or underflow."""
+    if not _blocked(v32):
+        return float(_squared_distances(v32, centre).max())
+    c32 = centre.astype(np.float32)
+    d = np.empty_like(v32)
+    rows, tail = _blocks(v32)
+    d_rows, d_tail = _blocks(d)
+    with np.errstate(over="ignore", under="ignore"):  # such extents take the exact way below
+        np.subtract(rows, np.tile(c32, BLOCK), out=d_rows)
+        np.subtract(tail, c32, out=d_tail)
+        np.multiply(d, d, out=d)
+        e = d @ _ONES32  # a few roundings more or less than the sum's: within the margin
+    top = float(e.max())
+    if not 1e-30 < top < 1e30:
+        return float(_squared_distances(v32, centre).max())
+    near = np.flatnonzero(e >= top * (1 - 1e-4))
+    if 2 * len(near) > len(v32):
+        return float(_squared_distances(v32, centre).max())
+    return float(_squared_distances(v32[near], centre).max())
 
 
 def check_vertices(vertices: Any, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -209,8 +299,15 @@ def check_vertices(vertices: Any, label: str) -> tuple[np.ndarray, np.ndarray, n
         raise ValueError(f"{label}: vertices span {extent:.3g} units around {offset.tolist()}; "
                          f"pycinder supports bodies up to {MAX_EXTENT:g} units across and from "
                          "their origin: rescale the scene")
-    v32 = (vertices - offset).astype(np.float32)
-    lo, hi = _columns(v32)  # the box of what the GPU sees, rounding included
+    v32 = _recentred(vertices, offset)
+    # The box of what the GPU sees, rounding included: rounding and subtracting a constant keep
+    # the order of values, so the extremes of v32 are the rounded extremes (but for which zero
+    # a minimum keeps, see _columns).
+    lo32 = (lo - offset).astype(np.float32).astype(np.float64)
+    hi32 = (hi - offset).astype(np.float32).astype(np.float64)
+    if (lo32 != 0).all() and (hi32 != 0).all():
+        return v32, offset, lo32, hi32
+    lo, hi = _columns(v32)
     return v32, offset, lo, hi
 
 
@@ -220,9 +317,8 @@ def _measure(vertices: Any, label: str) -> tuple[np.ndarray, np.ndarray, np.ndar
     centre."""
     v32, offset, lo, hi = check_vertices(vertices, label)
     centre = 0.5 * (lo + hi)
-    d2 = sum((v32[:, k].astype(np.float64) - centre[k]) ** 2 for k in range(3))
     # single-precision rounding of the vertices is far below the box's own size; pad by it
-    radius = float(np.sqrt(d2.max())) * (1 + 1e-6)
+    radius = float(np.sqrt(_farthest(v32, centre))) * (1 + 1e-6)
     return v32, offset, lo, hi, radius
 
 
@@ -301,13 +397,55 @@ def _vertex_key(vertices: Any) -> tuple[tuple, np.ndarray | None]:
     return ("array", _digest(v), v.shape, v.dtype.str), v
 
 
-def _same_bytes(kept: bytes | None, v: np.ndarray | None) -> bool:
+def _same_bytes(kept: bytes | np.ndarray | None, v: np.ndarray | None) -> bool:
     """Whether ``v`` (from :func:`_vertex_key`) holds exactly the bytes ``kept`` (a cached
-    shape's copy; None for tracked arrays, whose keys are trimesh's). With equal keys, equal
-    bytes are equal content: the key holds the shape and the dtype."""
+    shape's copy: ``bytes``, or a flat uint8 array for large arrays, see :func:`_kept_copy`;
+    None for tracked arrays, whose keys are trimesh's). With equal keys, equal bytes are equal
+    content: the key holds the shape and the dtype."""
     if kept is None or v is None:
         return kept is None and v is None
+    if isinstance(kept, np.ndarray):
+        if kept.nbytes != v.nbytes:
+            return False
+        mine, theirs = kept, _flat_bytes(v)
+        if kept.nbytes % 8 == 0:  # compared as 64-bit words: a bitwise comparison all the same
+            mine, theirs = mine.view(np.uint64), theirs.view(np.uint64)
+        return bool(np.array_equal(mine, theirs))
     return v.tobytes() == kept
+
+
+def _flat_bytes(v: np.ndarray) -> np.ndarray:
+    """The bytes of a C-contiguous array, as a flat uint8 view."""
+    return v.reshape(-1).view(np.uint8)
+
+
+KEPT_ARRAY_BYTES = PARALLEL_ITEM_BYTES
+"""Vertex bytes from which a shape's kept copy (see :class:`ShapeCache`) is a NumPy array,
+copied on the thread that measures the shape, into the memory of a copy dropped at the end of
+the last query when one of that size was (a body that deforms every frame reuses its copies
+instead of mapping fresh memory for each: the page faults cost more than the copy), rather than
+a ``bytes`` object."""
+
+
+def _measure_kept(vertices: Any, label: str, bits: np.ndarray | None,
+                  into: np.ndarray | None) -> tuple[tuple, bytes | np.ndarray | None]:
+    """:func:`_measure`, and the copy of ``bits`` (from :func:`_vertex_key`) a new cached shape
+    keeps (see :func:`_kept_copy`), made in ``into`` when given (a spare of the right size)."""
+    return _measure(vertices, label), _kept_copy(bits, into)
+
+
+def _kept_copy(bits: np.ndarray | None, into: np.ndarray | None = None
+               ) -> bytes | np.ndarray | None:
+    """The copy of the bytes a cached shape was made from: None for tracked arrays, ``bytes``
+    below :data:`KEPT_ARRAY_BYTES`, else a flat uint8 array (``into``, when given)."""
+    if bits is None:
+        return None
+    if bits.nbytes < KEPT_ARRAY_BYTES:
+        return bits.tobytes()
+    if into is None:
+        into = np.empty(bits.nbytes, dtype=np.uint8)
+    np.copyto(into, _flat_bytes(bits))
+    return into
 
 
 class ShapeCache:
@@ -325,7 +463,8 @@ class ShapeCache:
         self.topologies = TopologyCache(max_bytes // 2)
         self.max_bytes = int(max_bytes) - self.topologies.max_bytes
         self._entries: OrderedDict[tuple, Shape] = OrderedDict()
-        self._kept: dict[tuple, bytes | None] = {}  # the bytes each shape was made from
+        self._kept: dict[tuple, bytes | np.ndarray | None] = {}  # what each shape was made from
+        self._spare: dict[int, list[np.ndarray]] = {}  # large copies dropped by the last query
         self._used: dict[tuple, int] = {}
         self.query = 0
         self.nbytes = 0
@@ -343,6 +482,7 @@ class ShapeCache:
         leaves one shape behind per frame: they go at once), then topologies while over the byte
         bound."""
         keep_from = self.query - 1
+        self._spare = {}  # the last query's spares that this one did not reuse go
         for key in [k for k, q in self._used.items() if q < keep_from]:
             self._drop(key)
         self.topologies.evict()
@@ -351,6 +491,16 @@ class ShapeCache:
         kept = self._kept.pop(key)
         self.nbytes -= self._entries.pop(key).nbytes + (len(kept) if kept is not None else 0)
         del self._used[key]
+        if isinstance(kept, np.ndarray):
+            self._spare.setdefault(kept.nbytes, []).append(kept)
+
+    def _spare_copy(self, bits: np.ndarray | None) -> np.ndarray | None:
+        """A dropped copy of the size of ``bits``, to copy ``bits`` into (None: none, or a copy
+        that is not an array)."""
+        if bits is None or bits.nbytes < KEPT_ARRAY_BYTES:
+            return None
+        spares = self._spare.get(bits.nbytes)
+        return spares.pop() if spares else None
 
     def get(self, vertices: Any, faces: Any, label: str, strict: bool) -> Shape:
         """The shape of a mesh, checked and measured once per distinct content."""
@@ -393,21 +543,28 @@ class ShapeCache:
                 key = (*key, ("collision", i))  # equal keys, other bytes: a shape of its own
             missing.setdefault(key, []).append(i)
         first = [where[0] for where in missing.values()]
-        measured = _map(_measure, [(given[i], meshes[i][2]) for i in first],
-                        [sizes[i] for i in first])
-        for (key, where), measure in zip(missing.items(), measured):
+        if keep:
+            # The copies new shapes keep are made with their measuring, on its threads.
+            measured = _map(_measure_kept, [(given[i], meshes[i][2], keyed[i][1],
+                                             self._spare_copy(keyed[i][1])) for i in first],
+                            [sizes[i] for i in first])
+        else:
+            measured = [(m, None) for m in _map(_measure, [(given[i], meshes[i][2])
+                                                           for i in first],
+                                                [sizes[i] for i in first])]
+        for (key, where), (measure, kept) in zip(missing.items(), measured):
             topo, built = topos[where[0]]
             shape = self._made(key, topo, built, measure, meshes[where[0]][2], strict, keep,
-                               keyed[where[0]][1])
+                               kept)
             for i in where:
                 out[i] = shape
         return out  # type: ignore[return-value]
 
     def _made(self, key: tuple, topo: Topology, built: bool, measure: tuple, label: str,
-              strict: bool, keep: bool = True, bits: np.ndarray | None = None) -> Shape:
+              strict: bool, keep: bool = True, kept: bytes | np.ndarray | None = None) -> Shape:
         """A new shape of ``topo`` from its measured vertices, reported on (when its topology is
-        new) and cached under ``key`` (when ``keep``) with a copy of ``bits``, the vertices it
-        was made from (see :func:`_vertex_key`)."""
+        new) and cached under ``key`` (when ``keep``) with ``kept``, the copy of the bytes it was
+        made from (see :func:`_vertex_key` and :func:`_kept_copy`)."""
         v32, offset, lo, hi, radius = measure
         if built:
             _, areas = face_normals(v32, topo.faces)
@@ -421,7 +578,6 @@ class ShapeCache:
             return shape
         if key in self._entries:
             self._drop(key)
-        kept = bits.tobytes() if bits is not None else None
         self._entries[key] = shape
         self._kept[key] = kept
         self._used[key] = self.query
@@ -499,19 +655,23 @@ class Scene:
 def _shapes_of(bodies: Sequence[Any], names: list[str | None], cache: ShapeCache, strict: bool
                ) -> tuple[list[Shape], np.ndarray]:
     """The distinct shapes of ``bodies`` and each body's index among them."""
-    n = len(bodies)
     meshes: list[tuple[Any, Any, str]] = []  # distinct arrays (kept here, so ids stay valid)
     seen: dict[tuple[int, int], int] = {}
-    which = np.empty(n, dtype=np.int64)
+    which: list[int] = []
     for i, body in enumerate(bodies):
-        label = body_label(i, names[i])
-        vertices, faces = mesh_arrays(body, label)
+        # mesh_arrays, with the label made only for a distinct mesh (or the error).
+        if hasattr(body, "vertices") and hasattr(body, "faces"):
+            vertices, faces = body.vertices, body.faces
+        elif (type(body) is tuple or type(body) is list) and len(body) == 2:
+            vertices, faces = body
+        else:
+            vertices, faces = mesh_arrays(body, body_label(i, names[i]))
         key = (id(vertices), id(faces))
         m = seen.get(key)
         if m is None:
             m = seen[key] = len(meshes)
-            meshes.append((vertices, faces, label))
-        which[i] = m
+            meshes.append((vertices, faces, body_label(i, names[i])))
+        which.append(m)
     shapes: list[Shape] = []
     index: dict[int, int] = {}
     mesh_shape = np.empty(len(meshes), dtype=np.int64)
@@ -521,4 +681,4 @@ def _shapes_of(bodies: Sequence[Any], names: list[str | None], cache: ShapeCache
             k = index[id(shape)] = len(shapes)
             shapes.append(shape)
         mesh_shape[m] = k
-    return shapes, mesh_shape[which]
+    return shapes, mesh_shape[np.array(which, dtype=np.int64)]
