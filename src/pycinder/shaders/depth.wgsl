@@ -20,13 +20,7 @@
 // word 2 i holds max(depth_b - depth_a) along line i, word 2 i + 1 max(depth_a - depth_b); 0
 // means no ray met both bodies.
 //!include layout
-
-@group(0) @binding(0) var<storage, read> positions: array<f32>;
-@group(0) @binding(1) var<storage, read> faces: array<u32>;
-@group(0) @binding(2) var<storage, read> items: array<PairItem>;
-@group(0) @binding(3) var<storage, read> frames: array<PairFrame>;
-@group(0) @binding(4) var<storage, read_write> best: array<atomic<u32>>;
-@group(0) @binding(5) var<uniform> params: PairParams;
+//!include pairwork.wgsl
 
 const NONE: f32 = -3.0e38;  // below every figure: no corner found yet
 
@@ -35,15 +29,6 @@ var<workgroup> views: array<mat3x3f, LINES>;             // rows: screen x, scre
 var<workgroup> kept: array<atomic<u32>, 2u * LINES>;      // the workgroup's figures
 var<workgroup> cleared: u32;                              // a line cleared the pair
 var<workgroup> whole_item: u32;                           // the item is its pair's whole work
-
-fn vertex(i: u32) -> vec3f {
-    return vec3f(positions[3u * i], positions[3u * i + 1u], positions[3u * i + 2u]);
-}
-
-fn to_pair(m: array<vec4f, 3>, p: vec3f) -> vec3f {
-    let q = vec4f(p, 1.0);
-    return vec3f(dot(m[0], q), dot(m[1], q), dot(m[2], q));
-}
 
 // The LINES directions: each body's own three axes (its transform's columns), which follow the
 // body when it is turned and most often clear a touching pair at once, then the 13 lines through

@@ -9,24 +9,9 @@
 // other, their distance is 0. The smallest distance of each pair is kept with atomicMin on its
 // bits (non-negative floats order as their bits do).
 //!include layout
-
-@group(0) @binding(0) var<storage, read> positions: array<f32>;
-@group(0) @binding(1) var<storage, read> faces: array<u32>;
-@group(0) @binding(2) var<storage, read> items: array<PairItem>;
-@group(0) @binding(3) var<storage, read> frames: array<PairFrame>;
-@group(0) @binding(4) var<storage, read_write> best: array<atomic<u32>>;
-@group(0) @binding(5) var<uniform> params: PairParams;
+//!include pairwork.wgsl
 
 var<workgroup> tri_b: array<vec3f, 3u * CLUSTER_FACES>;  // the corners of a cluster's faces
-
-fn vertex(i: u32) -> vec3f {
-    return vec3f(positions[3u * i], positions[3u * i + 1u], positions[3u * i + 2u]);
-}
-
-fn to_pair(m: array<vec4f, 3>, p: vec3f) -> vec3f {
-    let q = vec4f(p, 1.0);
-    return vec3f(dot(m[0], q), dot(m[1], q), dot(m[2], q));
-}
 
 // Squared distance between segments p1-q1 and p2-q2 (Ericson, Real-Time Collision Detection 5.1.9).
 fn segment_segment(p1: vec3f, q1: vec3f, p2: vec3f, q2: vec3f) -> f32 {
