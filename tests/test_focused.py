@@ -268,3 +268,16 @@ def test_stats_say_what_was_done(detector):
     assert st.possibly_lost == 0 and st.bytes_read > 0
     for stage in ("validate", "broad phase", "tiles", "gpu", "total"):
         assert stage in st.wall_ms
+
+
+def test_a_large_window_left_unprobed_goes_in_pieces():
+    """In a plan small enough that only dense pairs are probed, a pair of few faces whose window
+    is taller than a tile (two boxes in the same place) goes whole into the first phase: cut
+    into tiles, not placed as one tile taller than the atlas's bands (which raised IndexError)."""
+    sphere = trimesh.creation.icosphere(subdivisions=4)   # 5,120 faces: a dense pair
+    box = trimesh.creation.box((1, 1, 1))
+    moves = [np.eye(4) for _ in range(4)]
+    moves[1][0, 3], moves[2][0, 3], moves[3][0, 3] = 1.95, 10.0, 10.0
+    result = pycinder.find_collisions([sphere, sphere, box, box], moves, tolerance=1 / 140)
+    assert result.pairs.tolist() == [[0, 1], [2, 3]]
+    assert (result.tiles.window[:, 3] <= 128).all()

@@ -724,7 +724,8 @@ def _phases_of(w: np.ndarray, h: np.ndarray, dense: np.ndarray | None,
     first get a probe at their centre (phase 0, with the small windows), and their pieces come
     in phase 1, skipped on the GPU once the pair has a hit. In a plan of fewer than
     :data:`PROBE_PLAN` pixels (``plan_pixels``, of every window of the plan) only the windows of
-    ``dense`` pairs (None: every pair is) are probed."""
+    ``dense`` pairs (None: every pair is) are probed; the others go whole in phase 0, in pieces
+    where larger than a tile."""
     if group is not None:
         w, h = w[group], h[group]
         dense = None if dense is None else dense[group]
@@ -733,19 +734,24 @@ def _phases_of(w: np.ndarray, h: np.ndarray, dense: np.ndarray | None,
         big &= dense
     if not probe or not big.any():
         return [_pieces_of(group, w, h)]
-    small = np.flatnonzero(~big)
+    # Windows left unprobed go whole (those larger than a tile: in pieces, after them).
+    fits = (w <= MAX_TILE[0]) & (h <= MAX_TILE[1])
+    small = np.flatnonzero(~big & fits)
+    oversize = np.flatnonzero(~big & ~fits)
     large = np.flatnonzero(big)
     wl, hl = w[large], h[large]
     pw = np.minimum(wl, PROBE[0])
     ph = np.minimum(hl, PROBE[1])
+    cut = _pieces_of(oversize, w[oversize], h[oversize])
     ns = len(small)
-    which = np.concatenate([small, large])
-    moved = np.zeros(len(which), dtype=bool)
-    moved[ns:] = True
+    which = np.concatenate([small, cut.src, large])
+    moved = np.ones(len(which), dtype=bool)
+    moved[:ns] = False
     zero = np.zeros(ns, dtype=np.int64)
     first = _Phase(which if group is None else group[which],
-                   np.concatenate([w[small], pw]), np.concatenate([h[small], ph]), moved,
-                   np.concatenate([zero, (wl - pw) // 2]), np.concatenate([zero, (hl - ph) // 2]))
+                   np.concatenate([w[small], cut.w, pw]), np.concatenate([h[small], cut.h, ph]),
+                   moved, np.concatenate([zero, cut.u0, (wl - pw) // 2]),
+                   np.concatenate([zero, cut.v0, (hl - ph) // 2]))
     return [first, _pieces_of(large if group is None else group[large], wl, hl,
                               FLAG_SKIP_IF_HIT)]
 
