@@ -149,7 +149,9 @@ class HardClash:
             within: np.ndarray | None) -> CollisionResult:
         """The pairs deeper than ``d`` of a validated scene (see the module's contract)."""
         if len(scene) < 2:
-            return _with_figures(CollisionResult.empty(stats), np.zeros(0), np.zeros(0))
+            empty = CollisionResult.empty(stats)
+            empty.records_kept = "none"
+            return _with_figures(empty, np.zeros(0), np.zeros(0))
         t0 = time.perf_counter()
         lo, hi = scene.world_boxes()
         pairs = sweep_and_prune(lo, hi, within, groups)
