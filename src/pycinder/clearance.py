@@ -43,7 +43,7 @@ import numpy as np
 
 from .broadphase import sweep_and_prune
 from .passes.distance import ITEM, Distance
-from .passes.pairwork import pair_frames, spread
+from .passes.pairwork import check_rounding, pair_frames, spread
 from .records import pair_keys
 from .result import CollisionResult, Stats
 from .scene import Scene
@@ -187,15 +187,7 @@ class Clearance:
         pack = self.strategy.pack(scene, stats)
         items, frames, reach = plan(scene, pack, pairs, c, self._cluster_boxes(pack, scene))
         error = ERROR_SCALE * reach
-        too_fine = np.flatnonzero(error > c / 16)
-        if len(too_fine):
-            k = too_fine[np.argmax(error[too_fine])]
-            a, b = pairs[k]
-            raise ValueError(
-                f"clearance {c:g} is too small for {scene.label(int(a))} and "
-                f"{scene.label(int(b))} in single precision: their distance is measured within "
-                f"{error[k]:.3g}, and the contract needs at most clearance / 16; use a clearance "
-                f"of at least {16 * error[k]:.3g}, or query those bodies at their own scale")
+        check_rounding(scene, pairs, error, "clearance", c, "distance")
         t0 = time.perf_counter()
         buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
         measured = self.distance.run(buffers.positions, buffers.faces, items,

@@ -59,7 +59,7 @@ from .broadphase import sweep_and_prune
 from .clearance import ERROR_SCALE
 from .passes.depth import (ITEM_FLIPPED, ITEM_WHOLE, LINES, WHOLE_FACES, WHOLE_WORK, Depth,
                            lines)
-from .passes.pairwork import ITEM, pair_frames, spread
+from .passes.pairwork import ITEM, check_rounding, pair_frames, spread
 from .records import empty_records
 from .result import CollisionResult, Stats
 from .scene import Scene
@@ -197,7 +197,7 @@ class HardClash:
             items, frames, reach = plan(scene, pack, pairs[part])
             error[part] = ERROR_SCALE * reach
             if d is not None:
-                _check_precision(scene, pairs[part], error[part], d)
+                check_rounding(scene, pairs[part], error[part], "min_depth", d, "depth")
             t2 = time.perf_counter()
             stats.add_ms("upload", (t2 - t1) * 1e3)
             figures[part] = self.depth.run(buffers.positions, buffers.faces, items, frames)
@@ -211,20 +211,6 @@ class HardClash:
         # Moving a along +n clears the pair (word 2 i): b lies behind a, along -n.
         normal = np.where((best % 2 == 0)[:, None], -along, along)
         return flat[np.arange(len(pairs)), best], normal, error
-
-
-def _check_precision(scene: Scene, pairs: np.ndarray, error: np.ndarray, d: float) -> None:
-    """A ValueError naming the pair whose rounding bound is over ``d / 16``."""
-    too_fine = np.flatnonzero(error > d / 16)
-    if len(too_fine) == 0:
-        return
-    k = too_fine[np.argmax(error[too_fine])]
-    a, b = pairs[k]
-    raise ValueError(
-        f"min_depth {d:g} is too small for {scene.label(int(a))} and {scene.label(int(b))} in "
-        f"single precision: their depth is measured within {error[k]:.3g}, and the contract "
-        f"needs at most min_depth / 16; use a min_depth of at least {16 * error[k]:.3g}, or "
-        "query those bodies at their own scale")
 
 
 def _with_figures(result: CollisionResult, depths: np.ndarray, errors: np.ndarray

@@ -12,7 +12,7 @@ atomicMin on order-preserving bits, in ``words`` words per pair, and read back o
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 import wgpu
@@ -22,6 +22,9 @@ from ..gpu.device import Gpu
 from ..gpu.structs import Struct
 from .bindings import Stage, dispatch
 from .table import PassInfo
+
+if TYPE_CHECKING:
+    from ..scene import Scene
 
 ITEM = Struct("PairItem", [
     ("pair", "u32", "the candidate pair (its frame and its figures)"),
@@ -55,6 +58,23 @@ def spread(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     row = np.repeat(np.arange(len(counts)), counts)
     within = np.arange(len(row)) - np.repeat(np.cumsum(counts) - counts, counts)
     return row, within
+
+
+def check_rounding(scene: Scene, pairs: np.ndarray, error: np.ndarray, option: str,
+                   value: float, figure: str) -> None:
+    """A ValueError naming the pair whose rounding bound ``error`` (K,) is over ``value / 16``:
+    what the contracts of the clearance (``option`` "clearance", ``figure`` "distance") and
+    hard-clash ("min_depth", "depth") queries need of single precision."""
+    too_fine = np.flatnonzero(error > value / 16)
+    if len(too_fine) == 0:
+        return
+    k = too_fine[np.argmax(error[too_fine])]
+    a, b = pairs[k]
+    raise ValueError(
+        f"{option} {value:g} is too small for {scene.label(int(a))} and {scene.label(int(b))} "
+        f"in single precision: their {figure} is measured within {error[k]:.3g}, and the "
+        f"contract needs at most {option} / 16; use a {option} of at least "
+        f"{16 * error[k]:.3g}, or query those bodies at their own scale")
 
 
 def pair_frames(transforms: np.ndarray, pairs: np.ndarray, lo: np.ndarray, hi: np.ndarray,
@@ -173,4 +193,5 @@ class ClusterPairPass:
         return np.ascontiguousarray(words[:self.WORDS * k]).reshape(k, self.WORDS).copy()
 
 
-__all__ = ["FRAME", "ITEM", "PARAMS", "ClusterPairPass", "pair_frames", "spread"]
+__all__ = ["FRAME", "ITEM", "PARAMS", "ClusterPairPass", "check_rounding", "pair_frames",
+           "spread"]
