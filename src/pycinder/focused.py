@@ -45,6 +45,7 @@ from .tolerance import pair_tolerances
 if TYPE_CHECKING:
     from .clearance import Clearance
     from .contacts import Contacts
+    from .gpuplan import GpuPlanner
     from .hardclash import HardClash
 from .tiles import LEAD_FROM, LEAD_PAIRS, TilePlan, concat_plans, likely_pairs, plan_tiles
 
@@ -77,6 +78,7 @@ class FocusedStrategy:
         self._broad: GpuBroadPhase | None = None  # made on first use
         self._clearance: Clearance | None = None  # made on first clearance query
         self._hard_clash: HardClash | None = None  # made on first hard-clash query
+        self._planner: GpuPlanner | None = None  # made on first query with planner="gpu"
         self.recently_retried = False
         """Whether the last query ran tiles again (their samples were left undecided)."""
 
@@ -149,7 +151,7 @@ class FocusedStrategy:
         if len(scene) < 2:
             return PendingFocused(self, CollisionResult.empty(stats))
         lo, hi = scene.world_boxes()
-        pairs, stats.broad_phase = self._candidates(scene, lo, hi, within, groups)
+        pairs, stats.broad_phase = self._candidates(scene, lo, hi, within, groups, stats)
         stats.candidates = len(pairs)
         t1 = time.perf_counter()
         stats.add_ms("broad phase", (t1 - t0) * 1e3)
@@ -162,10 +164,26 @@ class FocusedStrategy:
         lead = None
         if stop_at_first and len(pairs) >= LEAD_FROM:
             lead = likely_pairs(lo, hi, pairs, min(LEAD_PAIRS, max(len(pairs) // 4, 1)))
-        plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
-                          budget_pixels=self.budget_pixels, probe=mode.probe,
-                          open_bodies=scene.open, max_pixels=self.request.max_pixels,
-                          faces=scene.face_counts, lead=lead)
+        gpu_tiles = None
+        # A query that stops at its first pair plans on the host: its lead pairs, and the flag
+        # that stops the GPU, are the host's.
+        planned_on_gpu = self.request.planner == "gpu" and not stop_at_first
+        if planned_on_gpu:
+            if self._planner is None:
+                from .gpuplan import GpuPlanner
+
+                self._planner = GpuPlanner(self.gpu, self.request.timeout)
+            plan, gpu_tiles = self._planner.plan(
+                pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
+                budget_pixels=self.budget_pixels, probe=mode.probe, open_bodies=scene.open,
+                max_pixels=self.request.max_pixels, faces=scene.face_counts)
+            stats.waited_ms += self._planner.waited_ms
+        else:
+            plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi,
+                              scene.transforms, budget_pixels=self.budget_pixels,
+                              probe=mode.probe, open_bodies=scene.open,
+                              max_pixels=self.request.max_pixels, faces=scene.face_counts,
+                              lead=lead)
         stats.separated = plan.separated
         if stop_at_first:
             plan.flags |= FLAG_STOP_AT_FIRST
@@ -176,8 +194,9 @@ class FocusedStrategy:
         pack = self.pack(scene, stats)
         retry = retry_on_gpu(self.recently_retried, mode, plan,
                              self._budget(self.frames.capacity * RETRY_LISTS))
-        first = self.frames.submit(self._inputs(plan, scene, pack, len(pairs), mode, None,
-                                                retry))
+        inputs = self._inputs(plan, scene, pack, len(pairs), mode, None, retry)
+        inputs.gpu_tiles = gpu_tiles
+        first = self.frames.submit(inputs)
         t3 = time.perf_counter()
         stats.add_ms("upload", (t3 - t2) * 1e3)
         stats.submitted_ms = (t3 - t0) * 1e3
@@ -187,17 +206,17 @@ class FocusedStrategy:
     @staticmethod
     def _inputs(plan: TilePlan, scene: Scene, pack: ShapePack, n_pairs: int,
                 records: RecordMode, capacity: int | None, retry: bool = False) -> FrameInputs:
-        return FrameInputs(plan, plan.tile_from_body(scene.transforms), scene.body_shape, pack,
-                           n_pairs, scene.shapes, records, capacity or 0, retry)
+        return FrameInputs(plan, scene.transforms, scene.body_shape, pack, n_pairs,
+                           scene.shapes, records, capacity or 0, retry)
 
     def _candidates(self, scene: Scene, lo: np.ndarray, hi: np.ndarray,
-                    within: np.ndarray | None, groups: np.ndarray | None
+                    within: np.ndarray | None, groups: np.ndarray | None, stats: Stats
                     ) -> tuple[np.ndarray, str]:
         """(K, 2) candidate pairs: bodies whose world boxes (``lo``, ``hi``) overlap, with equal
         ``within`` keys and different ``groups`` when given; found on the GPU or by NumPy as the
         request says (see :attr:`~pycinder.request.CollisionRequest.broad_phase`), and which of
         the two found them. The GPU's pairs are exactly NumPy's: those its padded boxes add are
-        dropped against ``lo`` and ``hi``."""
+        dropped against ``lo`` and ``hi``. The GPU's wait is added to ``stats.waited_ms``."""
         body = (scene.local_lo, scene.local_hi, scene.radius, scene.transforms)
         gpu = self.request.gpu_broad_phase(len(scene)) and (
             self.request.broad_phase == "gpu" or in_range(*body))
@@ -206,6 +225,7 @@ class FocusedStrategy:
         if self._broad is None:
             self._broad = GpuBroadPhase(self.gpu, timeout=self.request.timeout)
         pairs = self._broad.pairs(*body, within=within, groups=groups)
+        stats.waited_ms += self._broad.stats.waited_ms
         a, b = pairs[:, 0], pairs[:, 1]
         meet = ((lo[a] <= hi[b]) & (lo[b] <= hi[a])).all(axis=1)
         return pairs[meet], "gpu"

@@ -72,6 +72,7 @@ READBACK_MODES = ("compact", "full", "mipmap", "adaptive")
 ENCODINGS = ("edge", "normal")
 RECORD_MODES = ("found", "all", "none")
 BROAD_PHASES = ("auto", "gpu", "numpy")
+PLANNERS = ("numpy", "gpu")
 
 GPU_BROAD_PHASE_BODIES = 2000
 """Bodies from which ``broad_phase="auto"`` finds the candidate pairs on the GPU: below that the
@@ -194,6 +195,13 @@ class CollisionRequest:
         which the tile planner then separates. ``"numpy"``: a vectorised sweep on the host.
         ``"auto"`` (default): the GPU from :data:`GPU_BROAD_PHASE_BODIES` bodies. The pairs
         reported are the same.
+    planner : {"numpy", "gpu"}
+        Focused strategy: where the tiles are planned. ``"numpy"`` (default): on the host, in
+        float64. ``"gpu"``: compute passes plan every pair's view and window and pack the atlas
+        (:class:`pycinder.gpuplan.GpuPlanner`), one more submission and map per query; a
+        plan equals the host's up to single precision's rounding, relative to each pair's own
+        extent (see :mod:`pycinder.gpuplan`). A query that stops at its first pair plans on the
+        host.
     records : {"found", "all", "none"}, optional
         Focused strategy: ``"found"`` (default) stops testing a pair as soon as one of its tiles
         found it colliding (large windows are probed at their centre first) and returns the
@@ -238,6 +246,7 @@ class CollisionRequest:
     timeout: float = DEFAULT_TIMEOUT
     max_pixels: int = DEFAULT_MAX_PIXELS
     broad_phase: str = "auto"
+    planner: str = "numpy"
     contacts: bool = False
     clearance: float | None = None
     min_depth: float | None = None
@@ -246,6 +255,7 @@ class CollisionRequest:
         _one_of("strategy", self.strategy, STRATEGIES)
         _one_of("encode", self.encode, ENCODINGS)
         _one_of("broad_phase", self.broad_phase, BROAD_PHASES)
+        _one_of("planner", self.planner, PLANNERS)
         object.__setattr__(self, "records",
                            _records_for_contacts(self.strategy, self.records, self.contacts))
         for name in ("strict", "profile"):
@@ -275,6 +285,9 @@ class CollisionRequest:
         if self.broad_phase != "auto":
             raise ValueError("broad_phase applies to strategy='focused'; the scene strategy "
                              "draws every body in one image, with no broad phase")
+        if self.planner != "numpy":
+            raise ValueError("planner applies to strategy='focused'; the scene strategy draws "
+                             "every body in one image, with no tiles to plan")
         if self.resolution is None:
             object.__setattr__(self, "resolution", 1024)
         if not _positive_int(self.resolution):

@@ -44,8 +44,13 @@ class FocusedStats:
     """Samples whose pixel held more crossings than its list (retried with thinner boxes)."""
     retries: int = 0
     submitted_ms: float = 0.0
-    """Host milliseconds from the query's start to its first submission (validation excluded):
-    the work the host does before the GPU can start."""
+    """Host milliseconds from the query's start to its frame's submission (validation
+    excluded): the work the host does before the GPU can start on the frame."""
+    waited_ms: float = 0.0
+    """Milliseconds the host waited for the GPU before the frame's submission: the GPU broad
+    phase's and the GPU planner's passes and maps. When a frame was submitted they are part of
+    ``submitted_ms``, and ``submitted_ms - waited_ms`` is the host's own work before the frame
+    (on a real GPU the waits are the passes' short run and a round trip each)."""
     dropped_records: int = 0
     """Records found but not kept because they outnumber what one buffer of the device holds
     (``records="all"`` at a fine tolerance); pairs are unaffected."""
@@ -143,8 +148,9 @@ class Stats:
                   "possibly_lost")
         lines = [f"Stats({self.strategy} strategy on {self.adapter or 'no adapter'}"]
         lines += _pack(items(self, common), "  ")
-        lines += _pack(items(self.detail, [f.name for f in fields(self.detail)]),
-                       f"  {self.strategy}: ")
+        detail = [f.name for f in fields(self.detail)
+                  if f.name != "waited_ms" or self.detail.waited_ms]  # a wait only when waited
+        lines += _pack(items(self.detail, detail), f"  {self.strategy}: ")
         for label, ms in (("wall ms", self.wall_ms), ("gpu ms", self.gpu_ms)):
             if ms:
                 lines += _pack([f"{k} {v:.3g}" for k, v in ms.items()], f"  {label}: ")

@@ -219,6 +219,57 @@ def random_scene(n: int, seed: int, *, density: float = 0.35, size: float = 1.0,
     return meshes, transforms
 
 
+def random_boxes(n: int, seed: int, *, scale: float = 1.0, offset: float = 0.0,
+                 spread: float | None = None, mirror: bool = True, shear: bool = True
+                 ) -> dict[str, np.ndarray]:
+    """The tile planners' inputs (:func:`pycinder.tiles.plan_tiles`') for ``n`` random body-space
+    boxes under random transforms (rotated, non-uniformly scaled, sheared and mirrored), flat
+    boxes and boxes of equal extents among them, about ``scale`` across, placed ``offset`` from
+    the world's origin within ``spread * scale`` (default: a spread that makes about one
+    candidate pair a box), with every pair of overlapping world boxes a candidate.
+
+    Returns
+    -------
+    dict
+        ``pairs`` (K, 2), ``tolerance`` (K,), ``local_lo``, ``local_hi``, ``world_lo``,
+        ``world_hi`` (n, 3), ``transforms`` (n, 4, 4), ``faces`` (n,) and ``open_bodies`` (n,).
+    """
+    rng = np.random.default_rng(seed)
+    spread = 0.35 * n ** (1 / 3) if spread is None else spread
+    lo = rng.uniform(-1.0, 0.0, (n, 3)) * scale
+    hi = lo + rng.uniform(0.05, 1.0, (n, 3)) * scale
+    flat = rng.random(n) < 0.1
+    hi[flat, 2] = lo[flat, 2] + 1e-3 * scale                     # flat boxes
+    same = rng.random(n) < 0.1
+    hi[same] = lo[same] + 0.5 * scale                           # equal extents
+    transforms = np.zeros((n, 4, 4))
+    for i in range(n):
+        m = random_rotation(rng)[:3, :3] if rng.random() < 0.8 else np.eye(3)
+        if rng.random() < 0.4:
+            m = m @ np.diag(rng.uniform(0.3, 2.0, 3))
+        if shear and rng.random() < 0.2:
+            s = np.eye(3)
+            s[0, 1] = rng.uniform(-0.5, 0.5)
+            m = m @ s
+        if mirror and rng.random() < 0.2:
+            m = m @ np.diag([1.0, 1.0, -1.0])
+        transforms[i, :3, :3] = m
+        transforms[i, :3, 3] = offset + rng.uniform(-spread, spread, 3) * scale
+        transforms[i, 3, 3] = 1.0
+    corners = np.stack(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij"), -1).reshape(8, 3)
+    local = lo[:, None] + corners[None] * (hi - lo)[:, None]                      # (n, 8, 3)
+    world = np.einsum("nij,nkj->nki", transforms[:, :3, :3], local) + transforms[:, None, :3, 3]
+    world_lo, world_hi = world.min(axis=1), world.max(axis=1)
+    i, j = np.triu_indices(n, 1)
+    meet = ((world_lo[i] <= world_hi[j]) & (world_lo[j] <= world_hi[i])).all(axis=1)
+    pairs = np.stack([i[meet], j[meet]], axis=1).astype(np.int64)
+    tol = 0.02 * scale * rng.uniform(0.5, 2.0, len(pairs))
+    faces = rng.integers(12, 6000, n)
+    open_bodies = rng.random(n) < 0.1
+    return dict(pairs=pairs, tolerance=tol, local_lo=lo, local_hi=hi, world_lo=world_lo,
+                world_hi=world_hi, transforms=transforms, faces=faces, open_bodies=open_bodies)
+
+
 def nested_scene() -> tuple[list[trimesh.Trimesh], list[np.ndarray]]:
     """A small sphere entirely inside a large box, with no surface crossing, plus a far sphere."""
     big = trimesh.creation.box((4, 3, 2))

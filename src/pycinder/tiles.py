@@ -170,7 +170,7 @@ class TilePlan:
         return np.concatenate([rot, shift], axis=3)
 
 
-def _empty_plan(separated: int = 0) -> TilePlan:
+def empty_plan(separated: int = 0) -> TilePlan:
     z = np.zeros(0, dtype=np.int64)
     return TilePlan(z, np.zeros((0, 2), np.int64), np.zeros((0, 3, 3)), np.zeros((0, 3)),
                     np.zeros(0), np.zeros((0, 4), np.int64), np.zeros((0, 2)), z, z, [],
@@ -279,8 +279,8 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     TilePlan
     """
     if len(pairs) == 0:
-        return _empty_plan()
-    bounds = _body_bounds(local_lo, local_hi, world_lo, world_hi, transforms, open_bodies)
+        return empty_plan()
+    bounds = body_bounds(local_lo, local_hi, world_lo, world_hi, transforms, open_bodies)
     # Chunks of at most ``chunk`` pairs, at least one per worker thread when there are enough
     # pairs to share (NumPy releases the GIL on arrays of this size).
     workers = threads.pool()
@@ -295,12 +295,36 @@ def plan_tiles(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     parts = list(workers.map(plan, starts)) if workers and len(starts) > 1 else \
         [plan(s) for s in starts]
     keep = [p for p in parts if p is not None]
-    separated = len(pairs) - sum(len(p["pair"]) for p in keep)  # a window per kept pair
-    if not keep:
-        return _empty_plan(separated)
-    cat = keep[0] if len(keep) == 1 else \
+    cat = None if not keep else keep[0] if len(keep) == 1 else \
         {k: np.concatenate([p[k] for p in keep]) for k in keep[0]}
-    _check_pixels(cat, pairs, tolerance, max_pixels)
+    return tiles_of_windows(cat, pairs, tolerance, budget_pixels=budget_pixels, probe=probe,
+                            max_pixels=max_pixels, faces=faces, lead=lead)
+
+
+def tiles_of_windows(cat: dict | None, pairs: np.ndarray, tolerance: np.ndarray, *,
+                     budget_pixels: int, probe: bool = True, max_pixels: float = float("inf"),
+                     faces: np.ndarray | None = None, lead: np.ndarray | None = None
+                     ) -> TilePlan:
+    """The tiles of the windows of candidate pairs, packed into the atlas (the second half of
+    :func:`plan_tiles`, whose parameters these are).
+
+    Parameters
+    ----------
+    cat : dict or None
+        The windows of the pairs whose bounding volumes meet, in pair order: ``pair`` (m,),
+        ``bodies`` (m, 2), ``axes`` (m, 3, 3), ``origin`` (m, 3), ``pixel`` (m,), ``w`` and
+        ``h`` (m,) float, ``slab`` (m, 2) and ``flags`` (m,); None when every pair is apart.
+    pairs : (K, 2) int
+    tolerance : (K,) float
+
+    Returns
+    -------
+    TilePlan
+    """
+    separated = len(pairs) - (0 if cat is None else len(cat["pair"]))  # a window per kept pair
+    if cat is None:
+        return empty_plan(separated)
+    check_pixels(cat, pairs, tolerance, max_pixels)
     w, h = cat["w"].astype(np.int64), cat["h"].astype(np.int64)
     if faces is None:
         dense = None  # every pair
@@ -382,7 +406,7 @@ def concat_plans(plans: list[TilePlan]) -> TilePlan:
                     atlas_width=plans[0].atlas_width, separated=plans[0].separated)
 
 
-def _sum3(x: np.ndarray) -> np.ndarray:
+def sum3(x: np.ndarray) -> np.ndarray:
     """``x.sum(axis=-1)`` of an axis of 3, as NumPy adds it (``(x0 + x1) + x2``), without a
     reduction's cost per row."""
     out = x[..., 0] + x[..., 1]
@@ -395,11 +419,11 @@ def _support(rows: np.ndarray, centre: np.ndarray, axes: np.ndarray
     """Interval of boxes along directions: ``rows @ centre`` and the half-width ``|rows @ axes|``
     summed over the box's half axes. Shapes broadcast as (..., 3, 3) rows, (..., 3) centres,
     (..., 3, 3) axes; returns (..., 3) centres and half-widths."""
-    return (rows @ centre[..., None])[..., 0], _sum3(np.abs(rows @ axes))
+    return (rows @ centre[..., None])[..., 0], sum3(np.abs(rows @ axes))
 
 
 @dataclass
-class _BodyBounds:
+class BodyBounds:
     """Every body's two bounding boxes, and where both hold along the axes of the world and of
     the body's own frame (what a pair's planning needs of each body alone).
 
@@ -440,16 +464,16 @@ class _BodyBounds:
     soa: _Columns | None = None
 
 
-def _both(first: tuple[np.ndarray, np.ndarray], second: tuple[np.ndarray, np.ndarray]
-          ) -> np.ndarray:
+def interval_meet(first: tuple[np.ndarray, np.ndarray],
+                  second: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """(..., 2, 3): the interval ``(lo, hi)`` where two intervals given as (centre, half) hold."""
     (c1, h1), (c2, h2) = first, second
     return np.stack([np.maximum(c1 - h1, c2 - h2), np.minimum(c1 + h1, c2 + h2)], axis=-2)
 
 
-def _body_bounds(local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarray,
+def body_bounds(local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarray,
                  world_hi: np.ndarray, transforms: np.ndarray,
-                 open_bodies: np.ndarray | None = None) -> _BodyBounds:
+                 open_bodies: np.ndarray | None = None) -> BodyBounds:
     # Both boxes as centre + M @ [-1, 1]^3 (columns of M: the box's half axes).
     t3 = transforms[:, :3, :3]
     obb_c = np.einsum("nij,nj->ni", t3, 0.5 * (local_lo + local_hi)) + transforms[:, :3, 3]
@@ -457,13 +481,13 @@ def _body_bounds(local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarra
     aabb_c, aabb_h = 0.5 * (world_lo + world_hi), 0.5 * (world_hi - world_lo)
     q, mirrored = _body_frames(transforms)
     frames = np.transpose(q, (0, 2, 1))
-    world = _both((obb_c, _sum3(np.abs(obb_m))), (aabb_c, aabb_h))
+    world = interval_meet((obb_c, sum3(np.abs(obb_m))), (aabb_c, aabb_h))
     soa = _Columns(np.ascontiguousarray(q.transpose(1, 2, 0)), np.ascontiguousarray(obb_c.T),
                    np.ascontiguousarray(obb_m.transpose(1, 2, 0)), np.ascontiguousarray(aabb_c.T),
                    np.ascontiguousarray(aabb_h.T))
     # Both boxes along the body's own axes (_support and _support_box of frames, by columns).
     n = len(transforms)
-    h1 = _sum3(np.abs(frames @ obb_m)).T
+    h1 = sum3(np.abs(frames @ obb_m)).T
     c1 = _dot3(soa.q, soa.obb_centre)
     c2 = _dot3(soa.q, soa.aabb_centre)
     h2 = _dot3(np.abs(soa.q), soa.aabb_half)
@@ -476,7 +500,7 @@ def _body_bounds(local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarra
     flags = np.where(mirrored, np.array([[FLAG_MIRROR[0]], [FLAG_MIRROR[1]]]), 0)
     if open_bodies is not None:
         flags |= np.where(open_bodies, np.array([[FLAG_OPEN[0]], [FLAG_OPEN[1]]]), 0)
-    return _BodyBounds(obb_c, obb_m, aabb_c, aabb_h, frames, world, own, mirrored, q, choices,
+    return BodyBounds(obb_c, obb_m, aabb_c, aabb_h, frames, world, own, mirrored, q, choices,
                        flags, soa)
 
 
@@ -491,7 +515,7 @@ _COS, _SIN = float(np.cos(TILT)), float(np.sin(TILT))
 
 @dataclass
 class _Columns:
-    """Per-body arrays of :class:`_BodyBounds` with the body as the last axis (gathers along it
+    """Per-body arrays of :class:`BodyBounds` with the body as the last axis (gathers along it
     give arrays whose rows are contiguous, for element-wise products: NumPy is slow along an
     axis of 3)."""
 
@@ -529,13 +553,13 @@ def _view_support(view: np.ndarray, soa: _Columns, bodies: np.ndarray
 
 
 def _sum3_first(x: np.ndarray) -> np.ndarray:
-    """:func:`_sum3` over the first axis (of 3)."""
+    """:func:`sum3` over the first axis (of 3)."""
     out = x[0] + x[1]
     out += x[2]
     return out
 
 
-def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: _BodyBounds, first: int
+def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: BodyBounds, first: int
                 ) -> dict | None:
     """The window of each pair of ``pairs`` (K, 2) whose bounding volumes meet (tolerances
     ``tol`` (K,); the pairs are ``first``, ``first + 1``... of the plan): a dict of the kept
@@ -560,7 +584,7 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: _BodyBounds, first: 
     np.maximum(w[:k, 0], w[k:, 0], out=lo[0])
     np.minimum(w[:k, 1], w[k:, 1], out=hi[0])
     # The other body's boxes along my frame's axes (rows = frames[ab], [axis, pair] below).
-    h1 = _sum3(np.abs(take(bounds.frames, ab, axis=0) @ take(bounds.obb_axes, ba, axis=0))).T
+    h1 = sum3(np.abs(take(bounds.frames, ab, axis=0) @ take(bounds.obb_axes, ba, axis=0))).T
     rows = bounds.soa.q.take(ab, axis=2)                  # rows[j, i] = frames[ab][:, i, j]
     c1 = _dot3(rows, bounds.soa.obb_centre.take(ba, axis=1))
     c2 = _dot3(rows, bounds.soa.aabb_centre.take(ba, axis=1))
@@ -628,7 +652,7 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: _BodyBounds, first: 
         vlo[swap, 0], vhi[swap, 0] = vlo[swap, 1], vhi[swap, 1]
         vlo[swap, 1], vhi[swap, 1] = -hi0, -lo0
     px = take(tol, idx)
-    # Sizes stay floating point until the plan is known to fit (see _check_pixels).
+    # Sizes stay floating point until the plan is known to fit (see check_pixels).
     w = np.ceil((vhi[:, 0] - vlo[:, 0]) / px) + 2 * MARGIN_PX
     h = np.ceil((vhi[:, 1] - vlo[:, 1]) / px) + 2 * MARGIN_PX
     zmid = 0.5 * (vlo[:, 2] + vhi[:, 2])
@@ -652,7 +676,7 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: _BodyBounds, first: 
     }
 
 
-def _check_pixels(cat: dict, pairs: np.ndarray, tolerance: np.ndarray, max_pixels: float
+def check_pixels(cat: dict, pairs: np.ndarray, tolerance: np.ndarray, max_pixels: float
                   ) -> None:
     """Raise :class:`~pycinder.errors.GpuMemoryError` when the windows hold more than
     ``max_pixels`` pixels, naming the largest pairs and a tolerance that would fit."""

@@ -14,7 +14,7 @@ import numpy as np
 import wgpu
 
 from ..gpu.buffers import GrowableBuffer, Readback
-from ..layout import COUNTERS, INDIRECT_ARGS, RECORD
+from ..layout import COUNTERS, INDIRECT_ARGS, RECORD, TILE
 from ..request import RecordMode
 from ..scene.pack import ShapePack
 from .blocks import ParamBlocks
@@ -245,10 +245,15 @@ class AtlasBuffers:
                     records=self.records().limit // RECORD.size,
                     edges=self.edge_list.limit // EDGE_ENTRY_BYTES)
 
-    def ensure_frame(self, state: FrameState, entries: np.ndarray, tiles: np.ndarray) -> None:
-        """Write the frame's tiles and entries, and size every buffer its passes use."""
-        self.tiles.ensure(tiles.nbytes)
-        self.tiles.write(tiles)
+    def ensure_frame(self, state: FrameState, entries: np.ndarray,
+                     tiles: np.ndarray | None) -> None:
+        """Write the frame's tiles (None: they are copied on the GPU, from the planner's pass
+        P3: only their buffer is sized) and entries, and size every buffer its passes use."""
+        if tiles is None:
+            self.tiles.ensure(TILE.size * state.tiles)
+        else:
+            self.tiles.ensure(tiles.nbytes)
+            self.tiles.write(tiles)
         self.entries.ensure(entries.nbytes)
         self.entries.write(entries)
         self.face_items.ensure(8 * max(state.items, 1))

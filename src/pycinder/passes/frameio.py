@@ -74,8 +74,8 @@ class FrameInputs:
     """What a frame is submitted with (kept to run it again)."""
 
     plan: TilePlan
-    matrices: np.ndarray
-    """(T, 2, 3, 4) tile-from-body matrices."""
+    transforms: np.ndarray
+    """(N, 4, 4) world-from-body matrices (what the tiles' matrices are composed of)."""
     body_shape: np.ndarray
     """(N,) each body's shape in ``pack``."""
     pack: ShapePack
@@ -84,6 +84,16 @@ class FrameInputs:
     records: RecordMode
     capacity: int
     retry: bool
+    gpu_tiles: wgpu.GPUBuffer | None = None
+    """A GPU buffer holding the plan's tiles as the passes read them (:data:`~pycinder.layout.
+    TILE`, written by the GPU planner's pass P3 in an earlier submission), copied into the
+    frame's own on the GPU; None: the host composes them (:meth:`words`). A frame run again
+    composes them on the host: a later plan may have replaced the planner's."""
+
+    def words(self) -> np.ndarray:
+        """(T,) :data:`~pycinder.layout.TILE` records of the plan, composed on the host
+        (:meth:`~pycinder.tiles.TilePlan.tile_from_body` in float64, then :func:`tile_words`)."""
+        return tile_words(self.plan, self.plan.tile_from_body(self.transforms))
 
 
 @dataclass
@@ -108,6 +118,9 @@ class Submitted:
     pending: object = None
     output: FocusedOutput | None = None
     reruns: int = 0
+    gpu_tiles: wgpu.GPUBuffer | None = None
+    """The GPU buffer the tiles of this submission are copied from (None: written by the
+    host)."""
 
     @property
     def ready(self) -> bool:

@@ -24,7 +24,7 @@ import wgpu
 from ..again import grown_caps
 from ..gpu.buffers import DEFAULT_TIMEOUT
 from ..gpu.device import Gpu
-from ..layout import C_AGAIN, C_CUTS, C_EDGES, C_RECORDS, FLAG_OPEN, ROUND_COUNTERS
+from ..layout import C_AGAIN, C_CUTS, C_EDGES, C_RECORDS, FLAG_OPEN, ROUND_COUNTERS, TILE
 from ..scene.pack import ShapePack
 from .arguments import Arguments
 from .atlas import (LIST_CAPACITY, PIXEL_BYTES, SLOTS, AtlasBuffers, Encoding, FrameState,
@@ -37,7 +37,7 @@ from .crossings import Crossings
 from .crossingtest import CrossingTest
 from .cull import Cull
 from .edgetest import EdgeTest
-from .frameio import FocusedOutput, FrameInputs, FrameReadback, Submitted, tile_words
+from .frameio import FocusedOutput, FrameInputs, FrameReadback, Submitted
 from .retry import CountAgain, RetryChoice
 from .scope import ComputeScope
 from .surfacetest import SurfaceTest
@@ -231,7 +231,10 @@ class FocusedFrames:
     def _submit(self, sub: Submitted) -> None:
         state, entries = self._state(sub)
         inputs = sub.inputs
-        self.buffers.ensure_frame(state, entries, tile_words(inputs.plan, inputs.matrices))
+        # The planner's tiles hold for the frame's first submission only (see FrameInputs).
+        sub.gpu_tiles = inputs.gpu_tiles if sub.reruns == 0 else None
+        self.buffers.ensure_frame(state, entries,
+                                  None if sub.gpu_tiles is not None else inputs.words())
         rows = max(state.round_rows) if state.round_rows else 1
         self.crossings.ensure_target(state.atlas_width, rows)
         sub.state = state
@@ -295,6 +298,9 @@ class FocusedFrames:
         s, b = e.state, e.buffers
         self.profiler.begin(3 + len(TIMED_PASSES) * s.rounds * (1 + s.retry))
         encoder = self.gpu.device.create_command_encoder()
+        if sub.gpu_tiles is not None:
+            encoder.copy_buffer_to_buffer(sub.gpu_tiles, 0, b.tiles.buffer, 0,
+                                          TILE.size * s.tiles)
         self.bounds.encode(encoder, self.profiler, e, b.bound_pending)
         encoder.clear_buffer(b.counters)
         encoder.clear_buffer(b.tile_counts.buffer, 0, 8 * s.tiles + 4 * s.pairs)

@@ -3,6 +3,8 @@ read back (see :mod:`pycinder.passes.broad`)."""
 
 from __future__ import annotations
 
+import time
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +36,8 @@ class BroadPhaseStats:
         Command buffers submitted and staging buffers mapped (1 and 1 in the common case).
     reruns : int
         Sweeps run again because the pairs buffer had to grow.
+    waited_ms : float
+        Milliseconds the host waited for the GPU (the passes and the maps).
     bytes_read : int
     axis : int
         The sweep axis.
@@ -54,6 +58,7 @@ class BroadPhaseStats:
     cell_size: tuple[float, float] = (0.0, 0.0)
     wide_bodies: int = 0
     unfinished: int = 0
+    waited_ms: float = 0.0
 
 
 class GpuBroadPhase:
@@ -229,7 +234,9 @@ class GpuBroadPhase:
                 encoder.copy_buffer_to_buffer(buf, offset, target, at, size)
             at += size
         self.gpu.device.queue.submit([encoder.finish()])
+        t0 = time.perf_counter()
         data = staging.read(nbytes, timeout=self.timeout, waiting_for=waiting)
+        self.stats.waited_ms += (time.perf_counter() - t0) * 1e3
         self.stats.submissions += 1
         self.stats.maps += 1
         self.stats.bytes_read += nbytes
