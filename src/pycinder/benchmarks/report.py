@@ -156,17 +156,30 @@ def markdown(results: dict[str, Any]) -> str:
         lines.append("")
     trips = [(name, st) for name, st in stages if "submissions" in st]
     if trips:
-        lines += ["## GPU round trips", "",
+        lines += ["## GPU round trips and host work", "",
                   "Per frame of each scene (an unprofiled frame): submissions and buffer maps "
-                  "pycinder made, host milliseconds before its first submission (the work "
-                  "before the GPU can start), and the GPU busy fraction of a profiled frame (its "
-                  "passes' timestamps over its wall time).", "",
-                  "| scene | submissions | maps | host ms before submit | GPU busy |",
-                  "|---|---|---|---|---|"]
+                  "pycinder made; host milliseconds of its own work before the frame's "
+                  "submission (what the GPU waits for: `submitted_ms` less the waits for the GPU "
+                  "broad phase's and the GPU planner's maps, shown apart) and per query in total "
+                  "(update, validation, that work and decoding; profiled: the frame with GPU "
+                  "timestamps); the same frame planned on the GPU (`planner=\"gpu\"`); and the "
+                  "GPU busy fraction of the profiled frame (its passes' timestamps over its wall "
+                  "time).", "",
+                  "| scene | submissions / maps | host ms before submit (waits) | host ms per "
+                  "query (profiled) | planner=\"gpu\": submissions / maps | host ms before "
+                  "submit (waits) | host ms per query | GPU busy |",
+                  "|---|---|---|---|---|---|---|---|"]
         for name, st in trips:
             busy = "-" if st["gpu_busy"] is None else f"{100 * st['gpu_busy']:.0f}%"
-            lines.append(f"| {name} | {st['submissions']} | {st['maps']} | "
-                         f"{_fmt(st['host_ms_before_submit'])} | {busy} |")
+            g = st.get("gpu_planner")
+            planned = "| - | - | -" if g is None else (
+                f"| {g['submissions']} / {g['maps']} | {_fmt(g['host_ms_before_submit'])} "
+                f"({_fmt(g['waited_ms'])}) | {_fmt(g['host_ms_per_query'])}")
+            lines.append(f"| {name} | {st['submissions']} / {st['maps']} | "
+                         f"{_fmt(st['host_ms_before_submit'])} ({_fmt(st.get('waited_ms', 0))}) "
+                         f"| {_fmt(st.get('host_ms_per_query', 0))} "
+                         f"({_fmt(st.get('host_ms_per_query_profiled', 0))}) {planned} | "
+                         f"{busy} |")
         lines.append("")
     if results.get("modes"):
         lines += ["## The scene strategy's readback and self-interference modes", "",

@@ -148,12 +148,37 @@ def _stats_of(py: Pycinder, scene: Scene) -> dict[str, Any]:
             "retries", "bytes_read", "tolerance", "submitted_ms")
     with _round_trips(py.detector) as trips:  # an unprofiled frame, as timed above
         plain = py.detector.find_collisions(bodies, transforms).stats
+    # The same frame planned on the GPU (planner="gpu"), after a warm-up query.
+    on_gpu = Detector(py.detector.request.replace(planner="gpu"))
+    on_gpu.find_collisions(bodies, transforms)
+    with _round_trips(on_gpu) as gpu_trips:
+        planned = on_gpu.find_collisions(bodies, transforms).stats
     gpu = sum(st.gpu_ms.values())
     return {"wall_ms": {"update": update_ms, **st.wall_ms}, "gpu_ms": st.gpu_ms,
             **{k: getattr(st, k) for k in keys},
             "submissions": trips["submissions"], "maps": trips["maps"],
-            "host_ms_before_submit": plain.submitted_ms,
+            "host_ms_before_submit": host_before_submit(plain),
+            "host_ms_per_query": host_per_query(plain, update_ms),
+            "host_ms_per_query_profiled": host_per_query(st, update_ms),
+            "waited_ms": plain.waited_ms,
+            "gpu_planner": {"submissions": gpu_trips["submissions"], "maps": gpu_trips["maps"],
+                            "host_ms_before_submit": host_before_submit(planned),
+                            "host_ms_per_query": host_per_query(planned, update_ms),
+                            "waited_ms": planned.waited_ms},
             "gpu_busy": gpu / st.wall_ms["total"] if gpu else None}
+
+
+def host_before_submit(stats: Any) -> float:
+    """Host milliseconds of a query's own work before its frame's submission: ``submitted_ms``
+    less the waits for the GPU in it (the GPU broad phase's and the GPU planner's maps)."""
+    return stats.submitted_ms - stats.waited_ms
+
+
+def host_per_query(stats: Any, update_ms: float = 0.0) -> float:
+    """Host milliseconds of a query's own work in total: a deforming scene's update, the
+    validation, the work before the submission and the decoding (no wait for the GPU)."""
+    w = stats.wall_ms
+    return update_ms + w.get("validate", 0.0) + host_before_submit(stats) + w.get("decode", 0.0)
 
 
 @contextlib.contextmanager
