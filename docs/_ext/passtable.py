@@ -1,7 +1,8 @@
 """``pass-table``: a strategy's passes as a table, generated from the pass classes.
 
-``.. pass-table:: focused`` (or ``broad``, ``scene``) renders the :class:`PassInfo` of every pass
-class the strategy runs, in the order it runs them, so that no page can leave a pass out.
+``.. pass-table:: focused`` (or ``broad``, ``scene``, ``planner``, ...) renders the
+:class:`PassInfo` of every pass class the strategy runs, in the order it runs them, so that no
+page can leave a pass out.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ SOURCES = {
     "scene": ("pycinder.frame", "PASS_INFOS"),
     "clearance": ("pycinder.clearance", "PASSES"),
     "hardclash": ("pycinder.hardclash", "PASSES"),
+    "planner": ("pycinder.gpuplan", "PASSES"),
 }
 """Where each strategy lists its pass classes (module, attribute)."""
 
