@@ -85,10 +85,11 @@ class FrameInputs:
     capacity: int
     retry: bool
     gpu_tiles: wgpu.GPUBuffer | None = None
-    """A GPU buffer holding the plan's tiles as the passes read them (:data:`~pycinder.layout.
-    TILE`, written by the GPU planner's pass P3 in an earlier submission), copied into the
-    frame's own on the GPU; None: the host composes them (:meth:`words`). A frame run again
-    composes them on the host: a later plan may have replaced the planner's."""
+    """A GPU buffer holding the plan's tiles as the passes read them
+    (:data:`~pycinder.layout.TILE`, written by the GPU planner's pass P3 in an earlier
+    submission), copied into the frame's own on the GPU; None: the host composes them
+    (:meth:`words`). A frame run again composes them on the host: a later plan may have
+    replaced the planner's."""
 
     def words(self) -> np.ndarray:
         """(T,) :data:`~pycinder.layout.TILE` records of the plan, composed on the host
