@@ -26,7 +26,7 @@ from pycinder.gpu.device import get_gpu
 from pycinder.layout import FLAG_COUNT_BACK, FLAG_MIRROR, FLAG_OPEN
 from pycinder.passes.bindings import workgroup_grid
 from pycinder.passes.windows import BODY, WINDOW, GpuWindows, anchors, plan_bodies
-from pycinder.testing import random_rotation
+from pycinder.testing import box_world_bounds, random_box_bodies
 
 NOISE = 2.0 ** -49
 """The float64 planner's own rounding allowed, per unit of the pair's distance from the origin
@@ -59,29 +59,10 @@ def random_scene(rng: np.random.Generator, n: int, *, scale: float = 1.0, spread
     equal extents, some open. World boxes are the transformed boxes' (some shrunk a little, as a
     mesh's own box is tighter). With ``quantum``, translations and world boxes are multiples of
     it (so that the scene moves to another offset exactly)."""
-    lo = rng.uniform(-1.0, 0.0, (n, 3)) * scale
-    hi = lo + rng.uniform(0.05, 1.0, (n, 3)) * scale
-    flat = rng.random(n) < 0.1
-    hi[flat, 2] = lo[flat, 2] + 1e-3 * scale
-    same = rng.random(n) < 0.1
-    hi[same] = lo[same] + 0.5 * scale
-    transforms = np.zeros((n, 4, 4))
-    for i in range(n):
-        m = random_rotation(rng)[:3, :3] if rng.random() < 0.8 else np.eye(3)
-        if rng.random() < 0.4:
-            m = m @ np.diag(rng.uniform(0.3, 2.0, 3))
-        if rng.random() < 0.2:
-            s = np.eye(3)
-            s[0, 1] = rng.uniform(-0.5, 0.5)
-            m = m @ s
-        if rng.random() < 0.2:
-            m = m @ np.diag([1.0, 1.0, -1.0])
-        transforms[i, :3, :3] = m
-        transforms[i, :3, 3] = rng.uniform(-spread, spread, 3) * scale
-        transforms[i, 3, 3] = 1.0
+    lo, hi, transforms = random_box_bodies(rng, n, scale=scale, spread=spread)
     if quantum is not None:
         transforms[:, :3, 3] = np.round(transforms[:, :3, 3] / quantum) * quantum
-    world_lo, world_hi = _world_boxes(lo, hi, transforms)
+    world_lo, world_hi = box_world_bounds(lo, hi, transforms)
     shrink = np.where(rng.random(n) < 0.3, rng.uniform(0.0, 0.2, n), 0.0)[:, None] \
         * (world_hi - world_lo)
     world_lo, world_hi = world_lo + 0.5 * shrink, world_hi - 0.5 * shrink
@@ -92,14 +73,6 @@ def random_scene(rng: np.random.Generator, n: int, *, scale: float = 1.0, spread
     return {"local_lo": lo, "local_hi": hi, "world_lo": world_lo + offset,
             "world_hi": world_hi + offset, "transforms": transforms,
             "open_bodies": rng.random(n) < 0.2}
-
-
-def _world_boxes(lo: np.ndarray, hi: np.ndarray, transforms: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    corners = np.stack(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij"), -1).reshape(8, 3)
-    local = lo[:, None] + corners[None] * (hi - lo)[:, None]
-    world = np.einsum("nij,nkj->nki", transforms[:, :3, :3], local) + transforms[:, None, :3, 3]
-    return world.min(axis=1), world.max(axis=1)
 
 
 def without_open(scene: dict) -> dict:
@@ -330,8 +303,8 @@ def test_tiny_inside_huge(gw):
     tiny = random_scene(rng, 12, scale=1e-6, spread=0.8)
     huge = random_scene(rng, 2, scale=1e6, spread=0.01)
     huge["local_lo"], huge["local_hi"] = np.full((2, 3), -5e5), np.full((2, 3), 5e5)
-    huge["world_lo"], huge["world_hi"] = _world_boxes(huge["local_lo"], huge["local_hi"],
-                                                      huge["transforms"])
+    huge["world_lo"], huge["world_hi"] = box_world_bounds(huge["local_lo"], huge["local_hi"],
+                                                          huge["transforms"])
     scene = {key: np.concatenate([huge[key], tiny[key]]) for key in tiny}
     place = np.array([1234.5, -678.9, 42.1])
     scene["transforms"][2:, :3, 3] += place

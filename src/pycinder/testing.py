@@ -219,23 +219,18 @@ def random_scene(n: int, seed: int, *, density: float = 0.35, size: float = 1.0,
     return meshes, transforms
 
 
-def random_boxes(n: int, seed: int, *, scale: float = 1.0, offset: float = 0.0,
-                 spread: float | None = None, mirror: bool = True, shear: bool = True
-                 ) -> dict[str, np.ndarray]:
-    """The tile planners' inputs (:func:`pycinder.tiles.plan_tiles`') for ``n`` random body-space
-    boxes under random transforms (rotated, non-uniformly scaled, sheared and mirrored), flat
-    boxes and boxes of equal extents among them, about ``scale`` across, placed ``offset`` from
-    the world's origin within ``spread * scale`` (default: a spread that makes about one
-    candidate pair a box), with every pair of overlapping world boxes a candidate.
+def random_box_bodies(rng: np.random.Generator, n: int, *, scale: float = 1.0,
+                      spread: float = 1.0, mirror: bool = True, shear: bool = True
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``n`` random body-space boxes about ``scale`` across, flat boxes and boxes of equal
+    extents among them, under random transforms (rotated, non-uniformly scaled, sheared and
+    mirrored) placed within ``spread * scale`` of the world's origin.
 
     Returns
     -------
-    dict
-        ``pairs`` (K, 2), ``tolerance`` (K,), ``local_lo``, ``local_hi``, ``world_lo``,
-        ``world_hi`` (n, 3), ``transforms`` (n, 4, 4), ``faces`` (n,) and ``open_bodies`` (n,).
+    local_lo, local_hi : (n, 3) float64
+    transforms : (n, 4, 4) float64
     """
-    rng = np.random.default_rng(seed)
-    spread = 0.35 * n ** (1 / 3) if spread is None else spread
     lo = rng.uniform(-1.0, 0.0, (n, 3)) * scale
     hi = lo + rng.uniform(0.05, 1.0, (n, 3)) * scale
     flat = rng.random(n) < 0.1
@@ -254,12 +249,40 @@ def random_boxes(n: int, seed: int, *, scale: float = 1.0, offset: float = 0.0,
         if mirror and rng.random() < 0.2:
             m = m @ np.diag([1.0, 1.0, -1.0])
         transforms[i, :3, :3] = m
-        transforms[i, :3, 3] = offset + rng.uniform(-spread, spread, 3) * scale
+        transforms[i, :3, 3] = rng.uniform(-spread, spread, 3) * scale
         transforms[i, 3, 3] = 1.0
+    return lo, hi, transforms
+
+
+def box_world_bounds(local_lo: np.ndarray, local_hi: np.ndarray, transforms: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """World boxes (n, 3) lo and hi of body-space boxes (n, 3) under transforms (n, 4, 4): the
+    extremes of their transformed corners."""
     corners = np.stack(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij"), -1).reshape(8, 3)
-    local = lo[:, None] + corners[None] * (hi - lo)[:, None]                      # (n, 8, 3)
+    local = local_lo[:, None] + corners[None] * (local_hi - local_lo)[:, None]     # (n, 8, 3)
     world = np.einsum("nij,nkj->nki", transforms[:, :3, :3], local) + transforms[:, None, :3, 3]
-    world_lo, world_hi = world.min(axis=1), world.max(axis=1)
+    return world.min(axis=1), world.max(axis=1)
+
+
+def random_boxes(n: int, seed: int, *, scale: float = 1.0, offset: float = 0.0,
+                 spread: float | None = None, mirror: bool = True, shear: bool = True
+                 ) -> dict[str, np.ndarray]:
+    """The tile planners' inputs (:func:`pycinder.tiles.plan_tiles`') for ``n`` random boxes of
+    :func:`random_box_bodies`, placed ``offset`` from the world's origin (default spread: about
+    one candidate pair a box), with every pair of overlapping world boxes a candidate.
+
+    Returns
+    -------
+    dict
+        ``pairs`` (K, 2), ``tolerance`` (K,), ``local_lo``, ``local_hi``, ``world_lo``,
+        ``world_hi`` (n, 3), ``transforms`` (n, 4, 4), ``faces`` (n,) and ``open_bodies`` (n,).
+    """
+    rng = np.random.default_rng(seed)
+    spread = 0.35 * n ** (1 / 3) if spread is None else spread
+    lo, hi, transforms = random_box_bodies(rng, n, scale=scale, spread=spread, mirror=mirror,
+                                           shear=shear)
+    transforms[:, :3, 3] += offset
+    world_lo, world_hi = box_world_bounds(lo, hi, transforms)
     i, j = np.triu_indices(n, 1)
     meet = ((world_lo[i] <= world_hi[j]) & (world_lo[j] <= world_hi[i])).all(axis=1)
     pairs = np.stack([i[meet], j[meet]], axis=1).astype(np.int64)

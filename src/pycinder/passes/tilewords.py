@@ -83,7 +83,7 @@ from .atlasplan import SUMMARY
 from .atlasplan import TILE as ATLAS_TILE
 from .bindings import Resource, Stage, dispatch
 from .table import PassInfo
-from .windows import WINDOW
+from .windows import WINDOW, anchor_parts
 
 BODY = Struct("TileBody", [
     ("rows", "array<vec4f, 3>", "world-from-body rows: R's row i (xyz), (t - anchor)_i (w)"),
@@ -122,9 +122,7 @@ def tile_bodies(transforms: np.ndarray, anchor: np.ndarray) -> np.ndarray:
     out = BODY.zeros(n)
     out["rows"][:, :, :3] = transforms[:, :3, :3]
     out["rows"][:, :, 3] = transforms[:, :3, 3] - anchor
-    hi = anchor.astype(np.float32)
-    out["hi"] = hi
-    out["lo"] = anchor - hi
+    out["hi"], out["lo"] = anchor_parts(anchor)
     return out
 
 

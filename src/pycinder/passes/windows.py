@@ -122,6 +122,14 @@ def anchors(centres: np.ndarray) -> np.ndarray:
     return np.round(centres / step) * step
 
 
+def anchor_parts(anchor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Anchors (N, 3) of :func:`anchors` as the GPU takes them: ``hi = float32(anchor)`` and
+    ``lo = anchor - hi`` (N, 3) float32, whose sum is the anchor exactly (what passes P1 and P3
+    both take the offset between two anchors from)."""
+    hi = np.asarray(anchor, np.float64).astype(np.float32)
+    return hi, (anchor - hi).astype(np.float32)
+
+
 def plan_bodies(local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarray,
                 world_hi: np.ndarray, transforms: np.ndarray, bounds: BodyBounds
                 ) -> tuple[np.ndarray, np.ndarray]:
@@ -151,9 +159,7 @@ def plan_bodies(local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarray
     n = len(bounds.obb_centre)
     anchor = anchors(bounds.obb_centre)
     out = BODY.zeros(n)
-    hi = anchor.astype(np.float32)
-    out["hi"] = hi
-    out["lo"] = anchor - hi
+    out["hi"], out["lo"] = anchor_parts(anchor)
     out["size"] = bounds.aabb_half.sum(axis=1)
     out["flags_a"] = bounds.flags[0]
     out["flags_b"] = bounds.flags[1]
@@ -422,4 +428,5 @@ class GpuWindows:
         return self.to_plan(self.windows_of(pairs, tolerance), pairs, tolerance)
 
 
-__all__ = ["ANCHOR_BITS", "BODY", "PARAMS", "WINDOW", "GpuWindows", "anchors", "plan_bodies"]
+__all__ = ["ANCHOR_BITS", "BODY", "PARAMS", "WINDOW", "GpuWindows", "anchor_parts", "anchors",
+           "plan_bodies"]
