@@ -10,7 +10,7 @@ import pycinder
 from pycinder.batch.manifest import ManifestError, normalize, read_manifest
 from pycinder.batch.sink import JsonLinesSink, open_sink
 from pycinder.batch.worker import BatchWorker, error_kind
-from pycinder.broadphase import sweep_and_prune
+from pycinder.focused.broad.prune import sweep_and_prune
 from pycinder.testing import ground_truth, random_scene
 
 from batch_helpers import expected_pairs, mesh_pool, random_entries

@@ -5,12 +5,12 @@ import pytest
 import trimesh
 
 import pycinder
-from pycinder import broadphase
-from pycinder.broadphase import sweep_and_prune
+from pycinder.focused.broad import prune as broadphase
+from pycinder.focused.broad.prune import sweep_and_prune
 from pycinder.scene import prepare_scene
 from pycinder.testing import random_rotation, random_scene
-from pycinder.tiles import (FLAG_SKIP_IF_HIT, MAX_TILE, PROBE, PROBE_FACES, PROBE_PLAN,
-                            likely_pairs, plan_tiles)
+from pycinder.focused.plan.tiles import (FLAG_SKIP_IF_HIT, MAX_TILE, PROBE, PROBE_FACES,
+                                         PROBE_PLAN, likely_pairs, plan_tiles)
 
 
 def brute(lo, hi):

@@ -14,7 +14,7 @@ import trimesh
 
 from pycinder import Detector, __version__
 from pycinder.cli import main
-from pycinder.debug import BufferCapture, three_boxes
+from pycinder.debug.buffers import BufferCapture, three_boxes
 
 T = trimesh.transformations.translation_matrix
 

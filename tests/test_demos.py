@@ -370,8 +370,8 @@ def test_example_writes_a_labelled_montage(tmp_path, capsys):
     from scipy import ndimage
 
     from pycinder.cli import main
-    from pycinder.debug import id_colours
-    from pycinder.montage import PANEL_OUTLINE
+    from pycinder.debug.buffers import id_colours
+    from pycinder.debug.montage import PANEL_OUTLINE
 
     assert main(["example", "--out", str(tmp_path)]) == 0
     assert "montage.png" in capsys.readouterr().out

@@ -12,7 +12,7 @@ import pytest
 import trimesh
 
 import pycinder
-from pycinder.layout import CLUSTER_FACES, WORKGROUP
+from pycinder.gpu.layout import CLUSTER_FACES, WORKGROUP
 from pycinder.testing import random_rotation
 
 T = 0.01

@@ -9,10 +9,10 @@ from scipy.spatial import cKDTree
 import pycinder
 from pycinder.benchmarks.scenes import ManyBodies
 from pycinder.contacts import reduce_contacts
-from pycinder.passes.frames import FocusedFrames
+from pycinder.focused.frame.frames import FocusedFrames
 from pycinder.testing import bunny as load_bunny
 from pycinder.testing import ground_truth, nested_scene, random_scene
-from pycinder.tiles import FLAG_SKIP_IF_HIT
+from pycinder.focused.plan.tiles import FLAG_SKIP_IF_HIT
 
 from conftest import assert_matches_truth
 

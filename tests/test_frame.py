@@ -9,7 +9,7 @@ import trimesh
 import wgpu
 
 import pycinder
-from pycinder.layout import COUNTERS
+from pycinder.gpu.layout import COUNTERS
 
 
 class _Count:
@@ -115,7 +115,7 @@ def test_undecided_tiles_are_retried_inside_the_submission(monkeypatch, records,
     submission; where even those overflow (lists of 2, then 8), the host cuts the boxes. The
     answers are those of exact geometry: teeth 0.02 apart (4 t) are apart, teeth 0.03 deep (6 t)
     collide."""
-    from pycinder.passes.frames import FocusedFrames
+    from pycinder.focused.frame.frames import FocusedFrames
     from pycinder.testing import ground_truth, surface_distance
 
     t = 0.005

@@ -1,10 +1,10 @@
 """Pass P2 (the GPU tile planner's atlas) against the NumPy planner: every tile, its part of its
 window, its place in the atlas and its round, and every round's rows and the atlas width, equal
-to what :mod:`pycinder.tiles` makes.
+to what :mod:`pycinder.focused.plan.tiles` makes.
 
 The reference calls the NumPy planner's own functions (``_phases_of``, ``fitted_width``,
-``_layout``) as :func:`~pycinder.tiles.plan_tiles` and ``_place`` chain them, and a few plans go
-through :func:`~pycinder.tiles.plan_tiles` itself, whose geometry is replaced by the windows.
+``_layout``) as :func:`~pycinder.focused.plan.tiles.plan_tiles` and ``_place`` chain them, and a few plans go
+through :func:`~pycinder.focused.plan.tiles.plan_tiles` itself, whose geometry is replaced by the windows.
 """
 
 import time
@@ -12,10 +12,10 @@ import time
 import numpy as np
 import pytest
 
-from pycinder import tiles
+from pycinder.focused.plan import tiles
 from pycinder.errors import GpuMemoryError
-from pycinder.layout import FLAG_SKIP_IF_HIT
-from pycinder.passes.atlasplan import AtlasPlan, AtlasPlanner, atlas_windows
+from pycinder.gpu.layout import FLAG_SKIP_IF_HIT
+from pycinder.focused.plan.atlas import AtlasPlan, AtlasPlanner, atlas_windows
 
 BIG_BUDGET = 2**40
 

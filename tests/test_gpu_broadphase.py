@@ -8,8 +8,8 @@ boxes, along every axis), and only with equal within keys and different groups.
 import numpy as np
 import pytest
 
-from pycinder.broadphase import sweep_and_prune, world_boxes
-from pycinder.passes.broad import GpuBroadPhase
+from pycinder.focused.broad.prune import sweep_and_prune, world_boxes
+from pycinder.focused.broad import GpuBroadPhase
 from pycinder.testing import random_rotation
 
 
@@ -301,9 +301,9 @@ def test_bad_input_is_named(bp, bad, words):
 def test_dispatches_over_several_rows_of_workgroups(monkeypatch):
     # Large scenes lay workgroups out in rows of ROW; with a row of 3 workgroups, every pass of a
     # small scene spans several rows, and the last row's extra workgroups must do nothing.
-    from pycinder import layout
+    from pycinder.gpu import layout
     from pycinder.gpu.device import get_gpu, shader_source
-    from pycinder.passes import bindings
+    from pycinder.gpu import bindings
 
     cache = bindings.Stage._cache.setdefault(get_gpu().device, {})
 
@@ -399,7 +399,7 @@ def test_a_query_on_the_gpu_answers_as_with_numpy_at_the_edges():
 
 
 def test_passes_are_numbered_in_order_and_label_their_pipelines(bp):
-    from pycinder.passes.broad import PASSES, broad_pass_table
+    from pycinder.focused.broad import PASSES, broad_pass_table
 
     assert [p.INFO.number for p in PASSES] == [f"B{k}" for k in range(1, 9)]
     assert [type(p) for p in bp.passes] == list(PASSES)
@@ -414,7 +414,7 @@ def test_shaders_declare_no_struct_or_shared_constant_the_host_declares():
     import re
     from importlib import resources
 
-    from pycinder.passes.broad import common, sort
+    from pycinder.focused.broad import common, sort
 
     names = {"Body", "Params", "SortStep", "Grid", "Counts"} | set(common.CONSTS)
     for f in resources.files("pycinder.shaders").iterdir():
@@ -427,8 +427,8 @@ def test_shaders_declare_no_struct_or_shared_constant_the_host_declares():
 
 
 def test_the_host_writes_the_body_struct_by_field_name():
-    from pycinder.passes.broad.common import BODY, COORDINATE_LIMIT
-    from pycinder.passes.broad.host import packed
+    from pycinder.focused.broad.common import BODY, COORDINATE_LIMIT
+    from pycinder.focused.broad.host import packed
 
     rng = np.random.default_rng(2)
     lo, hi, r, t = random_bodies(rng, 7)
@@ -443,7 +443,7 @@ def test_the_host_writes_the_body_struct_by_field_name():
 
 
 def test_const_declarations():
-    from pycinder.passes.bindings import const_declarations
+    from pycinder.gpu.bindings import const_declarations
 
     assert const_declarations({"A": 3, "B": 0.5}) == "const A: u32 = 3u;\nconst B: f32 = 0.5;\n"
     for bad in (-1, 2 ** 32, 0.1, float("inf")):

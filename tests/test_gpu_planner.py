@@ -1,4 +1,4 @@
-"""The GPU tile planner (``planner="gpu"``, :mod:`pycinder.gpuplan`) against the NumPy planner it
+"""The GPU tile planner (``planner="gpu"``, :mod:`pycinder.focused.plan.gpu`) against the NumPy planner it
 ports and against exact geometry: whole plans compared tile by tile on random scenes (rotated,
 scaled, sheared, mirrored, far and tiny bodies), and the answers of queries planned either way."""
 
@@ -12,10 +12,9 @@ import pycinder
 from pycinder.benchmarks.scenes import ManyBodies, Stairs
 from pycinder.errors import GpuMemoryError, PrecisionWarning
 from pycinder.gpu.device import get_gpu
-from pycinder.gpuplan import GpuPlanner
-from pycinder.testing import (ground_truth, holed_scene, nested_scene, random_boxes,
-                              random_scene)
-from pycinder.tiles import plan_tiles, tiles_of_windows
+from pycinder.focused.plan.gpu import GpuPlanner
+from pycinder.testing import ground_truth, holed_scene, nested_scene, random_boxes, random_scene
+from pycinder.focused.plan.tiles import plan_tiles, tiles_of_windows
 
 from conftest import assert_matches_truth
 
@@ -285,14 +284,14 @@ def test_queries_the_gpu_does_not_plan_compose_their_tiles_on_the_host(monkeypat
     """A query of more candidate pairs than the GPU planner takes, after one it planned, and a
     query that stops at its first pair (its lead pairs and its stop flag are the host's): each
     frame gets the tiles of its own plan, never the planner's last ones."""
-    import pycinder.gpuplan
+    import pycinder.focused.plan.gpu
 
     meshes, transforms = random_scene(40, 14)
     truth = ground_truth(meshes, transforms)
     det = pycinder.Detector(planner="gpu")
     assert_matches_truth(det.find_collisions(meshes, transforms).pairs, truth, context="gpu")
     assert det.strategy._planner.waited_ms > 0
-    monkeypatch.setattr(pycinder.gpuplan, "MAX_PAIRS", 8)
+    monkeypatch.setattr(pycinder.focused.plan.gpu, "MAX_PAIRS", 8)
     result = det.find_collisions(meshes, transforms)
     assert result.stats.candidates > 8 and det.strategy._planner.waited_ms == 0
     assert_matches_truth(result.pairs, truth, context="more pairs than the planner takes")

@@ -1,7 +1,7 @@
-"""Pass P3 of the GPU tile planner (:mod:`pycinder.passes.tilewords`): the tiles as the frame's
+"""Pass P3 of the GPU tile planner (:mod:`pycinder.focused.plan.tilewords`): the tiles as the frame's
 passes read them, written on the GPU after passes P1 and P2 in the same submission, against the
 host's float64 composition of the same plan (``tile_words(plan, plan.tile_from_body(...))``,
-with ``plan`` the :class:`~pycinder.tiles.TilePlan` that :class:`~pycinder.gpuplan.GpuPlanner`
+with ``plan`` the :class:`~pycinder.focused.plan.tiles.TilePlan` that :class:`~pycinder.focused.plan.gpu.GpuPlanner`
 builds from the same windows and atlas), never against the GPU's own output.
 
 Integer fields and the slab must be equal; the matrices equal up to single precision's rounding
@@ -23,12 +23,12 @@ import numpy as np
 import pytest
 
 from pycinder.gpu.device import get_gpu
-from pycinder.gpuplan import GpuPlanner
-from pycinder.layout import TILE
-from pycinder.passes.atlasplan import atlas_windows
-from pycinder.passes.frameio import tile_words
+from pycinder.focused.plan.gpu import GpuPlanner
+from pycinder.gpu.layout import TILE
+from pycinder.focused.plan.atlas import atlas_windows
+from pycinder.focused.frame.frameio import tile_words
 from pycinder.testing import random_boxes
-from pycinder.tiles import PROBE_FACES
+from pycinder.focused.plan.tiles import PROBE_FACES
 
 
 @pytest.fixture(scope="module")

@@ -1,5 +1,5 @@
-"""Pass P1 (:mod:`pycinder.passes.windows`) against the NumPy planner it ports
-(:func:`pycinder.tiles._plan_chunk`), never against its own output.
+"""Pass P1 (:mod:`pycinder.focused.plan.windows`) against the NumPy planner it ports
+(:func:`pycinder.focused.plan.tiles._plan_chunk`), never against its own output.
 
 Random scenes (rotated, non-uniformly scaled, sheared and mirrored boxes, flat ones, equal
 extents, touching and apart pairs, far and tiny bodies, several scales) are planned both ways and
@@ -21,11 +21,11 @@ ulps of the pair's distance from the origin) is allowed on top everywhere.
 import numpy as np
 import pytest
 
-from pycinder import tiles
+from pycinder.focused.plan import tiles
 from pycinder.gpu.device import get_gpu
-from pycinder.layout import FLAG_COUNT_BACK, FLAG_MIRROR, FLAG_OPEN
-from pycinder.passes.bindings import workgroup_grid
-from pycinder.passes.windows import BODY, WINDOW, GpuWindows, anchors, plan_bodies
+from pycinder.gpu.layout import FLAG_COUNT_BACK, FLAG_MIRROR, FLAG_OPEN
+from pycinder.gpu.bindings import workgroup_grid
+from pycinder.focused.plan.windows import BODY, WINDOW, GpuWindows, anchors, plan_bodies
 from pycinder.testing import box_world_bounds, random_box_bodies
 
 NOISE = 2.0 ** -49

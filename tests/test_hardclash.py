@@ -23,7 +23,7 @@ import pytest
 import trimesh
 
 import pycinder
-from pycinder import hardclash
+from pycinder.focused.modes import hardclash
 from pycinder.testing import (grid_plate, l_shape, open_cup, open_tube, random_rotation,
                               surface_distance)
 
@@ -806,7 +806,7 @@ def test_contacts_of_pairs_whose_records_were_all_dropped_are_measured(monkeypat
     """Records beyond one buffer of the device are dropped: the pairs left with none still get
     a contact, measured whole by pass H1 (depth, and the direction that clears the pair),
     batches included."""
-    from pycinder.passes.atlas import AtlasBuffers, Caps
+    from pycinder.focused.frame.atlas import AtlasBuffers, Caps
 
     monkeypatch.setattr(AtlasBuffers, "limits", property(lambda self: Caps(
         tris=self.tris.limit // 48, records=64, edges=self.edge_list.limit // 16)))

@@ -11,7 +11,7 @@ import pytest
 
 pytest.importorskip("ifcopenshell", reason="IFC needs ifcopenshell: pip install 'pycinder[bim]'")
 
-from pycinder import bcf, ifc  # noqa: E402
+from pycinder.bim import bcf, ifc  # noqa: E402
 from pycinder.benchmarks import building as B  # noqa: E402
 from pycinder.cli import main  # noqa: E402
 from pycinder.files import FileErrors, load_bodies  # noqa: E402

@@ -119,7 +119,7 @@ def test_the_likeliest_pairs_first_then_the_rest(monkeypatch):
     """The pairs whose boxes overlap most run first; when they do not collide, the rest still
     runs. Two rods through rings (boxes overlapping broadly, surfaces apart) and two cubes
     overlapping by 2.5 tolerances at a corner of their boxes."""
-    from pycinder import focused
+    from pycinder.focused.strategy import strategy as focused
 
     monkeypatch.setattr(focused, "LEAD_PAIRS", 1)
     monkeypatch.setattr(focused, "LEAD_FROM", 3)
@@ -161,7 +161,7 @@ def test_a_dense_scene_stops_after_its_likeliest_pairs():
                             tolerance=0.02).overlap) == 1
     det = pycinder.Detector(tolerance=0.02, records="none")
     whole = det.find_collisions(meshes, transforms)
-    assert whole.stats.candidates > 4 * pycinder.tiles.LEAD_PAIRS and len(whole.pairs) > 100
+    assert whole.stats.candidates > 4 * pycinder.focused.plan.tiles.LEAD_PAIRS and len(whole.pairs) > 100
     stopped = det._pending(meshes, transforms, None, None, None, "none",
                            stop_at_first=True).result()
     assert len(stopped.pairs) >= 1

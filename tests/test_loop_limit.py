@@ -16,9 +16,9 @@ import pytest
 import trimesh
 
 import pycinder
-import pycinder.passes.crossingtest as crossing_test
+import pycinder.focused.frame.crossingtest as crossing_test
 from pycinder.testing import grid_plate, surface_distance
-from pycinder.tiles import TILT
+from pycinder.focused.plan.tiles import TILT
 
 T = 2.5e-5
 LENGTH = 2.0
@@ -123,7 +123,7 @@ def test_crossing_test_past_its_budget_runs_the_tile_again_with_thinner_boxes(mo
 def test_a_tile_past_the_crossing_budget_goes_straight_to_thinner_boxes(monkeypatch):
     """Longer lists cannot help a tile that pass F6 left unfinished: every retry cuts its box,
     and the next frames get no retry rounds of longer lists on the GPU."""
-    import pycinder.again as again
+    import pycinder.focused.again as again
 
     plate = grid_plate(1.0, 40)
     meshes = [_wavy(plate, 0.0), _wavy(plate, 0.021)]

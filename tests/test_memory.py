@@ -101,7 +101,7 @@ def test_bodies_are_measured_on_threads_and_in_a_forked_child(monkeypatch):
     single CPU, or OMP_NUM_THREADS=1, would have no pool)."""
     import multiprocessing
 
-    from pycinder import threads
+    from pycinder.util import threads
     from pycinder.scene import bodies
 
     monkeypatch.setattr(threads, "WORKERS", max(threads.WORKERS, 2))
@@ -153,7 +153,7 @@ def test_bodies_are_measured_on_threads_and_in_a_forked_child(monkeypatch):
 
 
 def _radii_in_child(bodies_in, poses):
-    from pycinder import threads
+    from pycinder.util import threads
     from pycinder.scene import prepare_scene
 
     assert threads._pool is None

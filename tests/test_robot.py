@@ -13,8 +13,7 @@ pytest.importorskip("pybullet_data", reason="the robots come from pybullet_data 
 pytest.importorskip("fcl", reason="answers are compared with python-fcl's")
 
 from pycinder.benchmarks import robots as R  # noqa: E402
-from pycinder.robot import (AllowedCollisionMatrix, Environment, Robot,  # noqa: E402
-                            matrix_from_samples)
+from pycinder.robot import AllowedCollisionMatrix, Environment, Robot, matrix_from_samples
 
 CONFIGURATIONS = {"panda": 100, "kuka": 25, "xarm": 100, "a1": 100}
 """Random configurations per robot here (the benchmark runs 1,000; the KUKA's open meshes of

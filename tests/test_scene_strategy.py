@@ -11,7 +11,7 @@ import trimesh
 import pycinder
 import pycinder.testing
 from pycinder.view import View
-from pycinder.debug import three_boxes
+from pycinder.debug.buffers import three_boxes
 from pycinder.testing import ground_truth, nested_scene, random_scene
 
 from conftest import assert_matches_truth
@@ -108,13 +108,13 @@ SHADERS = ("raycast", "filter", "reduce")
 
 
 def test_pass_table_comes_from_the_classes_in_the_order_passes_run():
-    from pycinder.passes.filter import FilterPass
-    from pycinder.passes.raycast import RaycastPasses
-    from pycinder.passes.reduce import MipReduce
-    from pycinder.passes.states import PASSES
-    from pycinder.passes.table import pass_table
+    from pycinder.wholescene.filter import FilterPass
+    from pycinder.wholescene.raycast import RaycastPasses
+    from pycinder.wholescene.reduce import MipReduce
+    from pycinder.gpu.states import PASSES
+    from pycinder.gpu.table import pass_table
 
-    from pycinder.frame import PASS_INFOS
+    from pycinder.wholescene.frame import PASS_INFOS
 
     infos = [*RaycastPasses.INFOS, FilterPass.INFO, MipReduce.INFO]
     assert list(PASS_INFOS) == infos
@@ -131,7 +131,7 @@ def test_no_shader_declares_a_struct_the_host_writes():
     import re
 
     from pycinder.gpu.device import shader_source
-    from pycinder.passes import filter as filter_pass, raycast, reduce
+    from pycinder.wholescene.strategy import filter as filter_pass, raycast, reduce
 
     for shader, struct in zip(SHADERS, (raycast.FRAME, filter_pass.PARAMS, reduce.PARAMS)):
         source = shader_source(shader)
@@ -144,8 +144,8 @@ def test_a_field_added_to_the_frame_struct_is_seen_by_both_sides():
     """The Frame block grows a field: the generated WGSL declares it, the shader still compiles
     against it, and the host writes it by name at the offset WGSL gives it."""
     from pycinder.gpu.structs import Field, Struct
-    from pycinder.passes.bindings import Stage
-    from pycinder.passes.raycast import FRAME, PAYLOAD
+    from pycinder.gpu.bindings import Stage
+    from pycinder.wholescene.raycast import FRAME, PAYLOAD
 
     grown = Struct(FRAME.name, [*FRAME.fields, Field("extra", "vec3f", "a test field")],
                    uniform=True)

@@ -11,8 +11,8 @@ import wgpu
 
 import pycinder
 from pycinder.gpu.structs import Field, Struct, declarations
-from pycinder.passes.bindings import Stage
-from pycinder.passes.frames import PASSES
+from pycinder.gpu.bindings import Stage
+from pycinder.focused.frame.frames import PASSES
 
 SHADERS = Path(pycinder.__file__).parent / "shaders"
 
@@ -99,7 +99,7 @@ def test_a_field_added_to_a_pass_parameters_struct_is_seen_by_both_sides():
     """The cull's parameters with a field added in the middle (shifting every later offset), a
     float and a vector among them: the host writes them by name, and the shader generated from
     the same declaration reads each one back."""
-    from pycinder.passes.cull import PARAMS
+    from pycinder.focused.frame.cull import PARAMS
 
     fields = list(PARAMS.fields)
     fields[3:3] = [Field("added", "f32", "a new field"), Field("extra", "vec4u", "")]
@@ -154,7 +154,7 @@ def _host_structs() -> list[Struct]:
 
 def test_stage_binds_generated_structs_by_name():
     """A stage whose shader uses a pass's struct compiles only with the struct given."""
-    from pycinder.passes.bounds import PARAMS
+    from pycinder.focused.frame.bounds import PARAMS
 
     gpu = pycinder.Detector().gpu
     stage = Stage(gpu, "bounds", "cluster_bounds", structs=(PARAMS,))

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from pycinder import threads
+from pycinder.util import threads
 
 cgroup_cpus = threads._cgroup_cpus
 

@@ -9,7 +9,7 @@ pytest.importorskip("warp", reason="the Warp peer needs warp-lang: pip install '
 
 from pycinder.benchmarks.scenes import Drifting, Scene  # noqa: E402
 from pycinder.benchmarks.warp_peer import Warp  # noqa: E402
-from pycinder.broadphase import sweep_and_prune  # noqa: E402
+from pycinder.focused.broad.prune import sweep_and_prune  # noqa: E402
 from pycinder.testing import ground_truth, random_scene  # noqa: E402
 
 from conftest import assert_matches_truth  # noqa: E402

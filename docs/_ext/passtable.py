@@ -13,12 +13,12 @@ from docutils import nodes
 from sphinx.util.docutils import SphinxDirective
 
 SOURCES = {
-    "focused": ("pycinder.passes.frames", "PASSES"),
-    "broad": ("pycinder.passes.broad", "PASSES"),
-    "scene": ("pycinder.frame", "PASS_INFOS"),
+    "focused": ("pycinder.focused.frame.frames", "PASSES"),
+    "broad": ("pycinder.focused.broad", "PASSES"),
+    "scene": ("pycinder.wholescene.frame", "PASS_INFOS"),
     "clearance": ("pycinder.clearance", "PASSES"),
     "hardclash": ("pycinder.hardclash", "PASSES"),
-    "planner": ("pycinder.gpuplan", "PASSES"),
+    "planner": ("pycinder.focused.plan.gpu", "PASSES"),
 }
 """Where each strategy lists its pass classes (module, attribute)."""
 
@@ -30,7 +30,7 @@ class PassTable(SphinxDirective):
     has_content = False
 
     def run(self) -> list[nodes.Node]:
-        from pycinder.passes.table import HEADER, rows
+        from pycinder.gpu.table import HEADER, rows
 
         module, name = SOURCES[self.arguments[0]]
         passes = getattr(importlib.import_module(module), name)

@@ -17,10 +17,26 @@ from .request import MAX_BODIES, CollisionRequest
 from .tolerance import DEFAULT_RELATIVE_TOLERANCE
 from .result import CollisionResult, FocusedStats, SceneStats, Stats
 from .scene import PreparedBodies
-from .quiet import quiet_native_probes
+from .util import moved
+from .util.quiet import quiet_native_probes
 from .view import View
 
 quiet_native_probes()  # before the first query makes wgpu's instance
+
+MOVED = {
+    "pycinder.ifc": "pycinder.bim.ifc",
+    "pycinder.bcf": "pycinder.bim.bcf",
+    "pycinder.clearance": "pycinder.focused.modes.clearance",
+    "pycinder.hardclash": "pycinder.focused.modes.hardclash",
+}
+"""Public modules that moved (earlier name -> where they live now): the earlier names still import
+the same modules (:mod:`pycinder.util.moved`)."""
+moved.install(MOVED)
+
+
+def __getattr__(name: str) -> object:
+    return moved.attribute(__name__, MOVED, name)
+
 
 __version__ = "0.3.0"
 

@@ -37,7 +37,7 @@ from . import __version__
 from .files import (DEFAULT_MAX_BYTES, DEFAULT_MAX_TRIANGLES, FileBody, Limits, display_name,
                     human_bytes, parse_size)
 from .request import CollisionRequest
-from .text import plural
+from .util.text import plural
 
 DESCRIPTION = f"""\
 pycinder {__version__}: collision detection on the GPU for triangle meshes: closed meshes are
@@ -166,8 +166,8 @@ _MODE_FLAGS = {"min_depth": "--min-depth", "clearance": "--clearance"}
 
 def _mode(args: argparse.Namespace) -> tuple[str, dict[str, float]]:
     """``check``'s query mode ("default", "min_depth", "clearance") and the options that ask
-    for it (:func:`pycinder.ifc.mode_options`, in the command line's words)."""
-    from .ifc import mode_options
+    for it (:func:`pycinder.bim.ifc.mode_options`, in the command line's words)."""
+    from .bim.ifc import mode_options
 
     try:
         return mode_options(getattr(args, "min_depth", None), getattr(args, "clearance", None))
@@ -286,8 +286,8 @@ def _no_ifc_options(args: argparse.Namespace) -> None:
 
 
 def _groups(args: argparse.Namespace) -> tuple[Any, Any]:
-    """``check``'s clash set: groups A and B (:class:`pycinder.ifc.Group`, or None)."""
-    from .ifc import Group
+    """``check``'s clash set: groups A and B (:class:`pycinder.bim.ifc.Group`, or None)."""
+    from .bim.ifc import Group
 
     def group(side: str) -> Any:
         selector = getattr(args, side)
@@ -306,7 +306,7 @@ def _groups(args: argparse.Namespace) -> tuple[Any, Any]:
 def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
     """``check`` on IFC files: one body per element, a clash set, the mode's pairs as text or
     JSON, and a BCF file with --bcf; returns 0 (no clash), 1 (clashes) or 2 (an error)."""
-    from .ifc import find_clashes, make_detector, read_ifc
+    from .bim.ifc import find_clashes, make_detector, read_ifc
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -329,7 +329,7 @@ def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
                        f"checking {plural(len(model.bodies), 'element')}")
                 clashes = find_clashes(model, a, b, detector=det)
             if args.bcf:
-                from .bcf import write_bcf
+                from .bim.bcf import write_bcf
 
                 write_bcf(clashes, args.bcf, project=", ".join(model.files))
         except _ERRORS as exc:
@@ -389,7 +389,7 @@ def _tolerance_range(bodies: Sequence[FileBody], st: Any, request: CollisionRequ
 def _boxes_meeting(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """(n,) whether each of the boxes ``lo``, ``hi`` ((n, 3) corners) meets another one (the
     broad phase's sweep, touching included)."""
-    from .broadphase import sweep_and_prune
+    from .focused.broad.prune import sweep_and_prune
 
     meets = np.zeros(len(lo), dtype=bool)
     meets[sweep_and_prune(lo, hi).ravel()] = True
@@ -465,7 +465,7 @@ def _fail(args: argparse.Namespace, messages: Sequence[str], caught: list) -> in
 
 
 def cmd_debug_buffers(args: argparse.Namespace) -> int:
-    from .debug import write_debug_buffers
+    from .debug.buffers import write_debug_buffers
 
     bodies, transforms = None, None
     if args.files:
@@ -482,9 +482,9 @@ def cmd_debug_buffers(args: argparse.Namespace) -> int:
 
 def cmd_example(args: argparse.Namespace) -> int:
     """Check the paper's three-box scene, write its debug buffers and their montage."""
-    from .debug import three_boxes, write_debug_buffers
+    from .debug.buffers import three_boxes, write_debug_buffers
     from .detector import Detector
-    from .montage import pillow, write_montage
+    from .debug.montage import pillow, write_montage
 
     pillow()  # the montage needs it: say so before writing anything
     boxes, names, view = three_boxes()

@@ -34,7 +34,7 @@ import numpy as np
 from .records import pair_keys
 from .scene.normals import world_edge_normals, world_face_normals
 from .result import CollisionResult
-from .text import plural
+from .util.text import plural
 
 CELL_TOLERANCES = 4.0
 """Grid cell of the region search, in tolerances: records closer than this join a region."""
@@ -96,7 +96,7 @@ class Contacts:
         Unit normal pointing from ``a`` into ``b``.
     depth : (C,) float64
         Penetration depth along the normal (of a contact measured whole: the pair's directional
-        depth, an upper bound; see :mod:`pycinder.hardclash`).
+        depth, an upper bound; see :mod:`pycinder.focused.modes.hardclash`).
     face : (C, 2) int64
         Face of ``a`` and of ``b`` at the contact (-1 where not known).
     deepest : (C, 2, 3) float64

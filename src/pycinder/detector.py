@@ -18,14 +18,14 @@ import numpy as np
 import wgpu
 
 from .errors import GpuError, GpuTimeoutError
-from .focused import FocusedStrategy
+from .focused.strategy import FocusedStrategy
 from .gpu.device import check_not_forked, fork_generation, get_gpu, keep_from_parent
 from .request import CollisionRequest
 from .result import CollisionResult, Stats
 from .scene import PreparedBodies, Scene, ShapeCache, prepare_scene
 from .scene.prepared import check_body_count
 from .view import View
-from .wholescene import WholeSceneStrategy
+from .wholescene.strategy import WholeSceneStrategy
 
 
 class Detector:
@@ -230,7 +230,7 @@ class Detector:
     def in_collision(self, bodies: Sequence[Any], transforms: Any = None, *,
                      names: Sequence[str | None] | None = None, groups: Any = None) -> bool:
         """Whether any two bodies interfere, as :meth:`find_collisions` would answer, for less:
-        the pairs likeliest to collide (:func:`~pycinder.tiles.likely_pairs`) run first, and the
+        the pairs likeliest to collide (:func:`~pycinder.focused.plan.tiles.likely_pairs`) run first, and the
         GPU skips every tile that has not started once any pair is found (the focused strategy;
         the scene strategy runs its whole query). Arguments as :meth:`find_collisions`.
 

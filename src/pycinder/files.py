@@ -6,7 +6,7 @@
 
 * **Formats**: STL, OBJ, PLY, OFF, glTF (``.gltf`` and ``.glb``) and 3MF (which needs lxml:
   ``pip install 'pycinder[files]'``). Point clouds and 2-D drawings are not meshes. IFC files
-  (``.ifc``) are read by :mod:`pycinder.ifc`, one body per element (``pip install
+  (``.ifc``) are read by :mod:`pycinder.bim.ifc`, one body per element (``pip install
   'pycinder[bim]'``).
 * **Scene files** (glTF, 3MF, OBJ with several ``o`` objects) give one body per geometry instance,
   named ``file:node`` after the scene graph, with the instance's transform; a file with one body
@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from .text import plural
+from .util.text import plural
 
 MESH_FORMATS = {"stl": "STL", "obj": "OBJ", "ply": "PLY", "off": "OFF", "glb": "glTF",
                 "gltf": "glTF", "3mf": "3MF", "ifc": "IFC"}
@@ -383,7 +383,7 @@ def _check_3mf(c: _Check, head: bytes) -> None:
 
 
 def _check_ifc(c: _Check, head: bytes) -> None:
-    """An IFC file is STEP text (ISO 10303-21); its elements are read by :mod:`pycinder.ifc`."""
+    """An IFC file is STEP text (ISO 10303-21); its elements are read by :mod:`pycinder.bim.ifc`."""
     if not head.lstrip().startswith(b"ISO-10303-21"):
         raise c.fail("is not an IFC file in STEP form (it does not start with ISO-10303-21; "
                      "ifcXML and ifcZIP are not read)")
@@ -446,7 +446,7 @@ def _load_scene(path: str, ext: str, label: str) -> tuple[Any, list[str]]:
     import trimesh
 
     if ext == "3mf":
-        from .optional import require
+        from .util.optional import require
 
         require("lxml", f"{label}: reading 3MF files", "files")
     log = logging.getLogger("trimesh")
@@ -535,7 +535,7 @@ def load_file(path: str, label: str, limits: Limits = Limits()) -> list[FileBody
 
     ext = check_file(path, label, limits)
     if ext == "ifc":  # one body per element, by IfcOpenShell (pycinder[bim])
-        from .ifc import load_file as load_ifc
+        from .bim.ifc import load_file as load_ifc
 
         return load_ifc(path, label, limits)
     scene, logged = _load_scene(path, ext, label)

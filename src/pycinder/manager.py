@@ -25,8 +25,8 @@ errors as trimesh's class (which runs python-fcl). What backs each answer:
 * **Query modes**: the options are those of :class:`~pycinder.CollisionRequest`, the mode
   options included. ``CollisionManager(min_depth=d)`` makes ``in_collision_*`` report hard
   clashes (pairs deeper than ``d``, never touching convex pairs; see
-  :mod:`pycinder.hardclash`), ``CollisionManager(clearance=c)`` pairs closer than ``c`` (see
-  :mod:`pycinder.clearance`); their names and booleans answer that question. Such a manager
+  :mod:`pycinder.focused.modes.hardclash`), ``CollisionManager(clearance=c)`` pairs closer than ``c`` (see
+  :mod:`pycinder.focused.modes.clearance`); their names and booleans answer that question. Such a manager
   measures no contacts: ``return_data=True``, and ``min_distance_*`` where non-convex objects
   overlap, raise a ``ValueError`` (use a manager without the mode for them).
 """
@@ -46,7 +46,7 @@ import numpy as np
 from .contacts import ContactData
 from .detector import Detector
 from .gpu.device import keep_from_parent
-from .optional import require
+from .util.optional import require
 from .request import CollisionRequest
 from .result import CollisionResult
 from .scene import PreparedBodies

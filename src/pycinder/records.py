@@ -17,7 +17,7 @@ This keeps the paper's two 16-bit ids per pixel (its RG and BA) in the first two
 and uses the other two for data the paper could only dream of encoding. The compact readback
 writes each surviving pixel as ``(pixel index, r << 16 | g, b, a)``.
 
-Focused strategy: passes F4-F6 append a :data:`~pycinder.layout.RECORD` per sample (tile,
+Focused strategy: passes F4-F6 append a :data:`~pycinder.gpu.layout.RECORD` per sample (tile,
 u | v << 16, f32 bits of z, id | kind | side); the tile names the pair, so the penetrated body is
 the other one of its pair.
 """

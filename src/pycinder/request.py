@@ -190,7 +190,7 @@ class CollisionRequest:
     broad_phase : {"auto", "gpu", "numpy"}
         Focused strategy: where the candidate pairs (bodies whose world boxes overlap) are
         found. ``"gpu"``: world boxes, a sort and a sweep in compute passes
-        (:class:`pycinder.passes.broad.GpuBroadPhase`), one more submission and map per
+        (:class:`pycinder.focused.broad.GpuBroadPhase`), one more submission and map per
         query; it may add pairs whose boxes are apart by a few millionths of their coordinates,
         which the tile planner then separates. ``"numpy"``: a vectorised sweep on the host.
         ``"auto"`` (default): the GPU from :data:`GPU_BROAD_PHASE_BODIES` bodies. The pairs
@@ -198,9 +198,9 @@ class CollisionRequest:
     planner : {"numpy", "gpu"}
         Focused strategy: where the tiles are planned. ``"numpy"`` (default): on the host, in
         float64. ``"gpu"``: compute passes plan every pair's view and window and pack the atlas
-        (:class:`pycinder.gpuplan.GpuPlanner`), one more submission and map per query; a
+        (:class:`pycinder.focused.plan.gpu.GpuPlanner`), one more submission and map per query; a
         plan equals the host's up to single precision's rounding, relative to each pair's own
-        extent (see :mod:`pycinder.gpuplan`). A query that stops at its first pair plans on the
+        extent (see :mod:`pycinder.focused.plan.gpu`). A query that stops at its first pair plans on the
         host.
     records : {"found", "all", "none"}, optional
         Focused strategy: ``"found"`` (default) stops testing a pair as soon as one of its tiles
@@ -220,13 +220,13 @@ class CollisionRequest:
     clearance : float, optional
         Focused strategy: report every pair whose surfaces are closer than this many world
         units, overlapping pairs included, with its distance; never a pair more than
-        ``clearance * 9/8`` apart (see :mod:`pycinder.clearance`). The tolerance of the
+        ``clearance * 9/8`` apart (see :mod:`pycinder.focused.modes.clearance`). The tolerance of the
         interference test inside it is ``clearance / 4`` unless a finer one is given.
     min_depth : float, optional
         Focused strategy: hard clashes. Report every pair that penetrates deeper than this many
         world units (the shortest translation that separates it is longer), with its depth;
         never a pair of convex bodies at most ``min_depth / 2`` deep, touching and apart pairs
-        included (see :mod:`pycinder.hardclash`). It is measured exactly, face pair by face pair,
+        included (see :mod:`pycinder.focused.modes.hardclash`). It is measured exactly, face pair by face pair,
         with no pixels: ``tolerance`` and ``records`` do not apply (it keeps no records). Not
         with ``clearance``.
     """

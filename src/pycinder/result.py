@@ -10,12 +10,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .records import RECORD_DTYPE
-from .text import plural
+from .util.text import plural
 
 if TYPE_CHECKING:
     from .contacts import Contacts
     from .scene import Scene
-    from .tiles import TilePlan
+    from .focused.plan.tiles import TilePlan
     from .view import View
 
 
@@ -200,12 +200,12 @@ class CollisionResult:
         contacts); None for the scene strategy. :meth:`contacts` needs ``"all"``.
     distances : (K,) float64 or None
         A clearance query (``clearance=c``): each pair's distance between surfaces, 0 where the
-        bodies overlap (see :mod:`pycinder.clearance`); None for other queries.
+        bodies overlap (see :mod:`pycinder.focused.modes.clearance`); None for other queries.
     distance_errors : (K,) float64 or None
         The bound on each of :attr:`distances`' error.
     depths : (K,) float64 or None
         A hard-clash query (``min_depth=d``): each pair's penetration depth, an upper bound of
-        the shortest translation that separates it (see :mod:`pycinder.hardclash`); None for
+        the shortest translation that separates it (see :mod:`pycinder.focused.modes.hardclash`); None for
         other queries.
     depth_errors : (K,) float64 or None
         The bound on each of :attr:`depths`' error, for convex bodies (a non-convex pair's
@@ -213,7 +213,7 @@ class CollisionResult:
     measured_contacts : Contacts or None
         Contacts of pairs whose every record was dropped (more records than one buffer of the
         device holds): one per pair, measured whole by pass H1 (its depth, along the direction
-        that separates it; see :mod:`pycinder.hardclash`); :meth:`contacts` includes them.
+        that separates it; see :mod:`pycinder.focused.modes.hardclash`); :meth:`contacts` includes them.
 
     Notes
     -----

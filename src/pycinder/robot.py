@@ -25,7 +25,7 @@ Padding is MoveIt's: the robot checked against the environment is the padded rob
 grown by its padding), and self-collision is checked with the unpadded robot, as MoveIt's
 ``PlanningScene`` does. A link (or an attached object named in a padding dict) and an
 environment body collide when their surfaces are closer than the link's padding. It runs
-through the clearance mode (:mod:`pycinder.clearance`) at the largest padding, and each pair is
+through the clearance mode (:mod:`pycinder.focused.modes.clearance`) at the largest padding, and each pair is
 kept by its own: a pair closer than its padding is always reported, one more than its padding
 plus an eighth of the largest padding apart never is.
 """
@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import trimesh
 
-from .optional import require
+from .util.optional import require
 
 if TYPE_CHECKING:
     from .detector import Detector

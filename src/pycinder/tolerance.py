@@ -23,7 +23,7 @@ import numpy as np
 
 from .errors import PrecisionWarning, warn_at_caller
 from .scene import Scene
-from .text import plural
+from .util.text import plural
 
 DEFAULT_RELATIVE_TOLERANCE = 0.01
 """Default tolerance of a pair, as a fraction of the smaller body's bounding-box diagonal."""

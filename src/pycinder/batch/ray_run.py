@@ -27,7 +27,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from ..optional import require
+from ..util.optional import require
 from .manifest import normalize
 from .worker import BatchWorker, error_result
 

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from ..optional import require
+from ..util.optional import require
 
 KEYS = {"robot", "srdf", "configurations", "environment", "tolerance", "package_dirs",
         "self_collision"}

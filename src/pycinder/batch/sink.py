@@ -22,7 +22,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from ..optional import require
+from ..util.optional import require
 from .manifest import id_key
 
 

@@ -3,8 +3,8 @@
 Drifting spheres as in the ``many`` scene (0.1 across, about 1,160 per unit volume, so that
 their volumes add up to 0.6 of the box's; random orientations; drifting a little every frame),
 at 1,000, 10,000 and 100,000 bodies. Per frame, interleaved (the first of the two alternates):
-the NumPy reference (:func:`pycinder.passes.broad.reference_pairs`: ``world_boxes``,
-``sweep_and_prune``) and :class:`pycinder.passes.broad.GpuBroadPhase` (upload, one
+the NumPy reference (:func:`pycinder.focused.broad.reference_pairs`: ``world_boxes``,
+``sweep_and_prune``) and :class:`pycinder.focused.broad.GpuBroadPhase` (upload, one
 submission, one map, the sort of the pairs on the host), both from the same NumPy arrays to the
 sorted (K, 2) pairs. Every frame's answers are compared: every reference pair must be found;
 extra pairs (boxes within the padding) are counted.
@@ -54,9 +54,9 @@ def drifting_spheres(count: int, frames: int, seed: int = 1
 def run_broadphase(counts: Sequence[int] = COUNTS, frames: int = 5,
                    progress: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Median milliseconds per frame of both, with the answers compared (module doc)."""
-    from ..broadphase import world_boxes
+    from ..focused.broad.prune import world_boxes
     from ..gpu.device import get_gpu
-    from ..passes.broad import GpuBroadPhase, reference_pairs
+    from ..focused.broad import GpuBroadPhase, reference_pairs
 
     gpu = GpuBroadPhase()
     rows = []
@@ -121,7 +121,7 @@ def markdown(r: dict[str, Any]) -> list[str]:
               "each box against every box that starts within its extent along the sweep axis "
               "(the median count is in the table), the GPU stage only those in its own and the "
               "neighbouring columns of a grid across the axis (see "
-              "`pycinder.passes.broad`). Where the first count is large, most of the ratio "
+              "`pycinder.focused.broad`). Where the first count is large, most of the ratio "
               "is that difference of algorithm."]
     if "CPU" in r["adapter"]:
         lines += ["", "This adapter implements the GPU API in software: the GPU stage's passes run "

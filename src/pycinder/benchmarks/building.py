@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from ..optional import require
+from ..util.optional import require
 
 W, D, H = 6.0, 6.0, 3.0
 """A cell's width (x), depth (y) and storey height (z), in metres."""
@@ -595,7 +595,7 @@ def score(building: Building, reported: set[tuple[str, str]], mode: str,
 
 def _pycinder_runs(paths: Sequence[Path], building: Building,
                    say: Callable[[str], None]) -> list[dict[str, Any]]:
-    from .. import ifc
+    from ..bim import ifc
 
     rows = []
     t0 = time.perf_counter()
@@ -626,14 +626,14 @@ def check_depths(building: Building, clashes: Sequence[Any]) -> dict[str, Any]:
     ----------
     building : Building
     clashes : sequence of Clash
-        From :func:`pycinder.ifc.find_clashes` with ``min_depth``.
+        From :func:`pycinder.bim.ifc.find_clashes` with ``min_depth``.
 
     Returns
     -------
     dict
         ``depths_checked`` (clashes whose pair is in the truth), ``depths_outside`` (of those,
         clashes whose depth is farther from the true depth than the two bounds together: the
-        clash's :attr:`~pycinder.ifc.Clash.depth_error` and the tessellation's
+        clash's :attr:`~pycinder.bim.ifc.Clash.depth_error` and the tessellation's
         :attr:`Relation.error`) and ``depth_worst`` (the largest difference from the true
         depth, in metres; 0 with nothing checked).
     """

@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from ..broadphase import sweep_and_prune
-from .. import optional
+from ..focused.broad.prune import sweep_and_prune
+from ..util import optional
 from ..detector import Detector
 from ..scene import PreparedBodies
 from .scenes import Scene

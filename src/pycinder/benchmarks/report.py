@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from ..optional import require
+from ..util.optional import require
 
 SYSTEMS = ("pycinder", "pycinder-scene", "python-fcl", "coal", "trimesh", "warp")
 

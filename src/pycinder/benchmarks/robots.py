@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from ..optional import require
+from ..util.optional import require
 from ..robot import Body, Environment, Robot
 from ..testing import crosses_deeply, ground_truth, pair_tolerances, surface_distance
 

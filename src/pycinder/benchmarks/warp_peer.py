@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from ..optional import require
+from ..util.optional import require
 from .peers import System
 from .scenes import Scene
 

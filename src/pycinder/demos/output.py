@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ..text import plural
+from ..util.text import plural
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
 """The video files written: an MP4 (imageio-ffmpeg, H.264) and an animated GIF (Pillow)."""
@@ -83,7 +83,7 @@ class FrameWriter:
         elif self.kind == ".gif":
             self._gif.append(image)
         else:
-            from ..debug import png_bytes
+            from ..debug.buffers import png_bytes
 
             (self.out / f"frame_{self.count:04d}.png").write_bytes(png_bytes(image))
         self.count += 1
@@ -93,7 +93,7 @@ class FrameWriter:
         if self._writer is not None:
             self._writer.close()
         if self._gif:
-            from ..montage import pillow
+            from ..debug.montage import pillow
 
             Image = pillow().Image
 

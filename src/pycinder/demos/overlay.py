@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..montage import font, pillow
+from ..debug.montage import font, pillow
 
 MARK_EDGE = (150, 40, 200)
 """The paper's purple: the border of a mark."""

@@ -67,7 +67,7 @@ class SceneBuffers:
     """The packed scene on the GPU, for the whole-scene strategy's passes 1-7: each storage
     buffer under the name ``raycast.wgsl`` binds it by (:attr:`NAMES`), and the index buffer.
     (The view's own constants, the ``Frame`` block, belong to the passes:
-    :class:`~pycinder.passes.raycast.RaycastPasses`.)"""
+    :class:`~pycinder.wholescene.raycast.RaycastPasses`.)"""
 
     NAMES = ("positions", "vertex_body", "clip_from_body", "edges", "vertex_normals",
              "edge_normals", "world_from_body")

@@ -329,14 +329,14 @@ def _get_gpu() -> Gpu:
 def shader_source(name: str) -> str:
     """The WGSL source ``shaders/<name>.wgsl``, with ``//!include other.wgsl`` lines replaced by
     that file's source (WGSL has no includes of its own), and ``//!include layout`` by the
-    constants generated from :mod:`pycinder.layout`."""
+    constants generated from :mod:`pycinder.gpu.layout`."""
     text = resources.files("pycinder.shaders").joinpath(f"{name}.wgsl").read_text()
     lines = []
     for line in text.splitlines():
         if line.startswith("//!include "):
             included = line.split()[1].removesuffix(".wgsl")
             if included == "layout":
-                from ..layout import wgsl_prelude
+                from .layout import wgsl_prelude
 
                 lines.append(wgsl_prelude())
             else:

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import xxhash
 
-from .. import threads
+from ..util import threads
 from .normals import face_normals, signed_volume, vertex_and_edge_normals
 from .topology import DEFAULT_CACHE_BYTES, Topology, TopologyCache, report_problems
 
@@ -646,8 +646,8 @@ class Scene:
 
     def world_boxes(self) -> tuple[np.ndarray, np.ndarray]:
         """(N, 3) world box minimum and maximum of every body (see
-        :func:`pycinder.broadphase.world_boxes`)."""
-        from ..broadphase import world_boxes
+        :func:`pycinder.focused.broad.prune.world_boxes`)."""
+        from ..focused.broad.prune import world_boxes
 
         return world_boxes(self.local_lo, self.local_hi, self.radius, self.transforms)
 

@@ -19,9 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from ..text import plural
-from .bodies import (Scene, Shape, ShapeCache, _shapes_of, body_label, check_transforms,
-                     mesh_arrays)
+from ..util.text import plural
+from .bodies import Scene, Shape, ShapeCache, _shapes_of, body_label, check_transforms, mesh_arrays
 
 
 class PreparedBodies(Sequence):

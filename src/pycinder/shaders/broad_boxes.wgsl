@@ -50,7 +50,7 @@ fn world_boxes(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index
             // ...and the transformed sphere's (an ellipsoid: radius times the row's norm).
             let c = row.w + dot(m, centre);
             let half = radius * length(m);
-            // Grown by the rounding bound of this row's arithmetic (see pycinder.passes.broad).
+            // Grown by the rounding bound of this row's arithmetic (see pycinder.focused.broad).
             let pad = PAD_SCALE * (abs(row.w) + dot(abs(m), reach + vec3f(radius)))
                 + params.base_pad;
             wlo[k] = max(box_lo, c - half) - pad;

@@ -5,7 +5,7 @@
 // Along a direction n, moving a by s n puts all of a beyond all of b on a ray parallel to n when
 // s > (the farthest point of b on the ray) - (the nearest point of a on it), so
 //     U(n) = max over rays of (max depth of b - min depth of a)
-// is a translation that separates the pair (what pycinder.hardclash takes the least of). A ray's
+// is a translation that separates the pair (what pycinder.focused.modes.hardclash takes the least of). A ray's
 // extremes lie on the surfaces, so U(n) is the largest of depth_b - depth_a over every face of a
 // and face of b, over the region where their projections along n overlap. Both depths are affine
 // there, so that largest value is found at the region's corners: a corner of one face inside the

@@ -1,4 +1,4 @@
-// Pass P2 of the GPU tile planner, atlas (compute): the integer part of pycinder.tiles.plan_tiles
+// Pass P2 of the GPU tile planner, atlas (compute): the integer part of pycinder.focused.plan.tiles.plan_tiles
 // (lead=None): every kept window cut into tiles, in phases, the tiles packed into the atlas's
 // bands and the bands into rounds, with the same tiles in the same order as _phases_of, _layout,
 // _place and concat_plans make them (see passes/atlasplan.py for the whole argument).

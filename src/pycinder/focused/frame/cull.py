@@ -1,0 +1,74 @@
+"""Pass F1, cull: per tile, side and cluster, keep the cluster's faces (when its bounds meet the
+tile's window) and its edges (when they meet the tile's box) as work items of passes F2 and F5."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import ClassVar
+
+import wgpu
+
+from ...gpu.device import Gpu
+from ...gpu.structs import Struct
+from ...gpu.layout import WORKGROUP
+from .arguments import Arguments
+from .atlas import Encoding, Round
+from ...gpu.bindings import Stage, dispatch
+from .scope import ComputeScope
+from ...gpu.table import PassInfo
+
+RetryDispatch = Callable[[wgpu.GPUComputePassEncoder, Encoding, Round], None]
+"""Encodes a retry round's cull dispatch (``retry.wgsl``'s ``retry_args``)."""
+
+PARAMS = Struct("CullParams", [
+    ("total", "u32", "threads of this round"),
+    ("first_entry", "u32", "first (tile, side) entry of this round"),
+    ("n_entries", "u32", "entries in this round"),
+    ("face_cap", "u32", "face items the buffer holds"),
+    ("edge_cap", "u32", "edge items the buffer holds"),
+    ("pair_offset", "u32", "where the per-pair hit flags start in `counts`"),
+    ("retry_offset", "u32", "a retry round: where the per-tile retry flags start (0: every tile)"),
+], uniform=True)
+
+
+class Cull:
+    """F1: one thread per (tile, side, cluster of that side's body); a retry round culls only
+    the tiles chosen for it, with a dispatch written on the GPU (``retry.wgsl``'s
+    ``retry_args``)."""
+
+    INFO: ClassVar[PassInfo] = PassInfo(
+        "F1", "cull", "clusters per tile: face and edge work items", when="every round")
+    PARAMS: ClassVar[Struct] = PARAMS
+
+    def __init__(self, gpu: Gpu, arguments: Arguments, retry_dispatch: RetryDispatch) -> None:
+        self.stage = Stage(gpu, "cull", "cull", label=self.INFO.title, structs=(PARAMS,))
+        self.arguments = arguments
+        self.retry_dispatch = retry_dispatch
+
+    def write_params(self, e: Encoding, r: Round, round_of_frame: int) -> None:
+        s, k = e.state, round_of_frame
+        p = e.round_params("cull", r.block)
+        p["total"] = s.round_threads[k]
+        p["first_entry"] = 2 * s.round_tiles[k]
+        p["n_entries"] = 2 * (s.round_tiles[k + 1] - s.round_tiles[k])
+        p["face_cap"] = p["edge_cap"] = s.items
+        p["pair_offset"] = s.pair_offset
+        p["retry_offset"] = s.retry_offset if r.retry else 0
+
+    def encode(self, scope: ComputeScope, e: Encoding, r: Round) -> None:
+        b = e.buffers
+        group = self.stage.group(
+            f"round {r.block}", tiles=b.tiles, clusters=b.clusters, bounds=b.cluster_bounds,
+            entries=b.entries, face_items=b.face_items, edge_items=b.edge_items,
+            counters=b.counters, params=e.round_params.binding("cull", r.block),
+            counts=b.tile_counts)
+        cpass = scope.begin(self.INFO.title)
+        if r.retry:
+            self.retry_dispatch(cpass, e, r)
+            dispatch(cpass, self.stage, group, indirect=b.args_at("retry_cull"))
+        else:
+            dispatch(cpass, self.stage, group, -(-r.threads // WORKGROUP))
+        self.arguments.encode(cpass, e, "after_cull")
+
+
+__all__ = ["Cull"]

@@ -1,0 +1,233 @@
+"""Clearance queries: every pair of bodies closer than a distance ``c``, with its distance.
+
+``Detector(clearance=c)`` (or ``clearance=c`` on any entry point) answers "is A within c of B?",
+Navisworks' and IfcClash's clearance test, a robot link's padding. Its contract:
+
+1. A pair whose surfaces are closer than ``c`` is always reported; so is every pair that
+   overlaps (surfaces that cross or touch, or a body inside a closed other).
+2. A pair whose surfaces are more than ``c + c/8`` apart is never reported.
+3. Each reported pair carries its distance (``result.distances``): the distance between the two
+   surfaces, 0 for pairs that overlap, within ``result.distance_errors`` of the truth.
+
+How. The candidates are the pairs whose world boxes are within ``c``. For each, pass C1
+(:mod:`pycinder.focused.modes.distance`) measures the distance between the two surfaces exactly, in
+single precision, over the pairs of face clusters whose world boxes are within ``c``: two
+triangles are closest at an edge and an edge or at a vertex and a face, or are 0 apart where an
+edge of one passes through the other. A distance of surfaces misses a body wholly inside another
+with their surfaces farther apart than ``c``; the focused interference test finds those, run at
+a tolerance ``t`` of ``c / 4`` (or the one given, if finer): such a body reaches at least
+``c = 4 t`` into the other, which the tolerance contract always reports (from ``2 t``). As that
+contract never reports a pair ``t`` apart, a pair it finds with surfaces at least ``2 t`` apart
+is a body inside the other (distance 0); one it finds with surfaces closer may be either, and
+its figure's bound covers both.
+
+Precision. Each pair is measured in a frame of its own, centred where its bodies can be within
+``c``; single precision then bounds the error of a distance by :data:`ERROR_SCALE` times ``L``,
+the farthest the pair's bodies reach from that centre (``result.distance_errors``). A pair is
+reported when its measured distance is below ``c`` plus that bound (promise 1), which keeps
+promise 2 while the bound is at most ``c / 16``: a smaller ``c`` for bodies that large raises a
+``ValueError`` naming the pair.
+
+Cost. The distance pass runs over cluster pairs (64 x 64 triangle pairs each) near the pair's
+closest approach, so its cost grows with the area of the surfaces within ``c`` of each other;
+the interference test at ``c / 4`` is coarser, and cheaper, than the default tolerance wherever
+``c`` is larger than 4% of the bodies.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..broad.prune import sweep_and_prune
+from .distance import ITEM, Distance
+from .pairwork import check_rounding, pair_frames, spread
+from ...records import pair_keys
+from ...result import CollisionResult, Stats
+from ...scene import Scene
+from ...scene.pack import ShapePack
+
+if TYPE_CHECKING:
+    from ..strategy import FocusedStrategy
+
+PASSES = (Distance,)
+"""The clearance query's own pass, after the interference test's (the pass table is generated
+from it)."""
+
+ERROR_SCALE = 2.0**-16
+"""Bound of a measured distance's error, per unit of the pair's reach from its frame's centre."""
+
+
+def cluster_boxes(pack: ShapePack, shapes: list) -> tuple[np.ndarray, np.ndarray]:
+    """Body-space box of every cluster of the packed shapes, from the shapes' current vertices
+    (a pack keeps those of the frame that made it; a deforming shape has new ones).
+
+    Parameters
+    ----------
+    pack : ShapePack
+    shapes : list of Shape
+        The shapes packed, in the pack's order.
+
+    Returns
+    -------
+    lo, hi : (C, 3) float64
+    """
+    positions = np.concatenate([s.vertices for s in shapes]) if shapes else pack.positions
+    corners = positions[pack.faces.reshape(-1)].reshape(-1, 3, 3).astype(np.float64)
+    face_lo, face_hi = corners.min(axis=1), corners.max(axis=1)
+    start = pack.clusters[:, 0].astype(np.int64)
+    if len(start) == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    return np.minimum.reduceat(face_lo, start), np.maximum.reduceat(face_hi, start)
+
+
+def _world(lo: np.ndarray, hi: np.ndarray, transforms: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """World boxes (n, 3) of body-space boxes, each under its transform (n, 4, 4)."""
+    linear = transforms[:, :3, :3]
+    centre = np.einsum("nij,nj->ni", linear, 0.5 * (lo + hi)) + transforms[:, :3, 3]
+    half = np.einsum("nij,nj->ni", np.abs(linear), 0.5 * (hi - lo))
+    return centre - half, centre + half
+
+
+def _gap(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray) -> np.ndarray:
+    """Distance between boxes (broadcasting over leading axes): a lower bound of the distance
+    between anything inside them."""
+    apart = np.maximum(np.maximum(lo_a - hi_b, lo_b - hi_a), 0.0)
+    return np.sqrt((apart * apart).sum(axis=-1))
+
+
+def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, c: float,
+         boxes: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The work of pass C1: each pair's frame and its cluster pairs within ``c``.
+
+    Parameters
+    ----------
+    scene : Scene
+    pack : ShapePack
+    pairs : (K, 2) int
+    c : float
+    boxes : (C, 3) float, (C, 3) float
+        :func:`cluster_boxes` of ``pack``.
+
+    Returns
+    -------
+    items : (I,) structured array of :data:`~pycinder.focused.modes.pairwork.ITEM`
+    frames : (K,) structured array of :data:`~pycinder.focused.modes.pairwork.FRAME`
+    reach : (K,) float64
+        How far each pair's bodies reach from its frame's centre (``L`` of the error bound).
+    """
+    lo_all, hi_all = boxes
+    start = pack.cluster_start
+    face_start = pack.clusters[:, 0].astype(np.int64)
+    face_count = pack.clusters[:, 1].astype(np.int64)
+    world_lo, world_hi = scene.world_boxes()
+    a, b = pairs[:, 0], pairs[:, 1]
+    frames, reach = pair_frames(scene.transforms, pairs, world_lo, world_hi,
+                                np.maximum(world_lo[a], world_lo[b]) - c,
+                                np.minimum(world_hi[a], world_hi[b]) + c)
+    # Per side, the clusters of each pair's body within c of the other body's world box.
+    near = []
+    for body, other in ((a, b), (b, a)):
+        shape = scene.body_shape[body]
+        row, j = spread(start[shape + 1] - start[shape])
+        ids = start[shape][row] + j
+        lo, hi = _world(lo_all[ids], hi_all[ids], scene.transforms[body[row]])
+        keep = _gap(lo, hi, world_lo[other[row]], world_hi[other[row]]) <= c
+        near.append((row[keep], ids[keep], lo[keep], hi[keep]))
+    (row_a, ia, la, ha), (row_b, ib, lb, hb) = near
+    # Every near cluster of a with every near cluster of b of the same pair, kept within c.
+    na, nb = np.bincount(row_a, minlength=len(pairs)), np.bincount(row_b, minlength=len(pairs))
+    pair, i = spread(na * nb)
+    first_a, first_b = np.cumsum(na) - na, np.cumsum(nb) - nb
+    ka = first_a[pair] + i // np.maximum(nb[pair], 1)
+    kb = first_b[pair] + i % np.maximum(nb[pair], 1)
+    close = _gap(la[ka], ha[ka], lb[kb], hb[kb]) <= c
+    pair, ca, cb = pair[close], ia[ka[close]], ib[kb[close]]
+    items = ITEM.zeros(len(pair))
+    items["pair"] = pair
+    items["a_start"], items["a_count"] = face_start[ca], face_count[ca]
+    items["b_start"], items["b_count"] = face_start[cb], face_count[cb]
+    return items, frames, reach
+
+
+class Clearance:
+    """Clearance queries on a focused strategy's device and shapes.
+
+    Parameters
+    ----------
+    strategy : FocusedStrategy
+    """
+
+    def __init__(self, strategy: FocusedStrategy) -> None:
+        self.strategy = strategy
+        self.distance = Distance(strategy.gpu, timeout=strategy.request.timeout)
+        self._boxes: tuple[tuple, tuple[np.ndarray, np.ndarray]] | None = None
+
+    def run(self, scene: Scene, stats: Stats, c: float, groups: np.ndarray | None,
+            records: str | None, within: np.ndarray | None,
+            tolerance: np.ndarray | None) -> CollisionResult:
+        """The pairs within ``c`` of a validated scene (see the module's contract)."""
+        n = len(scene)
+        given = np.full(n, np.nan) if tolerance is None else np.asarray(tolerance, np.float64)
+        if self.strategy.request.tolerance is not None:
+            given = np.where(np.isnan(given), self.strategy.request.tolerance, given)
+        fine = np.where(np.isnan(given), c / 4, np.minimum(given, c / 4))
+        overlap = self.strategy.submit_interference(scene, stats, groups, records, within,
+                                                    fine).result()
+        overlap.pairs = np.asarray(overlap.pairs, np.int64).reshape(-1, 2)
+        if not overlap.stats.tolerance[1]:  # no candidate overlapped: say what it would be
+            overlap.stats.tolerance = (float(np.nanmin(fine)), float(np.nanmax(fine)))
+        if n < 2:
+            return _with_figures(overlap, overlap.pairs, np.zeros(0), np.zeros(0))
+        lo, hi = scene.world_boxes()
+        pairs = sweep_and_prune(lo - 0.5 * c, hi + 0.5 * c, within, groups)
+        pack = self.strategy.pack(scene, stats)
+        items, frames, reach = plan(scene, pack, pairs, c, self._cluster_boxes(pack, scene))
+        error = ERROR_SCALE * reach
+        check_rounding(scene, pairs, error, "clearance", c, "distance")
+        t0 = time.perf_counter()
+        buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
+        measured = self.distance.run(buffers.positions, buffers.faces, items,
+                                     frames).astype(np.float64)
+        stats.add_ms("distance", (time.perf_counter() - t0) * 1e3)
+        found = set(pair_keys(overlap.pairs[:, 0], overlap.pairs[:, 1]).tolist())
+        inside = np.isin(pair_keys(pairs[:, 0], pairs[:, 1]), list(found)) if found \
+            else np.zeros(len(pairs), bool)
+        tol = fine[pairs[:, 0]]
+        # Found by the interference test although its surfaces are at least 2 t apart: a body
+        # inside the other (promise 1 of the tolerance contract rules out a pair t apart).
+        contained = inside & (measured >= 2 * tol)
+        near = measured < c + error
+        keep = near | inside
+        distances = np.where(contained, 0.0, np.minimum(measured, np.finfo(np.float64).max))
+        # A pair the interference test found with surfaces closer than 2 t may be a body just
+        # inside the other (distance 0) or one just outside it: its figure is good to itself.
+        errors = error + np.where(inside & ~contained, distances, 0.0)
+        kept = pairs[keep]
+        order = np.lexsort((kept[:, 1], kept[:, 0]))
+        stats.candidates = max(stats.candidates, len(pairs))
+        return _with_figures(overlap, kept[order].astype(np.int64), distances[keep][order],
+                             errors[keep][order])
+
+    def _cluster_boxes(self, pack: ShapePack, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+        # A shape object is made for new vertex content: the shapes' identities are the key.
+        key = (id(pack), tuple(id(s) for s in scene.shapes))
+        if self._boxes is None or self._boxes[0] != key:
+            self._boxes = (key, cluster_boxes(pack, scene.shapes))
+        return self._boxes[1]
+
+
+def _with_figures(overlap: CollisionResult, pairs: np.ndarray, distances: np.ndarray,
+                  errors: np.ndarray) -> CollisionResult:
+    """The interference result's records and stats, with the clearance's pairs and figures."""
+    result = CollisionResult(pairs, overlap.records, overlap.stats, tiles=overlap.tiles,
+                             scene=overlap.scene)
+    result.distances = distances
+    result.distance_errors = errors
+    return result
+
+
+__all__ = ["ERROR_SCALE", "PASSES", "Clearance", "cluster_boxes", "plan"]

@@ -1,0 +1,108 @@
+"""Pass H1, depth: for each candidate pair, how far body a must move along each of
+:data:`LINES` lines, either way, to leave body b behind on every ray parallel to it, exactly (in
+single precision) over every face of a and face of b (``depth.wgsl``). The hard-clash query's one
+pass; what its figures promise is in :mod:`pycinder.focused.modes.hardclash`."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+
+from ...gpu.buffers import GrowableBuffer
+from .pairwork import FRAME, ITEM, PARAMS, ClusterPairPass
+from ...gpu.table import PassInfo
+
+WORLD_LINES = 13
+"""Lines fixed in the world: through a cube's centre and its faces, edges and corners."""
+LINES = 6 + WORLD_LINES
+"""Lines per pair: body a's three axes, body b's, then the world's (see :func:`lines`)."""
+SLACK = 2.0**-18
+"""Rounding allowed in the shader's inside and crossing tests, relative to the faces' size."""
+WHOLE_FACES = 256
+"""Most faces of the body a whole item keeps in workgroup memory (the other's are shared among
+the threads)."""
+WHOLE_WORK = 2**16
+"""Most face pairs of a pair measured by one workgroup as a whole item (which stops at the first
+line that clears the pair); larger pairs are measured cluster pair by cluster pair."""
+ITEM_WHOLE = 1
+"""``whole`` bit of an item: its faces are its pair's two bodies whole (its only item)."""
+ITEM_FLIPPED = 2
+"""``whole`` bit of a whole item: body a's faces are the ones in workgroup memory."""
+
+
+_WORLD = np.array([(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, -1, 0), (1, 0, 1), (1, 0, -1),
+                   (0, 1, 1), (0, 1, -1), (1, 1, 1), (1, 1, -1), (1, -1, 1), (-1, 1, 1)],
+                  np.float64)
+
+
+def lines(transform_a: np.ndarray, transform_b: np.ndarray) -> np.ndarray:
+    """The unit directions of each pair's lines, as the shader's ``line()`` makes them: body a's
+    three axes (its transform's columns), body b's, then the :data:`WORLD_LINES` world lines.
+
+    Parameters
+    ----------
+    transform_a, transform_b : (K, 4, 4) float
+        The pairs' world-from-body matrices.
+
+    Returns
+    -------
+    (K, LINES, 3) float64
+    """
+    k = len(transform_a)
+    out = np.empty((k, LINES, 3))
+    out[:, 0:3] = np.swapaxes(np.asarray(transform_a, np.float64)[:, :3, :3], 1, 2)
+    out[:, 3:6] = np.swapaxes(np.asarray(transform_b, np.float64)[:, :3, :3], 1, 2)
+    out[:, 6:] = _WORLD
+    length = np.linalg.norm(out, axis=2, keepdims=True)
+    return np.where(length > 0, out / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
+
+
+def decode(words: np.ndarray) -> np.ndarray:
+    """Floats of the shader's order-preserving words (0, no figure, decodes to -inf).
+
+    Parameters
+    ----------
+    words : (...,) uint32
+
+    Returns
+    -------
+    (...,) float64
+    """
+    words = np.asarray(words, np.uint32)
+    high = (words & np.uint32(0x80000000)) != 0
+    bits = np.where(high, words & np.uint32(0x7FFFFFFF), ~words)
+    out = bits.view(np.float32).astype(np.float64)
+    return np.where(words == 0, -np.inf, out)
+
+
+class Depth(ClusterPairPass):
+    """H1: one workgroup per item (the pair's bodies whole, or a cluster of each); per pair and
+    line, the largest ``depth_b - depth_a`` and ``depth_a - depth_b`` over the rays that meet
+    both bodies (atomicMax)."""
+
+    INFO: ClassVar[PassInfo] = PassInfo(
+        "H1", "depth", "how far one body of each candidate pair must move along each of 19 "
+        "lines, either way, to clear the other, face pair by face pair", when="hard-clash "
+        "queries")
+    SHADER, ENTRY, WORDS, START = "depth", "depth", 2 * LINES, 0
+    CONSTS: ClassVar[dict[str, int | float]] = {
+        "LINES": LINES, "SLACK": SLACK, "WHOLE_FACES": WHOLE_FACES, "ITEM_WHOLE": ITEM_WHOLE,
+        "ITEM_FLIPPED": ITEM_FLIPPED}
+
+    def run(self, positions: GrowableBuffer, faces: GrowableBuffer, items: np.ndarray,
+            frames: np.ndarray) -> np.ndarray:
+        """Measure (arguments as :meth:`~pycinder.focused.modes.pairwork.ClusterPairPass.words`).
+
+        Returns
+        -------
+        (K, LINES, 2) float64
+            Per pair and line, the translation of body a along the line's direction (``[..., 0]``)
+            and against it (``[..., 1]``) that clears body b on every ray the pair's items meet
+            (-inf where no ray meets both bodies).
+        """
+        return decode(self.words(positions, faces, items, frames)).reshape(-1, LINES, 2)
+
+
+__all__ = ["FRAME", "ITEM", "ITEM_FLIPPED", "ITEM_WHOLE", "LINES", "PARAMS", "SLACK",
+           "WHOLE_FACES", "WHOLE_WORK", "WORLD_LINES", "Depth", "decode", "lines"]

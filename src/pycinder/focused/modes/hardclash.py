@@ -1,0 +1,222 @@
+"""Hard clashes: every pair of bodies that penetrate deeper than a depth ``d``, with its depth.
+
+``Detector(min_depth=d)`` (or ``min_depth=d`` on any entry point) answers "does A penetrate B by
+more than d?", Navisworks' hard clash with a tolerance and IfcClash's intersection mode. A pair's
+penetration depth is the length of the shortest translation that separates it (FCL's and coal's
+definition for convex bodies); a body inside another is as deep as the translation that takes it
+out. Its contract:
+
+1. A pair deeper than ``d`` is always reported, whatever its shapes: closed or open, convex or
+   not, one inside the other.
+2. A pair of convex bodies at most ``d / 2`` deep is never reported: touching pairs (face on
+   face, end on face, edge on face, butt joints) and pairs apart included. A non-convex pair is
+   reported only when its directional depth (below) exceeds ``d``; where the bodies interlock
+   that can exceed its penetration depth.
+3. Each reported pair carries its depth (``result.depths``), an upper bound of its penetration
+   depth (up to rounding); for convex bodies the penetration depth is within
+   ``result.depth_errors`` below it.
+
+How. Along a direction ``n``, moving body a by ``s n`` leaves all of body b behind it on every
+ray parallel to ``n`` once ``s`` exceeds the largest ``(farthest point of b) - (nearest point of
+a)`` over those rays: that ``U(n)`` is a translation that separates the pair, so it is never
+less than the penetration depth. Pass H1 (:mod:`pycinder.focused.modes.depth`) finds it exactly over
+every face of a and face of b, both ways along 19 lines: the 13 through a cube's centre and its
+faces, edges and corners, and each body's own three axes. The pair's directional depth is the
+least of them (0 where a direction clears the pair: touching bodies). For convex bodies ``U(n)``
+is exactly the shortest separating translation along ``n``, at most the penetration depth over
+the cosine of the angle between ``n`` and the best direction; every direction is within
+:data:`DIRECTION_COS` of one of the 26, so the figure is at most ``1 / 0.886`` times the
+penetration depth, which keeps promise 2. A pair whose shortest separating translation lies
+along one of the 19 lines (boxes and beams meeting face to face, whichever way they are turned)
+is measured exactly; where it lies elsewhere (two turned boxes meeting edge to edge) the figure
+is up to that factor high, within ``result.depth_errors``. Open bodies have no inside: their
+surfaces' points are the rays' extremes, so two surfaces crossing deeper than ``d`` are a
+clash.
+
+Precision. Each pair is measured in a frame of its own, centred where its world boxes meet;
+single precision bounds a figure's rounding by :data:`ERROR_SCALE` times ``L``, the farthest
+the pair's bodies reach from that centre. A pair is reported when its figure exceeds ``d`` less
+that bound, which keeps promise 2 while the bound is at most ``d / 16``: a smaller ``d`` for
+bodies that large raises a ``ValueError`` naming the pair.
+
+Cost. No pixels, tolerance or records: every candidate pair (world boxes that meet) is measured
+face pair by face pair, 19 lines each, so the cost of a pair grows with the product of its two
+bodies' face counts. A pair of small bodies is one workgroup's work, which stops at the first
+line that clears the pair: touching and apart pairs, most of a building's candidates, cost a
+line or a few. Building elements and robot links (tens to a few thousand faces) are what it is
+for; two dense meshes of a hundred thousand faces each are ten billion face pairs, for the
+default query (pairs by the tolerance contract) or a clearance query rather.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..broad.prune import sweep_and_prune
+from .clearance import ERROR_SCALE
+from .depth import ITEM_FLIPPED, ITEM_WHOLE, LINES, WHOLE_FACES, WHOLE_WORK, Depth, lines
+from .pairwork import ITEM, check_rounding, pair_frames, spread
+from ...records import empty_records
+from ...result import CollisionResult, Stats
+from ...scene import Scene
+from ...scene.pack import ShapePack
+
+if TYPE_CHECKING:
+    from ..strategy import FocusedStrategy
+
+PASSES = (Depth,)
+"""The hard-clash query's one pass (the pass table is generated from it)."""
+
+CHUNK_PAIRS = 2**16
+"""Most pairs measured by one dispatch of pass H1 (their figures, 152 bytes a pair, are read
+back per chunk)."""
+
+DIRECTION_COS = 0.886
+"""Every direction is within this cosine of one of the 26 directions through a cube's centre and
+its faces, edges and corners (the least over all directions is 0.88645)."""
+
+
+def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray
+         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The work of pass H1: each pair's frame and its items: its two bodies whole, when one has at
+    most :data:`~pycinder.focused.modes.depth.WHOLE_FACES` faces and they make at most
+    :data:`~pycinder.focused.modes.depth.WHOLE_WORK` face pairs, else every pair of their face clusters.
+
+    Parameters
+    ----------
+    scene : Scene
+    pack : ShapePack
+    pairs : (K, 2) int
+
+    Returns
+    -------
+    items : (I,) structured array of :data:`~pycinder.focused.modes.pairwork.ITEM`
+    frames : (K,) structured array of :data:`~pycinder.focused.modes.pairwork.FRAME`
+    reach : (K,) float64
+        How far each pair's bodies reach from its frame's centre (``L`` of the rounding bound).
+    """
+    lo, hi = scene.world_boxes()
+    a, b = pairs[:, 0], pairs[:, 1]
+    frames, reach = pair_frames(scene.transforms, pairs, lo, hi, np.maximum(lo[a], lo[b]),
+                                np.minimum(hi[a], hi[b]))
+    faces = np.diff(pack.face_start)
+    shape_a, shape_b = scene.body_shape[a], scene.body_shape[b]
+    fa, fb = faces[shape_a], faces[shape_b]
+    whole = (np.minimum(fa, fb) <= WHOLE_FACES) & (fa * fb <= WHOLE_WORK)
+    start = pack.cluster_start
+    count_a = np.where(whole, 1, start[shape_a + 1] - start[shape_a])
+    count_b = np.where(whole, 1, start[shape_b + 1] - start[shape_b])
+    per_pair = count_a * count_b
+    # Item i of its pair: cluster i // count_b of body a, cluster i % count_b of body b.
+    pair, i = spread(per_pair)
+    cluster_a = start[shape_a][pair] + i // count_b[pair]
+    cluster_b = start[shape_b][pair] + i % count_b[pair]
+    items = ITEM.zeros(len(pair))
+    items["pair"] = pair
+    items["a_start"], items["a_count"] = pack.clusters[cluster_a, 0], pack.clusters[cluster_a, 1]
+    items["b_start"], items["b_count"] = pack.clusters[cluster_b, 0], pack.clusters[cluster_b, 1]
+    # A whole pair is one item of both bodies' faces, the body with fewer in workgroup memory.
+    w = np.flatnonzero(whole)
+    flip = fa[w] < fb[w]
+    first = np.cumsum(per_pair)[w] - 1  # a whole pair's one item
+    small = np.where(flip, shape_a[w], shape_b[w])
+    large = np.where(flip, shape_b[w], shape_a[w])
+    items["a_start"][first] = pack.face_start[large]
+    items["a_count"][first] = faces[large]
+    items["b_start"][first] = pack.face_start[small]
+    items["b_count"][first] = faces[small]
+    items["whole"][first] = ITEM_WHOLE | np.where(flip, ITEM_FLIPPED, 0)
+    return items, frames, reach
+
+
+class HardClash:
+    """Hard-clash queries on a focused strategy's device and shapes.
+
+    Parameters
+    ----------
+    strategy : FocusedStrategy
+    """
+
+    def __init__(self, strategy: FocusedStrategy) -> None:
+        self.strategy = strategy
+        self.depth = Depth(strategy.gpu, timeout=strategy.request.timeout)
+
+    def run(self, scene: Scene, stats: Stats, d: float, groups: np.ndarray | None,
+            within: np.ndarray | None) -> CollisionResult:
+        """The pairs deeper than ``d`` of a validated scene (see the module's contract)."""
+        if len(scene) < 2:
+            empty = CollisionResult.empty(stats)
+            empty.records_kept = "none"
+            return _with_figures(empty, np.zeros(0), np.zeros(0))
+        t0 = time.perf_counter()
+        lo, hi = scene.world_boxes()
+        pairs = sweep_and_prune(lo, hi, within, groups)
+        stats.candidates = len(pairs)
+        stats.broad_phase = "numpy"
+        stats.add_ms("broad phase", (time.perf_counter() - t0) * 1e3)
+        depth, _, error = self.measure(scene, stats, pairs, d)
+        keep = depth > d - error
+        result = CollisionResult(pairs[keep], empty_records(), stats, scene=scene,
+                                 records_kept="none")
+        depths = depth[keep]
+        return _with_figures(result, depths, depths * (1 - DIRECTION_COS) + error[keep])
+
+    def measure(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float | None = None
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each pair's directional depth, the direction it is measured along, and the bound on
+        its rounding (pass H1 on the shapes as the strategy uploads them).
+
+        Parameters
+        ----------
+        scene : Scene
+        stats : Stats
+        pairs : (K, 2) int
+        d : float, optional
+            The query's depth: a ValueError names the pair whose rounding bound is over
+            ``d / 16``.
+
+        Returns
+        -------
+        depth : (K,) float64
+        normal : (K, 3) float64
+            Unit direction from body a into body b: moving a by ``-depth * normal`` clears the
+            pair (any direction where ``depth`` is 0 and no ray meets both bodies).
+        error : (K,) float64
+        """
+        t1 = time.perf_counter()
+        pack = self.strategy.pack(scene, stats)
+        buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
+        error = np.zeros(len(pairs))
+        figures = np.zeros((len(pairs), LINES, 2))
+        for start in range(0, max(len(pairs), 1), CHUNK_PAIRS):
+            part = slice(start, start + CHUNK_PAIRS)
+            items, frames, reach = plan(scene, pack, pairs[part])
+            error[part] = ERROR_SCALE * reach
+            if d is not None:
+                check_rounding(scene, pairs[part], error[part], "min_depth", d, "depth")
+            t2 = time.perf_counter()
+            stats.add_ms("upload", (t2 - t1) * 1e3)
+            figures[part] = self.depth.run(buffers.positions, buffers.faces, items, frames)
+            stats.bytes_read += figures[part].size * 4  # two words per line and pair
+            t1 = time.perf_counter()
+            stats.add_ms("depth", (t1 - t2) * 1e3)
+        flat = np.maximum(figures.reshape(len(pairs), 2 * LINES), 0.0)
+        best = np.argmin(flat, axis=1)
+        direction = lines(scene.transforms[pairs[:, 0]], scene.transforms[pairs[:, 1]])
+        along = direction[np.arange(len(pairs)), best // 2]
+        # Moving a along +n clears the pair (word 2 i): b lies behind a, along -n.
+        normal = np.where((best % 2 == 0)[:, None], -along, along)
+        return flat[np.arange(len(pairs)), best], normal, error
+
+
+def _with_figures(result: CollisionResult, depths: np.ndarray, errors: np.ndarray
+                  ) -> CollisionResult:
+    result.depths = np.asarray(depths, np.float64)
+    result.depth_errors = np.asarray(errors, np.float64)
+    return result
+
+
+__all__ = ["DIRECTION_COS", "ERROR_SCALE", "PASSES", "HardClash", "plan"]

@@ -1,0 +1,197 @@
+"""Passes that reduce work over cluster pairs to a few figures per candidate pair: pass C1
+(:mod:`~pycinder.focused.modes.distance`, clearance) and H1 (:mod:`~pycinder.focused.modes.depth`, hard
+clashes).
+
+Each item is a cluster of body a and a cluster of body b (at most
+:data:`~pycinder.gpu.layout.CLUSTER_FACES` faces each) of one candidate pair; one workgroup takes one
+item, with the b cluster's faces in workgroup memory and a face of the a cluster per thread.
+Each pair is measured in a frame of its own (:data:`FRAME`), centred where its bodies meet, so
+that single precision is spent on the pair's own extent; its figures are kept with atomicMax or
+atomicMin on order-preserving bits, in ``words`` words per pair, and read back once.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+import wgpu
+
+from ...gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
+from ...gpu.device import Gpu
+from ...gpu.structs import Struct
+from ...gpu.bindings import Stage, dispatch
+from ...gpu.table import PassInfo
+
+if TYPE_CHECKING:
+    from ...scene import Scene
+
+ITEM = Struct("PairItem", [
+    ("pair", "u32", "the candidate pair (its frame and its figures)"),
+    ("a_start", "u32", "first face of body a's cluster (packed)"),
+    ("a_count", "u32", "faces in it"),
+    ("b_start", "u32", "first face of body b's cluster"),
+    ("b_count", "u32", "faces in it"),
+    ("whole", "u32", "pass H1's bits: the pair's bodies whole (its only item), flipped"),
+], doc="Faces of body a and faces of body b of one candidate pair: a cluster of each (at most "
+       "CLUSTER_FACES faces), or for pass H1 the bodies whole.")
+
+FRAME = Struct("PairFrame", [
+    ("m0", "array<vec4f, 3>", "pair-from-body rows of body a (origin where the pair meets)"),
+    ("m1", "array<vec4f, 3>", "pair-from-body rows of body b"),
+], doc="A candidate pair's own frame, centred where its bodies meet.")
+
+PARAMS = Struct("PairParams", [("items", "u32", "items of the dispatch")], uniform=True)
+
+_U = wgpu.BufferUsage
+
+
+def spread(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every element of rows holding ``counts`` (K,) elements each: its row and its index in
+    the row, rows in order.
+
+    Returns
+    -------
+    row, within : (sum(counts),) int64
+    """
+    counts = np.asarray(counts, np.int64)
+    row = np.repeat(np.arange(len(counts)), counts)
+    within = np.arange(len(row)) - np.repeat(np.cumsum(counts) - counts, counts)
+    return row, within
+
+
+def check_rounding(scene: Scene, pairs: np.ndarray, error: np.ndarray, option: str,
+                   value: float, figure: str) -> None:
+    """A ValueError naming the pair whose rounding bound ``error`` (K,) is over ``value / 16``:
+    what the contracts of the clearance (``option`` "clearance", ``figure`` "distance") and
+    hard-clash ("min_depth", "depth") queries need of single precision."""
+    too_fine = np.flatnonzero(error > value / 16)
+    if len(too_fine) == 0:
+        return
+    k = too_fine[np.argmax(error[too_fine])]
+    a, b = pairs[k]
+    raise ValueError(
+        f"{option} {value:g} is too small for {scene.label(int(a))} and {scene.label(int(b))} "
+        f"in single precision: their {figure} is measured within {error[k]:.3g}, and the "
+        f"contract needs at most {option} / 16; use a {option} of at least "
+        f"{16 * error[k]:.3g}, or query those bodies at their own scale")
+
+
+def pair_frames(transforms: np.ndarray, pairs: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                centre_lo: np.ndarray, centre_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each pair's own frame, centred on a box, and how far its bodies reach from that centre.
+
+    Parameters
+    ----------
+    transforms : (N, 4, 4) float
+        World-from-body matrices.
+    pairs : (K, 2) int
+    lo, hi : (N, 3) float
+        World boxes of the bodies.
+    centre_lo, centre_hi : (K, 3) float
+        The box each pair's frame is centred on (where its bodies meet).
+
+    Returns
+    -------
+    frames : (K,) structured array of :data:`FRAME`
+    reach : (K,) float64
+        The farthest either body's world box reaches from the frame's centre (what the
+        rounding of a figure measured in the frame is proportional to).
+    """
+    origin = 0.5 * (np.asarray(centre_lo, np.float64) + np.asarray(centre_hi, np.float64))
+    frames = FRAME.zeros(len(pairs))
+    for side, field in enumerate(("m0", "m1")):
+        m = np.array(transforms[pairs[:, side], :3], np.float64)
+        m[:, :, 3] -= origin
+        frames[field] = m
+    a, b = pairs[:, 0], pairs[:, 1]
+    corners = np.abs(np.stack([lo[a], hi[a], lo[b], hi[b]]) - origin)  # (4, K, 3)
+    reach = np.sqrt((corners.max(axis=0) ** 2).sum(axis=1))
+    return frames, reach
+
+
+class ClusterPairPass:
+    """One compute pass over items, reduced to ``WORDS`` 32-bit words per pair.
+
+    Subclasses name their shader (``SHADER``, entry point ``ENTRY``), their pass (``INFO``),
+    the words per pair (``WORDS``), each word's value before the pass (``START``) and the
+    constants generated into the shader (``CONSTS``).
+
+    Parameters
+    ----------
+    gpu : Gpu
+    timeout : float
+        Seconds the readback may wait for the GPU.
+    """
+
+    INFO: ClassVar[PassInfo]
+    SHADER: ClassVar[str]
+    ENTRY: ClassVar[str]
+    WORDS: ClassVar[int]
+    START: ClassVar[int]
+    CONSTS: ClassVar[dict[str, int | float]] = {}
+
+    def __init__(self, gpu: Gpu, timeout: float = DEFAULT_TIMEOUT) -> None:
+        self.gpu = gpu
+        self.timeout = timeout
+        self.stage = Stage(gpu, self.SHADER, self.ENTRY, label=self.INFO.title,
+                           structs=(ITEM, FRAME, PARAMS), consts=self.CONSTS)
+        device = gpu.device
+
+        def grow(label: str, usage: int = _U.STORAGE | _U.COPY_DST) -> GrowableBuffer:
+            return GrowableBuffer(device, f"{self.INFO.name} {label}", usage)
+
+        self.items, self.frames = grow("items"), grow("pair frames")
+        self.best = grow("figures", _U.STORAGE | _U.COPY_DST | _U.COPY_SRC)
+        self.params = device.create_buffer(label=f"{self.INFO.name} parameters", size=16,
+                                           usage=_U.UNIFORM | _U.COPY_DST)
+        self.readback = Readback(device, f"{self.INFO.name} figures")
+
+    def words(self, positions: GrowableBuffer, faces: GrowableBuffer, items: np.ndarray,
+              frames: np.ndarray) -> np.ndarray:
+        """Run the pass and read its words back.
+
+        Parameters
+        ----------
+        positions, faces : GrowableBuffer
+            The packed shapes as the focused passes hold them (their current vertices: see
+            :meth:`~pycinder.focused.frame.atlas.AtlasBuffers.upload`).
+        items : (I,) structured array of :data:`ITEM`
+        frames : (K,) structured array of :data:`FRAME`
+
+        Returns
+        -------
+        (K, WORDS) uint32
+            Each pair's words (``START`` for a pair no item reached).
+        """
+        k = len(frames)
+        if k == 0:
+            return np.zeros((0, self.WORDS), np.uint32)
+        nbytes = 4 * self.WORDS * k
+        self.items.ensure(max(items.nbytes, ITEM.size))
+        if len(items):
+            self.items.write(items)
+        self.frames.ensure(frames.nbytes)
+        self.frames.write(frames)
+        self.best.ensure(nbytes)
+        self.best.write(np.full(self.WORDS * k, self.START, np.uint32))
+        params = PARAMS.zeros()
+        params["items"] = len(items)
+        self.gpu.device.queue.write_buffer(self.params, 0, params)
+        encoder = self.gpu.device.create_command_encoder()
+        if len(items):
+            cpass = encoder.begin_compute_pass(label=self.INFO.title)
+            dispatch(cpass, self.stage, self.stage.group(
+                positions=positions, faces=faces, items=self.items, frames=self.frames,
+                best=self.best, params=(self.params, 0, 16)), len(items))
+            cpass.end()
+        staging = self.readback.ensure(nbytes)
+        encoder.copy_buffer_to_buffer(self.best.buffer, 0, staging, 0, nbytes)
+        self.gpu.device.queue.submit([encoder.finish()])
+        words = self.readback.read(nbytes, timeout=self.timeout,
+                                   waiting_for=f"the {self.INFO.name} figures of {k} pairs")
+        return np.ascontiguousarray(words[:self.WORDS * k]).reshape(k, self.WORDS).copy()
+
+
+__all__ = ["FRAME", "ITEM", "PARAMS", "ClusterPairPass", "check_rounding", "pair_frames",
+           "spread"]
