@@ -214,7 +214,7 @@ def test_full_pixel_lists_are_retried_in_thinner_boxes():
     assert gap.max() < squeezed.stats.tolerance[0]
     points = tiles.to_world(rec["view"], rec["pixel_x"] + 0.5, rec["pixel_y"] + 0.5, rec["pixel_z"])
     assert np.allclose(points, rec["point"], atol=1e-6 * np.abs(rec["point"]).max())
-    contacts = reduce_contacts(squeezed)
+    contacts = reduce_contacts(squeezed.records, squeezed.scene, squeezed.tiles)
     assert sorted(map(tuple, np.unique(contacts.pair, axis=0).tolist())) == \
         sorted(map(tuple, squeezed.pairs.tolist()))
     assert np.allclose(np.linalg.norm(contacts.normal, axis=1), 1.0)

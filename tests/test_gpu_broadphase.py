@@ -8,7 +8,8 @@ boxes, along every axis), and only with equal within keys and different groups.
 import numpy as np
 import pytest
 
-from pycinder.focused.broad.prune import sweep_and_prune, world_boxes
+from pycinder.focused.broad.prune import sweep_and_prune
+from pycinder.scene.bodies import world_boxes
 from pycinder.focused.broad import GpuBroadPhase
 from pycinder.testing import random_rotation
 

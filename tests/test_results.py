@@ -91,7 +91,8 @@ def test_contacts_asked_with_the_query_measure_the_exact_overlap(tol):
         assert trimesh.proximity.signed_distance(mesh, [c.point])[0] > -tol
     # contacts=True is records="all": the same contacts as reducing such a query directly;
     # computed once
-    direct = reduce_contacts(det.find_collisions([box, ball], records="all"))
+    everything = det.find_collisions([box, ball], records="all")
+    direct = reduce_contacts(everything.records, everything.scene, everything.tiles)
     assert np.allclose(direct.normal, contacts.normal) and np.allclose(direct.depth, contacts.depth)
     assert result.contacts() is contacts
 

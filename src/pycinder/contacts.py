@@ -27,14 +27,16 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from .records import pair_keys
-from .scene.normals import world_edge_normals, world_face_normals
-from .result import CollisionResult
+from .scene.bodies import world_edge_normals, world_face_normals
 from .util.text import plural
+
+if TYPE_CHECKING:
+    from .scene import Scene
 
 CELL_TOLERANCES = 4.0
 """Grid cell of the region search, in tolerances: records closer than this join a region."""
@@ -300,32 +302,49 @@ def _width(region: np.ndarray, n: int, along: np.ndarray, from_a: np.ndarray) ->
     return np.where(only_a, hi_a - lo_a, np.where(only_b, hi_b - lo_b, hi_a - lo_b))
 
 
-def reduce_contacts(result: CollisionResult) -> Contacts:
-    """One contact per contact region of every colliding pair in ``result``, from its records
+class TileViews(Protocol):
+    """What contacts read of a focused query's tiles (a
+    :class:`~pycinder.focused.plan.tiles.TilePlan`): each tile's pixel size and view axes."""
+
+    pixel: np.ndarray
+    """(T,) float: world size of a pixel."""
+    axes: np.ndarray
+    """(T, 3, 3) float: the tile's screen axes u, v and its view direction, as rows."""
+
+    def __len__(self) -> int: ...
+
+
+def reduce_contacts(records: np.ndarray, scene: Scene | None,
+                    tiles: TileViews | None) -> Contacts:
+    """One contact per contact region of every colliding pair, from a focused query's records
     as they are, with no GPU.
 
-    The result should come from a focused query asked for contacts (``contacts=True``, which
-    keeps every record: :meth:`CollisionResult.contacts` checks this and calls this function);
-    with fewer records the contacts are those of the records found.
+    The records should come from a focused query asked for contacts (``contacts=True``, which
+    keeps every record: :meth:`CollisionResult.contacts <pycinder.CollisionResult.contacts>`
+    checks this and calls this function); with fewer records the contacts are those of the
+    records found.
 
     Parameters
     ----------
-    result : CollisionResult
-        Of the focused strategy: its ``records``, ``scene`` and ``tiles`` are read.
+    records : (R,) RECORD_DTYPE
+        The query's records (``result.records``).
+    scene : Scene or None
+        The query's scene (``result.scene``): the bodies' poses, for the normals.
+    tiles : TileViews or None
+        The query's tiles (``result.tiles``).
 
     Returns
     -------
     Contacts
         C contacts over every pair that has records.
     """
-    rec = result.records
-    if len(rec) == 0 or result.scene is None or result.tiles is None:
+    rec = records
+    if len(rec) == 0 or scene is None or tiles is None:
         return Contacts.empty()
-    scene = result.scene
     a = np.minimum(rec["penetrating"], rec["penetrated"]).astype(np.int64)
     b = np.maximum(rec["penetrating"], rec["penetrated"]).astype(np.int64)
     from_a = rec["penetrating"] == a
-    tol = result.tiles.pixel[rec["view"]] if len(result.tiles) else np.ones(len(rec))
+    tol = tiles.pixel[rec["view"]] if len(tiles) else np.ones(len(rec))
     point = rec["point"].astype(np.float64)
     # Outward normal of the penetrating body at each record, in world space.
     normal = np.zeros((len(rec), 3))
@@ -336,7 +355,7 @@ def reduce_contacts(result: CollisionResult) -> Contacts:
     signed = np.where(from_a[:, None], normal, -normal)
     # A surface record stands for one pixel of the tile's screen: its area on the surface is a
     # pixel over the cosine of the face's angle to the view. Edge records carry no area.
-    view = result.tiles.axes[rec["view"], 2]
+    view = tiles.axes[rec["view"], 2]
     cosine = np.abs(np.einsum("ij,ij->i", normal, view))
     weight = np.where(surface, 1.0 / np.maximum(cosine, 0.05), 0.0)
     if not surface.any():
@@ -381,7 +400,7 @@ def reduce_contacts(result: CollisionResult) -> Contacts:
     candidates = np.stack([
         summed / np.maximum(length, 1e-300)[:, None],     # area-weighted surface normals
         spread,
-        result.tiles.axes[rec["view"][first_record], 1],   # the tile's thin axis
+        tiles.axes[rec["view"][first_record], 1],          # the tile's thin axis
         apart,                                            # from a's centre to b's
     ], axis=1)
     norms = np.linalg.norm(candidates, axis=2)

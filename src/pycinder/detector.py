@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 import wgpu
 
+from .batching import join_scenes, split
 from .errors import GpuError, GpuTimeoutError
 from .focused.strategy import FocusedStrategy
 from .gpu.device import check_not_forked, fork_generation, get_gpu, keep_from_parent
@@ -275,11 +276,19 @@ class Detector:
         """Many small scenes in one query, pairs only within a scene; one result per scene,
         as :meth:`find_collisions` gives it (with ``contacts=True``, each result's contacts).
         See :func:`pycinder.batch.find_collisions_batch`."""
-        from .batch.query import find_collisions_batch
-
-        with self._device_lock():
-            return find_collisions_batch(self, scenes, tolerance=tolerance, labels=labels,
-                                         records=records, contacts=contacts)
+        request = self.request
+        if request.strategy != "focused":
+            raise ValueError("find_collisions_batch needs strategy='focused': the scene strategy "
+                             "draws one image of everything")
+        records = request.call_records(records, contacts)
+        with self._device_lock():  # one query at a time: the GPU buffers are the detector's own
+            t0 = time.perf_counter()
+            joined = join_scenes(scenes, labels, tolerance, strict=request.strict,
+                                 cache=self.shapes, max_bodies=request.max_bodies)
+            pending = self._submit(joined.scene, t0, records=records, within=joined.key,
+                                   tolerance=joined.tolerance)
+            result = self._finish(pending, t0, records)
+        return split(result, joined)
 
     def _scene(self, bodies: Sequence[Any], transforms: Any,
                names: Sequence[str | None] | None) -> Scene:

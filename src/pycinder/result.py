@@ -12,10 +12,10 @@ import numpy as np
 from .records import RECORD_DTYPE
 from .util.text import plural
 
+from .contacts import Contacts, TileViews, reduce_contacts
+
 if TYPE_CHECKING:
-    from .contacts import Contacts
     from .scene import Scene
-    from .focused.plan.tiles import TilePlan
     from .view import View
 
 
@@ -190,7 +190,7 @@ class CollisionResult:
     stats : Stats
     views : list of View
         Scene strategy: the view of each ``records["view"]`` index.
-    tiles : TilePlan or None
+    tiles : TileViews or None
         Focused strategy: the tile of each ``records["view"]`` index (NumPy arrays).
     scene : Scene or None
         The validated bodies the query ran on (their shapes are copies in single precision, not
@@ -231,7 +231,7 @@ class CollisionResult:
 
     def __init__(self, pairs: np.ndarray,
                  records: np.ndarray | tuple[int, Callable[[], np.ndarray]], stats: Stats,
-                 views: list[View] | None = None, tiles: TilePlan | None = None,
+                 views: list[View] | None = None, tiles: TileViews | None = None,
                  scene: Scene | None = None, records_kept: str | None = None) -> None:
         self.pairs = pairs
         self.stats = stats
@@ -376,8 +376,6 @@ class CollisionResult:
         >>> [(c.pair, round(c.depth, 1)) for c in result.contacts()]
         [((0, 1), 0.3)]
         """
-        from .contacts import reduce_contacts
-
         if self._contacts is not None:
             return self._contacts
         if self.stats.strategy != "focused":
@@ -399,7 +397,7 @@ class CollisionResult:
                 f"find_collisions(..., contacts=True) (on a Detector too, or "
                 f"Detector(contacts=True) for every query; find_collisions_batch(..., "
                 f"contacts=True) for a batch)")
-        contacts = reduce_contacts(self)
+        contacts = reduce_contacts(self.records, self.scene, self.tiles)
         if self.measured_contacts is not None:
             contacts = contacts.joined(self.measured_contacts)
         contacts = contacts.restricted_to(self.pairs)

@@ -1,81 +1,16 @@
-"""Many small scenes in one query: concatenate, keep pairs within a scene, split the result.
-
-    scenes (bodies, transforms) -> one validated scene, a scene key and a tolerance per body
-      -> the focused strategy (broad phase within each scene, tiles, passes: one submission)
-      -> per scene: its pairs and records, with body indices local to it
-
-A query has a floor of a few milliseconds however small it is (a submission, a readback, host
-work per stage). A batch pays it once for all its scenes. Each scene keeps its own answer: the
-broad phase pairs only bodies of one scene (:func:`pycinder.focused.broad.prune.side_by_side`), and every
-pair gets its scene's tolerance, so a scene's pairs are those a query of that scene alone gives.
+"""Many small scenes in one query (:func:`find_collisions_batch`): the scenes are joined into
+one, the broad phase pairs only bodies of one scene, and the result is split back per scene
+(:mod:`pycinder.batching`).
 """
 
 from __future__ import annotations
 
-import copy
-import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from ..request import CollisionRequest
-from ..result import CollisionResult, Stats
-from ..scene import Scene, prepare_scene
-
 if TYPE_CHECKING:
     from ..detector import Detector
-
-
-def scene_tolerances(tolerance: Any, count: int, labels: Sequence[Any]) -> np.ndarray:
-    """(S,) tolerance of each scene, NaN where the detector's own applies.
-
-    Parameters
-    ----------
-    tolerance : None, float, or sequence of (float or None)
-        One for all scenes, or one per scene.
-    count : int
-        Number of scenes.
-    labels : sequence
-        Scene labels for messages.
-    """
-    if tolerance is None or np.ndim(tolerance) == 0:
-        tolerance = [tolerance] * count
-    tolerance = list(tolerance)
-    if len(tolerance) != count:
-        raise ValueError(f"tolerance must be one number or one per scene: {len(tolerance)} "
-                         f"given for {count} scenes")
-    out = np.full(count, np.nan)
-    for s, t in enumerate(tolerance):
-        if t is None:
-            continue
-        try:
-            out[s] = CollisionRequest(tolerance=t).tolerance
-        except ValueError as exc:
-            raise ValueError(f"scene {labels[s]}: {exc}") from None
-    return out
-
-
-def _unpack(scene: Any, label: Any) -> tuple[list, Any, list | None]:
-    """(bodies, transforms, names) of one scene given as a pair or a triple."""
-    if not isinstance(scene, (tuple, list)) or len(scene) not in (2, 3):
-        raise TypeError(f"scene {label}: expected (bodies, transforms) or "
-                        f"(bodies, transforms, names), got {type(scene).__name__}")
-    bodies = list(scene[0])
-    names = list(scene[2]) if len(scene) == 3 and scene[2] is not None else None
-    if names is not None and len(names) != len(bodies):
-        raise ValueError(f"scene {label}: {len(names)} names for {len(bodies)} bodies")
-    return bodies, scene[1], names
-
-
-def _transforms(transforms: Any, n: int, label: Any) -> np.ndarray:
-    if transforms is None:
-        return np.tile(np.eye(4), (n, 1, 1))
-    t = np.asarray(transforms, dtype=np.float64)
-    if t.shape != (n, 4, 4):
-        raise ValueError(f"scene {label}: transforms must have shape ({n}, 4, 4) for its {n} "
-                         f"bodies, got {t.shape}")
-    return t
+    from ..result import CollisionResult
 
 
 def find_collisions_batch(detector: Detector, scenes: Sequence[Any], *, tolerance: Any = None,
@@ -110,89 +45,9 @@ def find_collisions_batch(detector: Detector, scenes: Sequence[Any], *, toleranc
 
     Notes
     -----
-    The batch is submitted and finished by the detector as a single query is
-    (``Detector._submit``, ``Detector._finish``), with the scenes joined into one and a key per
+    The same as ``detector.find_collisions_batch(scenes, ...)``: the batch is submitted and
+    finished by the detector as a single query is, with the scenes joined into one and a key per
     body that keeps pairs within a scene.
     """
-    request = detector.request
-    if request.strategy != "focused":
-        raise ValueError("find_collisions_batch needs strategy='focused': the scene strategy "
-                         "draws one image of everything")
-    records = request.call_records(records, contacts)
-    t0 = time.perf_counter()
-    scenes = list(scenes)
-    labels = list(range(len(scenes))) if labels is None else list(labels)
-    if len(labels) != len(scenes):
-        raise ValueError(f"{len(labels)} labels for {len(scenes)} scenes")
-    tol = scene_tolerances(tolerance, len(scenes), labels)
-    bodies: list = []
-    transforms: list[np.ndarray] = []
-    names: list[str] = []
-    counts = np.zeros(len(scenes), dtype=np.int64)
-    local_names: list[list | None] = []
-    for s, (scene, label) in enumerate(zip(scenes, labels)):
-        b, t, n = _unpack(scene, label)
-        counts[s] = len(b)
-        bodies += b
-        transforms.append(_transforms(t, len(b), label))
-        local_names.append(n)
-        names += [f"scene {label}: {n[j] if n is not None and n[j] is not None else f'body {j}'}"
-                  for j in range(len(b))]
-    key = np.repeat(np.arange(len(scenes)), counts)
-    joined = prepare_scene(bodies, np.concatenate(transforms) if bodies else None, names=names,
-                           strict=request.strict, cache=detector.shapes,
-                           max_bodies=request.max_bodies)
-    with detector._device_lock():  # one query at a time (already held from the Detector)
-        pending = detector._submit(joined, t0, records=records, within=key, tolerance=tol[key])
-        result = detector._finish(pending, t0, records)
-    return split(result, joined, counts, local_names)
-
-
-FIGURES = ("distances", "distance_errors", "depths", "depth_errors")
-"""Per-pair figures of a result (a clearance or a hard-clash query), cut with its pairs."""
-
-
-def split(result: CollisionResult, joined: Scene, counts: np.ndarray,
-          names: Sequence[list | None]) -> list[CollisionResult]:
-    """The result of a batch, one per scene of ``counts`` (S,) bodies, with local indices."""
-    first = np.concatenate([[0], np.cumsum(counts)])
-    key = np.repeat(np.arange(len(counts)), counts)
-    # Pairs are sorted by their first body, and scenes are contiguous: they come in scene order.
-    pair_cut = np.searchsorted(key[result.pairs[:, 0]], np.arange(len(counts) + 1))
-    rec = result.records
-    order = np.argsort(key[rec["penetrating"]], kind="stable")
-    rec = rec[order]
-    rec_cut = np.searchsorted(key[rec["penetrating"]], np.arange(len(counts) + 1))
-    out = []
-    for s in range(len(counts)):
-        a, b = first[s], first[s + 1]
-        part = rec[rec_cut[s]:rec_cut[s + 1]].copy()
-        part["penetrating"] -= a
-        part["penetrated"] -= a
-        n = names[s] if names[s] is not None else [None] * int(counts[s])
-        scene = Scene(joined.shapes, joined.body_shape[a:b], joined.transforms[a:b], list(n))
-        stats = _copy_stats(result.stats)
-        stats.bodies, stats.records = int(counts[s]), len(part)
-        one = CollisionResult(result.pairs[pair_cut[s]:pair_cut[s + 1]] - a, part, stats,
-                              tiles=result.tiles, scene=scene, records_kept=result.records_kept)
-        cut = slice(pair_cut[s], pair_cut[s + 1])
-        for name in FIGURES:
-            figures = getattr(result, name)
-            if figures is not None:
-                setattr(one, name, figures[cut])
-        measured = result.measured_contacts
-        if measured is not None:
-            mine = measured.select(key[measured.pair[:, 0]] == s)
-            mine.pair = mine.pair - a
-            one.measured_contacts = mine
-        out.append(one)
-    return out
-
-
-def _copy_stats(stats: Stats) -> Stats:
-    """A copy of a batch's stats for one of its scenes: its own dicts and strategy part (a deep
-    copy costs about 0.35 ms, which a batch of thousands of scenes pays per scene)."""
-    out = copy.copy(stats)
-    out.wall_ms, out.gpu_ms = dict(stats.wall_ms), dict(stats.gpu_ms)
-    object.__setattr__(out, "detail", copy.copy(stats.detail))
-    return out
+    return detector.find_collisions_batch(scenes, tolerance=tolerance, labels=labels,
+                                          records=records, contacts=contacts)

@@ -54,7 +54,7 @@ def drifting_spheres(count: int, frames: int, seed: int = 1
 def run_broadphase(counts: Sequence[int] = COUNTS, frames: int = 5,
                    progress: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Median milliseconds per frame of both, with the answers compared (module doc)."""
-    from ..focused.broad.prune import world_boxes
+    from ..scene.bodies import world_boxes
     from ..gpu.device import get_gpu
     from ..focused.broad import GpuBroadPhase, reference_pairs
 

@@ -28,6 +28,8 @@ from ..util import optional
 from ..detector import Detector
 from ..scene import PreparedBodies
 from .scenes import Scene
+from .system import System
+from .warp_peer import Warp
 
 
 def aabb_candidates(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -52,17 +54,6 @@ def require(module: str, package: str) -> Any:
 
 def as_pairs(found: set[tuple[int, int]]) -> np.ndarray:
     return np.array(sorted(found), dtype=np.int64).reshape(-1, 2)
-
-
-class System:
-    name = "system"
-
-    def prepare(self, scene: Scene) -> None:
-        """Untimed set-up for a scene (rigid geometry is built here)."""
-
-    def step(self, scene: Scene, k: int) -> np.ndarray:
-        """The colliding pairs (K, 2) of frame k, including any per-frame update work."""
-        raise NotImplementedError
 
 
 class Pycinder(System):
@@ -213,10 +204,4 @@ class Trimesh(System):
         return as_pairs({tuple(sorted((int(a), int(b)))) for a, b in names})
 
 
-def _warp() -> System:
-    from .warp_peer import Warp
-
-    return Warp()
-
-
-PEERS = {"python-fcl": FCL, "coal": Coal, "trimesh": Trimesh, "warp": _warp}
+PEERS = {"python-fcl": FCL, "coal": Coal, "trimesh": Trimesh, "warp": Warp}

@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 
 from ..testing import ground_truth
-from .peers import PEERS, Pycinder, System
+from .peers import PEERS, Pycinder
+from .system import System
 from .scenes import SCENES, Scene, SphereField, Stairs
 
 DEFAULT_SCENES = ["floor", "stairs", "many", "deforming", "narrow", "sweep-extent", "sweep-bodies",

@@ -34,8 +34,8 @@ from typing import Any
 import numpy as np
 
 from ..util.optional import require
-from .peers import System
 from .scenes import Scene
+from .system import System
 
 BROADPHASES = ("sweep", "all-pairs")
 MIN_CAPACITY = 1024

@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from ..files import (FileBody, FileError, FileErrors, FileWarning, Limits, check_file,
+from ..files.checks import (FileBody, FileError, FileErrors, FileWarning, Limits, check_file,
                      display_name, file_labels)
 from ..util.optional import require
 

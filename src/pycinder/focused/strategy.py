@@ -37,7 +37,7 @@ from ..records import RECORD_DTYPE, empty_records, pair_keys, unique_pairs
 from ..request import CollisionRequest, RecordMode, record_mode
 from ..result import CollisionResult, Stats
 from ..scene import Scene
-from ..scene.normals import world_edge_normals, world_face_normals
+from ..scene.bodies import world_edge_normals, world_face_normals
 from ..scene.pack import ShapePack, pack_shapes, shape_layout
 from ..util.text import plural
 from ..tolerance import pair_tolerances

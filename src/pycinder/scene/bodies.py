@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import secrets
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -646,9 +646,7 @@ class Scene:
 
     def world_boxes(self) -> tuple[np.ndarray, np.ndarray]:
         """(N, 3) world box minimum and maximum of every body (see
-        :func:`pycinder.focused.broad.prune.world_boxes`)."""
-        from ..focused.broad.prune import world_boxes
-
+        :func:`world_boxes`)."""
         return world_boxes(self.local_lo, self.local_hi, self.radius, self.transforms)
 
 
@@ -682,3 +680,82 @@ def _shapes_of(bodies: Sequence[Any], names: list[str | None], cache: ShapeCache
             shapes.append(shape)
         mesh_shape[m] = k
     return shapes, mesh_shape[np.array(which, dtype=np.int64)]
+
+
+def world_edge_normals(scene: Scene, body: np.ndarray, edge: np.ndarray) -> np.ndarray:
+    """World-space unit normals of edges given by body and edge index, from the bodies' current
+    vertices.
+
+    Parameters
+    ----------
+    scene : Scene
+    body, edge : (n,) int
+
+    Returns
+    -------
+    (n, 3) float32
+    """
+    return _world_normals(scene, body, lambda shape, sel: shape.normals()[1][edge[sel]])
+
+
+def world_face_normals(scene: Scene, body: np.ndarray, face: np.ndarray) -> np.ndarray:
+    """World-space unit normals of faces given by body and face index.
+
+    Parameters
+    ----------
+    scene : Scene
+    body, face : (n,) int
+
+    Returns
+    -------
+    (n, 3) float32
+    """
+    return _world_normals(scene, body, lambda shape, sel: shape.face_normals()[face[sel]])
+
+
+def _world_normals(scene: Scene, body: np.ndarray,
+                   local_of: Callable[[Any, np.ndarray], np.ndarray]) -> np.ndarray:
+    out = np.zeros((len(body), 3), dtype=np.float32)
+    if len(body) == 0:
+        return out
+    # Normals transform with the inverse transpose of the linear part: once per body.
+    bodies, which = np.unique(body, return_inverse=True)
+    inv_t = np.linalg.inv(scene.transforms[bodies, :3, :3]).transpose(0, 2, 1)
+    shape = scene.body_shape[body]
+    for k in np.unique(shape):
+        sel = shape == k
+        local = np.asarray(local_of(scene.shapes[k], sel), dtype=np.float64)
+        world = np.einsum("nij,nj->ni", inv_t[which[sel]], local)
+        out[sel] = world / np.maximum(np.linalg.norm(world, axis=1, keepdims=True), 1e-30)
+    return out
+
+
+def world_boxes(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
+                transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World boxes of bodies, recomputed every frame from their transforms in O(N).
+
+    The intersection of two boxes that both hold the body: the world box of its transformed
+    body-space box, and that of its transformed bounding sphere (an ellipsoid under scaling,
+    whose half-width along world axis i is the radius times the norm of row i of the linear
+    part). The second is tight for round bodies, the first for boxy ones.
+
+    Parameters
+    ----------
+    local_lo, local_hi : (N, 3) float
+        Body-space bounding boxes.
+    radius : (N,) float
+        Radius of each body's bounding sphere about the centre of its box.
+    transforms : (N, 4, 4) float
+        World-from-body matrices.
+
+    Returns
+    -------
+    lo, hi : (N, 3) float64
+    """
+    t3 = transforms[:, :3, :3]
+    centre = np.einsum("nij,nj->ni", t3, 0.5 * (local_lo + local_hi)) + transforms[:, :3, 3]
+    # Half-widths along world axis i: of the box, |row i| . (its half extents); of the sphere,
+    # the radius times |row i|.
+    box = np.einsum("nij,nj->ni", np.abs(t3), 0.5 * (local_hi - local_lo))
+    half = np.minimum(box, radius[:, None] * np.linalg.norm(t3, axis=2))
+    return centre - half, centre + half

@@ -9,12 +9,9 @@ faces that use it. One GPU workgroup processes one cluster.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from .topology import Topology
 
 CLUSTER_FACES = 64
 
@@ -58,16 +55,21 @@ def _spread_bits(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def build_clusters(topo: Topology, vertices: np.ndarray) -> Clusters:
-    """Cluster a topology's faces along a Morton curve of their centroids.
+def build_clusters(faces: np.ndarray, edge_faces: np.ndarray, n_edges: int,
+                   vertices: np.ndarray) -> Clusters:
+    """Cluster a mesh's faces along a Morton curve of their centroids.
 
     Parameters
     ----------
-    topo : Topology
+    faces : (F, 3) int
+    edge_faces : (3F,) int
+        The unique edge of each directed edge (face ``f``'s edges at ``3f``, ``3f + 1``,
+        ``3f + 2``), as :attr:`~pycinder.scene.topology.Topology.edge_faces`.
+    n_edges : int
+        How many unique edges.
     vertices : (V, 3) float
         A pose of the mesh (clusters only decide what is culled together; any pose is correct).
     """
-    faces = topo.faces
     n = len(faces)
     centroids = vertices[faces].astype(np.float64).mean(axis=1)
     lo, hi = centroids.min(axis=0), centroids.max(axis=0)
@@ -80,8 +82,8 @@ def build_clusters(topo: Topology, vertices: np.ndarray) -> Clusters:
     face_start = np.minimum(np.arange(count + 1) * CLUSTER_FACES, n).astype(np.int64)
     cluster_of_face = rank // CLUSTER_FACES
     directed_cluster = np.repeat(cluster_of_face, 3)
-    edge_cluster = np.full(len(topo.edges), count, dtype=np.int64)
-    np.minimum.at(edge_cluster, topo.edge_faces, directed_cluster)
+    edge_cluster = np.full(n_edges, count, dtype=np.int64)
+    np.minimum.at(edge_cluster, edge_faces, directed_cluster)
     edge_order = np.argsort(edge_cluster, kind="stable").astype(np.int64)
     edge_start = np.searchsorted(edge_cluster[edge_order], np.arange(count + 1)).astype(np.int64)
     return Clusters(face_order, edge_order, face_start, edge_start)

@@ -3,15 +3,9 @@ whenever a body's vertices change (see :class:`~pycinder.scene.bodies.Shape`).""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
-
 import numpy as np
 
 from .topology import Topology
-
-if TYPE_CHECKING:
-    from .bodies import Scene
 
 
 def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -66,51 +60,3 @@ def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
     """Volume enclosed by a closed mesh; negative when it is wound inside out."""
     tri = vertices[faces].astype(np.float64)
     return float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0)
-
-
-def world_edge_normals(scene: Scene, body: np.ndarray, edge: np.ndarray) -> np.ndarray:
-    """World-space unit normals of edges given by body and edge index, from the bodies' current
-    vertices.
-
-    Parameters
-    ----------
-    scene : Scene
-    body, edge : (n,) int
-
-    Returns
-    -------
-    (n, 3) float32
-    """
-    return _world_normals(scene, body, lambda shape, sel: shape.normals()[1][edge[sel]])
-
-
-def world_face_normals(scene: Scene, body: np.ndarray, face: np.ndarray) -> np.ndarray:
-    """World-space unit normals of faces given by body and face index.
-
-    Parameters
-    ----------
-    scene : Scene
-    body, face : (n,) int
-
-    Returns
-    -------
-    (n, 3) float32
-    """
-    return _world_normals(scene, body, lambda shape, sel: shape.face_normals()[face[sel]])
-
-
-def _world_normals(scene: Scene, body: np.ndarray,
-                   local_of: Callable[[Any, np.ndarray], np.ndarray]) -> np.ndarray:
-    out = np.zeros((len(body), 3), dtype=np.float32)
-    if len(body) == 0:
-        return out
-    # Normals transform with the inverse transpose of the linear part: once per body.
-    bodies, which = np.unique(body, return_inverse=True)
-    inv_t = np.linalg.inv(scene.transforms[bodies, :3, :3]).transpose(0, 2, 1)
-    shape = scene.body_shape[body]
-    for k in np.unique(shape):
-        sel = shape == k
-        local = np.asarray(local_of(scene.shapes[k], sel), dtype=np.float64)
-        world = np.einsum("nij,nj->ni", inv_t[which[sel]], local)
-        out[sel] = world / np.maximum(np.linalg.norm(world, axis=1, keepdims=True), 1e-30)
-    return out

@@ -102,7 +102,8 @@ class Topology:
     def clusters(self, vertices: np.ndarray) -> Clusters:
         """Spatially coherent clusters of faces and edges (built from the first vertices seen)."""
         if self._clusters is None:
-            self._clusters = build_clusters(self, vertices)
+            self._clusters = build_clusters(self.faces, self.edge_faces, len(self.edges),
+                                            vertices)
         return self._clusters
 
 

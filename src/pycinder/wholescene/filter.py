@@ -24,7 +24,7 @@ from ..gpu.bindings import Stage
 from ..gpu.table import PassInfo
 
 if TYPE_CHECKING:
-    from .frame import SceneFrame
+    from .encoding import SceneFrame
 
 PARAMS = Struct("FilterParams", [
     ("width", "u32", "pixels per row of the records target"),

@@ -7,7 +7,7 @@ and the debug capture share.
 
 The passes are objects (:class:`~pycinder.wholescene.raycast.RaycastPasses`,
 :class:`~pycinder.wholescene.filter.FilterPass`, :class:`~pycinder.wholescene.reduce.MipReduce`), each
-encoding itself onto a :class:`SceneFrame`; :class:`WholeSceneFrame` walks them in order and
+encoding itself onto a :class:`~pycinder.wholescene.encoding.SceneFrame`; :class:`WholeSceneFrame` walks them in order and
 times them with the one :class:`~pycinder.gpu.bindings.Profiler` that the focused strategy
 also uses. Normally each render step replays a render bundle recorded once per topology, and
 everything goes in one submission, the timestamps travelling with the header. With a hook,
@@ -19,7 +19,6 @@ capture can read the depth, stencil and colour buffers between passes (the paper
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 import wgpu
@@ -27,6 +26,7 @@ import wgpu
 from ..gpu.buffers import GrowableBuffer, Readback, SceneBuffers, Targets
 from ..gpu.device import Gpu
 from ..gpu.bindings import Profiler
+from .encoding import SceneFrame
 from .filter import FilterPass, read_counters
 from .raycast import RaycastPasses
 from .reduce import MipReduce
@@ -42,30 +42,6 @@ and with ``"filter"`` after the filter."""
 PASS_INFOS: tuple[PassInfo, ...] = (*RaycastPasses.INFOS, FilterPass.INFO, MipReduce.INFO)
 """The whole-scene strategy's passes in the order they run (the pass table is generated from
 them): Appendix A's passes 1-7, the self-interference filter, the mip-map reduction."""
-
-
-@dataclass(frozen=True)
-class SceneFrame:
-    """What every pass of a whole-scene frame encodes onto.
-
-    Attributes
-    ----------
-    encoder : wgpu.GPUCommandEncoder
-    profiler : Profiler
-        Gives each pass its timestamp writes (none when profiling is off).
-    targets : Targets
-        The records and depth-stencil targets of the resolution.
-    buffers : SceneBuffers
-        The uploaded scene, with the view's matrices written.
-    filtered : GrowableBuffer
-        The filter's output: level 0 of the mip-map reduction.
-    """
-
-    encoder: wgpu.GPUCommandEncoder
-    profiler: Profiler
-    targets: Targets
-    buffers: SceneBuffers
-    filtered: GrowableBuffer
 
 
 class WholeSceneFrame:

@@ -24,7 +24,7 @@ from ..gpu.states import DEPTH_CLEAR, PASSES, PLAN, STENCIL_MASK, PassState, Ren
 from ..gpu.table import PassInfo
 
 if TYPE_CHECKING:
-    from .frame import SceneFrame
+    from .encoding import SceneFrame
 
 FRAME = Struct("Frame", [
     ("edge_offset", "f32", "offset of edge vertices along their vertex normal, in world units "

@@ -21,7 +21,7 @@ from .filter import RECORD_BYTES, WORKGROUP
 from ..gpu.table import PassInfo
 
 if TYPE_CHECKING:
-    from .frame import SceneFrame
+    from .encoding import SceneFrame
 
 PARAMS = Struct("ReduceParams", [
     ("src_width", "u32", "level k - 1"),

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .prune import sweep_and_prune, world_boxes
+from ...scene.bodies import world_boxes
+from .prune import sweep_and_prune
 from .common import BODY, COORDINATE_LIMIT, MAX_KEY
 
 HOST_CHUNK = 1 << 22

@@ -18,37 +18,6 @@ ALL_PAIRS_BELOW = 32
 sweep's two dozen (2 boxes: about 20 microseconds instead of 100)."""
 
 
-def world_boxes(local_lo: np.ndarray, local_hi: np.ndarray, radius: np.ndarray,
-                transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """World boxes of bodies, recomputed every frame from their transforms in O(N).
-
-    The intersection of two boxes that both hold the body: the world box of its transformed
-    body-space box, and that of its transformed bounding sphere (an ellipsoid under scaling,
-    whose half-width along world axis i is the radius times the norm of row i of the linear
-    part). The second is tight for round bodies, the first for boxy ones.
-
-    Parameters
-    ----------
-    local_lo, local_hi : (N, 3) float
-        Body-space bounding boxes.
-    radius : (N,) float
-        Radius of each body's bounding sphere about the centre of its box.
-    transforms : (N, 4, 4) float
-        World-from-body matrices.
-
-    Returns
-    -------
-    lo, hi : (N, 3) float64
-    """
-    t3 = transforms[:, :3, :3]
-    centre = np.einsum("nij,nj->ni", t3, 0.5 * (local_lo + local_hi)) + transforms[:, :3, 3]
-    # Half-widths along world axis i: of the box, |row i| . (its half extents); of the sphere,
-    # the radius times |row i|.
-    box = np.einsum("nij,nj->ni", np.abs(t3), 0.5 * (local_hi - local_lo))
-    half = np.minimum(box, radius[:, None] * np.linalg.norm(t3, axis=2))
-    return centre - half, centre + half
-
-
 def side_by_side(lo: np.ndarray, hi: np.ndarray, keys: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
     """Boxes whose x extents are replaced by exact ranks, laid side by side by key: boxes of

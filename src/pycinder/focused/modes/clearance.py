@@ -50,7 +50,7 @@ from ...scene import Scene
 from ...scene.pack import ShapePack
 
 if TYPE_CHECKING:
-    from ..strategy import FocusedStrategy
+    from .base import ModeHost
 
 PASSES = (Distance,)
 """The clearance query's own pass, after the interference test's (the pass table is generated
@@ -158,10 +158,11 @@ class Clearance:
 
     Parameters
     ----------
-    strategy : FocusedStrategy
+    strategy : ModeHost
+        The focused strategy that runs the mode.
     """
 
-    def __init__(self, strategy: FocusedStrategy) -> None:
+    def __init__(self, strategy: ModeHost) -> None:
         self.strategy = strategy
         self.distance = Distance(strategy.gpu, timeout=strategy.request.timeout)
         self._boxes: tuple[tuple, tuple[np.ndarray, np.ndarray]] | None = None

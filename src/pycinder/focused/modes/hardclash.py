@@ -65,7 +65,7 @@ from ...scene import Scene
 from ...scene.pack import ShapePack
 
 if TYPE_CHECKING:
-    from ..strategy import FocusedStrategy
+    from .base import ModeHost
 
 PASSES = (Depth,)
 """The hard-clash query's one pass (the pass table is generated from it)."""
@@ -137,10 +137,11 @@ class HardClash:
 
     Parameters
     ----------
-    strategy : FocusedStrategy
+    strategy : ModeHost
+        The focused strategy that runs the mode.
     """
 
-    def __init__(self, strategy: FocusedStrategy) -> None:
+    def __init__(self, strategy: ModeHost) -> None:
         self.strategy = strategy
         self.depth = Depth(strategy.gpu, timeout=strategy.request.timeout)
 

@@ -1,42 +1,14 @@
-"""Meshes from files, for ``pycinder check`` and ``pycinder debug-buffers``.
-
-    paths -> checks before loading (kind of file, size, what its header claims)
-          -> trimesh.load_scene -> one body per geometry instance of the scene graph
-          -> checks after loading (triangles, NaN vertices) -> FileBody list
-
-* **Formats**: STL, OBJ, PLY, OFF, glTF (``.gltf`` and ``.glb``) and 3MF (which needs lxml:
-  ``pip install 'pycinder[files]'``). Point clouds and 2-D drawings are not meshes. IFC files
-  (``.ifc``) are read by :mod:`pycinder.bim.ifc`, one body per element (``pip install
-  'pycinder[bim]'``).
-* **Scene files** (glTF, 3MF, OBJ with several ``o`` objects) give one body per geometry instance,
-  named ``file:node`` after the scene graph, with the instance's transform; a file with one body
-  is named after the file alone.
-* **Limits** (:class:`Limits`) are checked before anything is loaded: the file's size, what an
-  archive unpacks to, and the triangle count its header claims (or, for text formats, a count of
-  its face lines). A binary STL whose header claims more triangles than the file holds, or a glTF
-  buffer claiming more bytes than it has, is refused as such.
-* **Names**: any file name works, including bytes that are not UTF-8: files are opened by Python
-  and handed to trimesh as open files, and names are shown with such bytes escaped.
-* **Units** are not converted: coordinates are used as they are in each file. Files that declare
-  different units (3MF and glTF do) get a warning.
-* **Duplicates**: a file given twice (the same path) gives bodies named ``a.stl#1`` and
-  ``a.stl#2``, in the order given.
-* **Components**: a body may hold several disconnected parts (two boxes in one STL file).
-  :func:`split_components` makes each part a body of its own, named ``a.stl[0]``, ``a.stl[1]``,
-  ... in the order of their first triangles in the file.
-
-Every problem raises :class:`FileError` with the file's name and what is wrong with it;
-:func:`load_bodies` reads every file and raises one :class:`FileErrors` naming every bad file.
-"""
+"""What every file reader shares: the bodies read (:class:`FileBody`), the errors and warnings,
+the limits (:class:`Limits`), the checks made before a file is loaded (:func:`check_file`) and the
+names messages give files (:func:`file_labels`). Mesh files (:mod:`pycinder.files`) and IFC files
+(:mod:`pycinder.bim.ifc`) are read with them."""
 
 from __future__ import annotations
 
 import json
-import logging
 import os
 import re
 import struct
-import warnings
 import zipfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -44,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from .util.text import plural
+from ..util.text import plural
 
 MESH_FORMATS = {"stl": "STL", "obj": "OBJ", "ply": "PLY", "off": "OFF", "glb": "glTF",
                 "gltf": "glTF", "3mf": "3MF", "ifc": "IFC"}
@@ -164,7 +136,7 @@ def human_bytes(n: float) -> str:
 # -- checks before loading ------------------------------------------------------------------
 
 
-class _Check:
+class FileCheck:
     """What one file may hold, with messages that name it."""
 
     def __init__(self, path: str, label: str, fmt: str, size: int, limits: Limits) -> None:
@@ -196,7 +168,7 @@ class _Check:
         return total
 
 
-def _check_stl(c: _Check, head: bytes) -> None:
+def _check_stl(c: FileCheck, head: bytes) -> None:
     if c.size >= 84:
         claimed = struct.unpack("<I", head[80:84])[0]
         if 84 + 50 * claimed == c.size:
@@ -213,11 +185,11 @@ def _check_stl(c: _Check, head: bytes) -> None:
     c.triangles(c.count(b"facet normal"), "it has")
 
 
-def _check_obj(c: _Check, head: bytes) -> None:
+def _check_obj(c: FileCheck, head: bytes) -> None:
     c.triangles(c.count(b"\nf ") + head.startswith(b"f "), "it has face lines for at least")
 
 
-def _check_off(c: _Check, head: bytes) -> None:
+def _check_off(c: FileCheck, head: bytes) -> None:
     words = re.sub(rb"#[^\n]*", b"", head[:4096]).split()
     if not words or not words[0].endswith(b"OFF"):
         raise c.fail("could not parse it as OFF: it does not start with 'OFF'")
@@ -233,7 +205,7 @@ _PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort"
               "float32": 4, "double": 8, "float64": 8}
 
 
-def _check_ply(c: _Check, head: bytes) -> None:
+def _check_ply(c: FileCheck, head: bytes) -> None:
     end = head.find(b"end_header")
     if not head.startswith(b"ply") or end < 0:
         raise c.fail("could not parse it as PLY: no 'ply' ... 'end_header' header in its first "
@@ -269,7 +241,7 @@ _GLTF_COMPONENT = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
 _GLTF_TYPE = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 
 
-def _check_gltf_document(c: _Check, doc: Any, binary_chunk: int | None) -> None:
+def _check_gltf_document(c: FileCheck, doc: Any, binary_chunk: int | None) -> None:
     """What a glTF document claims against what its buffers hold and the limits."""
     if not isinstance(doc, dict):
         raise c.fail("could not parse it as glTF: its JSON is not an object")
@@ -324,7 +296,7 @@ def _check_gltf_document(c: _Check, doc: Any, binary_chunk: int | None) -> None:
     c.triangles(triangles, "its meshes claim")
 
 
-def _check_glb(c: _Check, head: bytes) -> None:
+def _check_glb(c: FileCheck, head: bytes) -> None:
     if c.size < 20 or head[:4] != b"glTF":
         raise c.fail("could not parse it as binary glTF: it does not start with 'glTF'")
     _, length, json_length, kind = struct.unpack("<4I", head[4:20])
@@ -344,12 +316,12 @@ def _check_glb(c: _Check, head: bytes) -> None:
     _check_gltf_json(c, text, binary)
 
 
-def _check_gltf(c: _Check, head: bytes) -> None:
+def _check_gltf(c: FileCheck, head: bytes) -> None:
     with open(c.path, "rb") as f:
         _check_gltf_json(c, f.read(), None)
 
 
-def _check_gltf_json(c: _Check, text: bytes, binary_chunk: int | None) -> None:
+def _check_gltf_json(c: FileCheck, text: bytes, binary_chunk: int | None) -> None:
     try:
         doc = json.loads(text)
     except ValueError as exc:
@@ -357,7 +329,7 @@ def _check_gltf_json(c: _Check, text: bytes, binary_chunk: int | None) -> None:
     _check_gltf_document(c, doc, binary_chunk)
 
 
-def _check_3mf(c: _Check, head: bytes) -> None:
+def _check_3mf(c: FileCheck, head: bytes) -> None:
     try:
         archive = zipfile.ZipFile(c.path)
     except (zipfile.BadZipFile, OSError) as exc:
@@ -382,14 +354,14 @@ def _check_3mf(c: _Check, head: bytes) -> None:
     c.triangles(triangles, "its models have")
 
 
-def _check_ifc(c: _Check, head: bytes) -> None:
+def _check_ifc(c: FileCheck, head: bytes) -> None:
     """An IFC file is STEP text (ISO 10303-21); its elements are read by :mod:`pycinder.bim.ifc`."""
     if not head.lstrip().startswith(b"ISO-10303-21"):
         raise c.fail("is not an IFC file in STEP form (it does not start with ISO-10303-21; "
                      "ifcXML and ifcZIP are not read)")
 
 
-_CHECKS: dict[str, Callable[[_Check, bytes], None]] = {
+_CHECKS: dict[str, Callable[[FileCheck, bytes], None]] = {
     "stl": _check_stl, "obj": _check_obj, "off": _check_off, "ply": _check_ply,
     "glb": _check_glb, "gltf": _check_gltf, "3mf": _check_3mf, "ifc": _check_ifc}
 
@@ -417,7 +389,7 @@ def check_file(path: str, label: str, limits: Limits) -> str:
     if ext not in MESH_FORMATS:
         raise FileError(f"{label}: unknown mesh format '.{ext}' (formats read: {formats})")
     size = os.path.getsize(path)
-    check = _Check(path, label, ext, size, limits)
+    check = FileCheck(path, label, ext, size, limits)
     if size == 0:
         raise check.fail("is empty")
     check.bytes(size, "is")
@@ -425,153 +397,6 @@ def check_file(path: str, label: str, limits: Limits) -> str:
         head = f.read(65536)
     _CHECKS[ext](check, head)
     return ext
-
-
-# -- loading --------------------------------------------------------------------------------
-
-
-class _TrimeshLog(logging.Handler):
-    """Collects what trimesh logs while it loads a file (nothing reaches stderr on its own)."""
-
-    def __init__(self) -> None:
-        super().__init__(logging.WARNING)
-        self.messages: list[str] = []
-
-    def emit(self, record: logging.LogRecord) -> None:
-        self.messages.append(record.getMessage())
-
-
-def _load_scene(path: str, ext: str, label: str) -> tuple[Any, list[str]]:
-    """trimesh's scene of the file, and what trimesh logged on the way."""
-    import trimesh
-
-    if ext == "3mf":
-        from .util.optional import require
-
-        require("lxml", f"{label}: reading 3MF files", "files")
-    log = logging.getLogger("trimesh")
-    handler = _TrimeshLog()
-    propagate = log.propagate
-    log.addHandler(handler)
-    log.propagate = False
-    options: dict[str, Any] = {"process": False}
-    if ext == "obj":
-        options.update(split_objects=True, group_material=False)
-    try:
-        with open(path, "rb") as f:
-            scene = trimesh.load_scene(f, file_type=ext,
-                                       resolver=trimesh.resolvers.FilePathResolver(
-                                           os.path.abspath(path)), **options)
-    except Exception as exc:  # trimesh raises many types; the message says which and why
-        why = str(exc) or type(exc).__name__
-        raise FileError(f"{label}: could not parse it as {MESH_FORMATS[ext]}: {why}") from exc
-    finally:
-        log.removeHandler(handler)
-        log.propagate = propagate
-    return scene, handler.messages
-
-
-def _natural(text: str) -> list[Any]:
-    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", text)]
-
-
-def _nonfinite_message(label: str, ext: str, path: str, vertices: np.ndarray) -> str | None:
-    """What is wrong with NaN or infinite vertices of a geometry, or None."""
-    bad = ~np.isfinite(vertices).all(axis=1)
-    if not bad.any():
-        return None
-    n = int(bad.sum())
-    first = int(np.flatnonzero(bad)[0])
-    count = plural(n, "vertex", "vertices") + (" is" if n == 1 else " are")
-    if ext == "obj":
-        line = _obj_vertex_line(path)
-        where = f"vertex {line[0]} on line {line[1]}" if line else f"vertex {first + 1}"
-        return f"{label}: {count} NaN or infinite (first: {where}, counting from 1 as OBJ does)"
-    if ext == "stl":
-        return f"{label}: {count} NaN or infinite (first: a corner of triangle {first // 3 + 1}, " \
-               "counting from 1)"
-    return f"{label}: {count} NaN or infinite (first: vertex {first}, counting from 0 as the " \
-           "file's faces do)"
-
-
-def _obj_vertex_line(path: str) -> tuple[int, int] | None:
-    """(vertex number from 1, line number from 1) of the first non-finite ``v`` line."""
-    vertex = 0
-    with open(path, "rb") as f:
-        for line_no, line in enumerate(f, 1):
-            if line.startswith(b"v ") or line.startswith(b"v\t"):
-                vertex += 1
-                try:
-                    values = [float(w) for w in line.split()[1:4]]
-                except ValueError:
-                    return vertex, line_no
-                if not np.isfinite(values).all():
-                    return vertex, line_no
-    return None
-
-
-def load_file(path: str, label: str, limits: Limits = Limits()) -> list[FileBody]:
-    """The bodies of one file (see the module's doc), checked.
-
-    Parameters
-    ----------
-    path : str
-        The file (any name the operating system allows).
-    label : str
-        How messages name it.
-    limits : Limits
-
-    Returns
-    -------
-    list of FileBody
-        One per geometry instance; warnings (:class:`FileWarning`) for parts left out and for
-        what trimesh reported while loading.
-
-    Raises
-    ------
-    FileError
-    """
-    import trimesh
-
-    ext = check_file(path, label, limits)
-    if ext == "ifc":  # one body per element, by IfcOpenShell (pycinder[bim])
-        from .bim.ifc import load_file as load_ifc
-
-        return load_ifc(path, label, limits)
-    scene, logged = _load_scene(path, ext, label)
-    for message in logged:
-        warnings.warn(f"{label}: trimesh: {message}", FileWarning, stacklevel=2)
-    nodes = sorted(scene.graph.nodes_geometry, key=_natural)
-    meshes = {}
-    left_out = []
-    for node in nodes:
-        transform, geometry = scene.graph[node]
-        mesh = scene.geometry[geometry]
-        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-            left_out.append((node, type(mesh).__name__))
-        else:
-            meshes[node] = (np.asarray(transform, np.float64), geometry)
-    if not meshes:
-        kinds = sorted({kind for _, kind in left_out})
-        what = f" (it holds {', '.join(kinds)} only)" if left_out else ""
-        raise FileError(f"{label}: holds no triangles{what}")
-    several = len(meshes) > 1
-    for node, kind in left_out:
-        warnings.warn(f"{label}:{node} is a {kind} with no triangles: left out", FileWarning,
-                      stacklevel=2)
-    used = {geometry for _, geometry in meshes.values()}
-    limits_check = _Check(path, label, ext, 0, limits)
-    limits_check.triangles(sum(len(scene.geometry[g].faces) for g in used), "holds")
-    for geometry in used:
-        mesh = scene.geometry[geometry]
-        where = label if not several else f"{label}:{geometry}"
-        problem = _nonfinite_message(where, ext, path, np.asarray(mesh.vertices))
-        if problem:
-            raise FileError(problem)
-        mesh.merge_vertices(merge_tex=True, merge_norm=True)  # by position alone
-    units = getattr(scene, "units", None)
-    return [FileBody(f"{label}:{node}" if several else label, scene.geometry[geometry],
-                     transform, units) for node, (transform, geometry) in meshes.items()]
 
 
 def file_labels(paths: Sequence[str]) -> list[str]:
@@ -589,120 +414,3 @@ def file_labels(paths: Sequence[str]) -> list[str]:
             label = f"{label}#{seen[label]}"
         numbered.append(label)
     return numbered
-
-
-def load_bodies(paths: Sequence[str], limits: Limits = Limits(),
-                progress: Callable[[int, int, str], None] | None = None) -> list[FileBody]:
-    """The bodies of several files, named by :func:`file_labels`, checked and loaded in turn.
-
-    Every file is read, also after one that cannot be used, so that one error names every bad
-    file.
-
-    Parameters
-    ----------
-    paths : sequence of str
-    limits : Limits
-    progress : callable, optional
-        Called as ``progress(done, total, label)`` before each file.
-
-    Returns
-    -------
-    list of FileBody
-
-    Raises
-    ------
-    FileErrors
-        Naming every file that cannot be used (also one that needs a package that is not
-        installed), one message per file in its ``messages``, in the order given.
-    """
-    bodies: list[FileBody] = []
-    errors: list[str] = []
-    for k, (path, label) in enumerate(zip(paths, file_labels(paths))):
-        if progress:
-            progress(k, len(paths), label)
-        try:
-            bodies += load_file(path, label, limits)
-        except (FileError, ImportError) as exc:
-            errors.append(str(exc))
-    if errors:
-        raise FileErrors(errors)
-    units = {b.units for b in bodies if b.units}
-    if len(units) > 1:
-        declared = ", ".join(sorted({f"{b.name.split(':')[0]} in {b.units}" for b in bodies
-                                     if b.units}))
-        warnings.warn(f"the files declare different units ({declared}); pycinder compares "
-                      "coordinates as they are, without converting them", FileWarning,
-                      stacklevel=2)
-    return bodies
-
-
-def component_labels(links: np.ndarray, n: int) -> np.ndarray:
-    """The connected component of each of ``n`` nodes joined by ``links``, in NumPy alone (the
-    base install has neither SciPy nor networkx, which trimesh's graph functions need).
-
-    Parameters
-    ----------
-    links : (E, 2) int
-        Pairs of joined nodes.
-    n : int
-        Nodes.
-
-    Returns
-    -------
-    (n,) int64
-        Each node's component, named by its smallest node.
-    """
-    label = np.arange(n, dtype=np.int64)
-    a, b = np.asarray(links, dtype=np.int64).reshape(-1, 2).T
-    while True:  # the smaller label crosses each link, then labels point at their own labels
-        joined = np.minimum(label[a], label[b])
-        new = label.copy()
-        np.minimum.at(new, a, joined)
-        np.minimum.at(new, b, joined)
-        new = new[new]
-        if np.array_equal(new, label):
-            return label
-        label = new
-
-
-def components(mesh: Any) -> list[Any]:
-    """The disconnected parts of ``mesh`` (sharing no edge), in the order of their first
-    triangles; ``[mesh]`` itself when it is one part."""
-    labels = component_labels(np.asarray(mesh.face_adjacency), len(mesh.faces))
-    found, first, which = np.unique(labels, return_index=True, return_inverse=True)
-    if len(found) < 2:
-        return [mesh]
-    by_part = np.split(np.argsort(which, kind="stable"), np.cumsum(np.bincount(which))[:-1])
-    faces = [by_part[k] for k in np.argsort(first)]
-    return mesh.submesh(faces, only_watertight=False, append=False)
-
-
-def body_components(bodies: Sequence[FileBody]) -> list[list[Any]]:
-    """Each body's :func:`components`; a geometry placed several times is split once."""
-    split: dict[int, list[Any]] = {}
-    for body in bodies:
-        if id(body.mesh) not in split:
-            split[id(body.mesh)] = components(body.mesh)
-    return [split[id(body.mesh)] for body in bodies]
-
-
-def split_components(bodies: Sequence[FileBody]) -> list[FileBody]:
-    """Each body's disconnected parts as bodies of their own, named ``name[0]``, ``name[1]``,
-    ... (in the order of their first triangles); a body of one part is kept as it is.
-
-    Parameters
-    ----------
-    bodies : sequence of FileBody
-
-    Returns
-    -------
-    list of FileBody
-    """
-    out = []
-    for body, pieces in zip(bodies, body_components(bodies)):
-        if len(pieces) == 1:
-            out.append(body)
-        else:
-            out += [FileBody(f"{body.name}[{k}]", piece, body.transform, body.units)
-                    for k, piece in enumerate(pieces)]
-    return out
