@@ -67,7 +67,7 @@ def _load_scene(path: str, ext: str, label: str) -> tuple[Any, list[str]]:
     import trimesh
 
     if ext == "3mf":
-        from .util.optional import require
+        from ..util.optional import require
 
         require("lxml", f"{label}: reading 3MF files", "files")
     log = logging.getLogger("trimesh")

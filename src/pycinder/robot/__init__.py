@@ -1,0 +1,39 @@
+"""Robots: self- and environment collision of a URDF robot for batches of configurations.
+
+    URDF (yourdfpy) -> links' collision meshes + joints in tree order
+    configurations (C, J) -> link transforms (C, L, 4, 4) -> body transforms (C, B, 4, 4)
+    pairs to check (every pair of bodies on different links, less the allowed-collision
+    matrix; robot against environment) -> scenes of one batched query
+    (:meth:`pycinder.Detector.find_collisions_batch`) -> (C,) bool, and pairs when asked
+
+A :class:`Robot` is read from a URDF with :meth:`Robot.from_urdf` (the ``robot`` extra brings
+yourdfpy). Its collision geometry is taken as the URDF gives it: meshes as they are (an open mesh
+is tested as a surface, see :mod:`pycinder.request`), boxes, cylinders and spheres as meshes.
+Forward kinematics is vectorised over configurations in NumPy.
+
+Pairs that need no check are kept in an :class:`AllowedCollisionMatrix`, made the way MoveIt's
+Setup Assistant makes it (:meth:`Robot.compute_allowed_collisions`: adjacent links, pairs in
+collision in the default configuration, pairs always and never in collision over sampled
+configurations) and written and read as an SRDF's ``<disable_collisions>`` elements, so that a
+MoveIt user's SRDF is honoured as given.
+
+Disallowed pairs are never put on the GPU: the pairs to check are covered by cliques (sets of
+bodies whose every pair is checked), each a scene of the batched query, so a configuration's
+scenes test exactly its checked pairs.
+
+Padding is MoveIt's: the robot checked against the environment is the padded robot (each link
+grown by its padding), and self-collision is checked with the unpadded robot, as MoveIt's
+``PlanningScene`` does. A link (or an attached object named in a padding dict) and an
+environment body collide when their surfaces are closer than the link's padding. It runs
+through the clearance mode (:mod:`pycinder.focused.modes.clearance`) at the largest padding, and each pair is
+kept by its own: a pair closer than its padding is always reported, one more than its padding
+plus an eighth of the largest padding apart never is.
+"""
+
+from .acm import REASONS, AllowedCollisionMatrix, matrix_from_samples
+from .model import JOINT_TYPES, Body, Environment, RobotModel
+from .robot import DEFAULT_BODIES_PER_QUERY, FIRST_BATCH, QUERY_SECONDS, Robot
+
+__all__ = ["DEFAULT_BODIES_PER_QUERY", "FIRST_BATCH", "JOINT_TYPES", "QUERY_SECONDS", "REASONS",
+           "AllowedCollisionMatrix", "Body", "Environment", "Robot", "RobotModel",
+           "matrix_from_samples"]

@@ -1,0 +1,502 @@
+"""Checks of a robot's configurations: self-collision, attached objects and a fixed
+environment, many configurations per batched query (:class:`Robot`)."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .acm import AllowedCollisionMatrix, matrix_from_samples
+from .model import Body, Environment, RobotModel
+
+if TYPE_CHECKING:
+    from ..detector import Detector
+
+DEFAULT_BODIES_PER_QUERY = 12_000
+"""Most bodies one batched query holds by default (configurations per query: this divided by
+the bodies one configuration's scenes hold)."""
+
+QUERY_SECONDS = 2.0
+"""Wall seconds a batched query of :meth:`Robot.check` aims at when no ``batch`` is given:
+batches start at :data:`FIRST_BATCH` configurations and grow (at most doubling) while queries
+take less, up to :data:`DEFAULT_BODIES_PER_QUERY` bodies, so that a slow adapter (a CPU driver)
+gets small batches, far from the GPU timeout, and a fast GPU large ones."""
+
+FIRST_BATCH = 8
+"""Configurations of the first batched query of a check (see :data:`QUERY_SECONDS`)."""
+
+
+@dataclass
+class _Plan:
+    """Scenes of one configuration: each a clique of bodies (indices into the bodies of a check:
+    robot, attached, environment) whose every pair is checked, and each pair in one scene."""
+
+    scenes: list[np.ndarray]
+    pairs: int
+    bodies: int
+    checked: np.ndarray
+    """(B, B) bool: the pairs checked (a scene may also hold pairs allowed as ``Never``, cheap
+    to test and left out of the answers)."""
+    exact: bool
+    """Whether the scenes hold checked pairs only."""
+
+
+class Robot(RobotModel):
+    """A robot's links, joints and collision bodies, and checks of its configurations.
+
+    Made by :meth:`from_urdf`. Configurations are (C, J) joint values in the order of
+    :attr:`joint_names` (the actuated joints: not fixed, not mimicking another).
+
+    Attributes
+    ----------
+    name : str
+    root : str
+        The root link.
+    links : list of str
+        Every link, in tree order.
+    bodies : list of Body
+        Collision bodies of the links.
+    joint_names : list of str
+        The actuated joints, in tree order: a configuration's columns.
+    limits : (J, 2) float
+        Lower and upper limits (continuous joints: -pi, pi).
+    allowed : AllowedCollisionMatrix
+        Pairs never checked (see :meth:`compute_allowed_collisions`).
+    tolerance : float or None
+        World units of the tolerance contract (see :mod:`pycinder.request`); None: 1% of the
+        smaller body's size, per pair.
+    source : str
+        The URDF file's name, for messages.
+    share_never_pairs : bool
+        Let pairs allowed as ``Never`` share a batch's scenes with checked pairs (their answers
+        dropped): far fewer scenes and less host work per configuration, more GPU work where
+        their boxes overlap. Default False: the scenes hold checked pairs only (on lavapipe the
+        GPU stage dominates; on a fast GPU the host stages may).
+    """
+    # -- pairs ----------------------------------------------------------------------------
+
+    def _all_bodies(self, environment: Environment | None) -> list[Body]:
+        return self.bodies + [a.body for a in self._attached.values()] + \
+            (environment.bodies if environment is not None else [])
+
+    def checked_pairs(self, environment: Environment | None = None, *,
+                      self_collision: bool = True) -> list[tuple[str, str]]:
+        """The pairs of names a check tests: bodies on different links, not allowed by
+        :attr:`allowed`, robot against environment; sorted."""
+        bodies = self._all_bodies(environment)
+        return sorted({tuple(sorted((_owner(bodies[i]), _owner(bodies[j]))))
+                       for i, j in self._pair_list(environment, self_collision)})
+
+    def _pair_list(self, environment: Environment | None, self_collision: bool
+                   ) -> list[tuple[int, int]]:
+        bodies = self._all_bodies(environment)
+        nr = len(self.bodies)
+        na = len(self._attached)
+        touch = [a.touch for a in self._attached.values()]
+        kind = ["robot"] * nr + ["attached"] * na + ["env"] * (len(bodies) - nr - na)
+        allowed = self.allowed
+        out = []
+        for i in range(len(bodies)):
+            for j in range(i + 1, len(bodies)):
+                ki, kj = kind[i], kind[j]
+                if ki == "env" and kj == "env":
+                    continue
+                if not self_collision and ki != "env" and kj != "env":
+                    continue
+                a, b = _owner(bodies[i]), _owner(bodies[j])
+                if a == b or allowed.allowed(a, b):
+                    continue
+                if ki == "robot" and kj == "attached" and bodies[i].link in touch[j - nr]:
+                    continue
+                out.append((i, j))
+        return out
+
+    def _plan(self, environment: Environment | None, self_collision: bool
+              ) -> tuple[_Plan, list[Body]]:
+        key = (id(environment), len(environment) if environment is not None else 0,
+               self_collision, len(self.allowed), hash(tuple(self.allowed.pairs())),
+               self.share_never_pairs)
+        bodies = self._all_bodies(environment)
+        plan = self._plans.get(key)
+        if plan is None:
+            pairs = self._pair_list(environment, self_collision)
+            # Pairs MoveIt found never colliding may share a scene with checked ones: their
+            # boxes seldom overlap, so they cost little, and they let far fewer scenes cover
+            # the checked pairs (host work grows with scenes); their answers are dropped.
+            robot = len(self.bodies) + len(self._attached)
+            never = [(i, j) for i in range(robot) for j in range(i + 1, robot)
+                     if self.allowed.reason(_owner(bodies[i]), _owner(bodies[j])) == "Never"
+                     ] if self.share_never_pairs else []
+            scenes = _clique_cover(len(bodies), pairs, never)
+            checked = np.zeros((len(bodies), len(bodies)), dtype=bool)
+            for i, j in pairs:
+                checked[i, j] = checked[j, i] = True
+            exact = all(checked[np.ix_(sc, sc)].sum() == len(sc) * (len(sc) - 1)
+                        for sc in scenes)
+            plan = self._plans[key] = _Plan(scenes, len(pairs), sum(len(s) for s in scenes),
+                                            checked, exact)
+        return plan, bodies
+
+    # -- checks ---------------------------------------------------------------------------
+
+    @property
+    def detector(self) -> Detector:
+        """The detector of the checks (made on first use: ``records="none"``, and the broad
+        phase in NumPy: a batch's scenes hold a few bodies each)."""
+        if self._detector is None:
+            from ..detector import Detector
+
+            self._detector = Detector(records="none", broad_phase="numpy")
+        return self._detector
+
+    def in_collision(self, q: Any, *, environment: Environment | None = None,
+                     self_collision: bool = True) -> bool:
+        """Whether configuration ``q`` (J,) collides (see :meth:`check`)."""
+        q = np.asarray(q, np.float64)
+        if q.ndim != 1:
+            raise ValueError(f"{self.name}: in_collision takes one configuration ({self.dof} "
+                             f"joint values), got shape {q.shape}; use check for many")
+        return bool(self.check(q[None], environment=environment,
+                               self_collision=self_collision)[0])
+
+    def check(self, qs: Any, *, environment: Environment | None = None,
+              self_collision: bool = True, return_pairs: bool = False,
+              batch: int | None = None, padding: Any = None
+              ) -> np.ndarray | tuple[np.ndarray, list[list[tuple[str, str]]]]:
+        """Which configurations collide: with themselves (pairs of links on different links,
+        less :attr:`allowed`), with attached objects, and with the environment.
+
+        Parameters
+        ----------
+        qs : (C, J) float
+            Configurations, columns in :attr:`joint_names` order.
+        environment : Environment, optional
+            Fixed bodies to check the robot and its attached objects against.
+        self_collision : bool
+            Check the robot's own pairs (False: only against the environment).
+        return_pairs : bool
+            Also return, per configuration, the colliding pairs of names (link, attached object
+            or environment body names), each pair sorted, the list sorted.
+        batch : int, optional
+            Configurations per query. Default: paced, from :data:`FIRST_BATCH` configurations
+            growing while queries take less than :data:`QUERY_SECONDS`, up to
+            :data:`DEFAULT_BODIES_PER_QUERY` bodies per query. A batch too large for the
+            device's pixel budget is split.
+        padding : float or dict of str to float, optional
+            MoveIt's padding, in world units: one for every link, or per link or attached
+            object name (names left out: 0). It applies against the environment: a link and an
+            environment body collide when their surfaces are closer than the link's padding;
+            self-collision is checked unpadded, as MoveIt checks it (see the module's
+            docstring).
+
+        Returns
+        -------
+        collides : (C,) bool
+        pairs : list of list of (str, str)
+            Only with ``return_pairs``.
+        """
+        if not isinstance(self_collision, bool) or not isinstance(return_pairs, bool):
+            raise ValueError("self_collision and return_pairs must be True or False")
+        if environment is not None and not isinstance(environment, Environment):
+            raise TypeError(f"environment must be a pycinder.robot.Environment, got "
+                            f"{type(environment).__name__}")
+        qs = self._configurations(qs)
+        plan, bodies = self._plan(environment, self_collision)
+        pads = self._paddings(padding, bodies)
+        collides = np.zeros(len(qs), dtype=bool)
+        pairs: list[list[tuple[str, str]]] = [[] for _ in range(len(qs))]
+        for start, stop in self._batches(len(qs), batch, plan):
+            self._check_batch(qs[start:stop], start, plan, bodies, environment, collides,
+                              pairs if return_pairs else None, pads)
+        return (collides, pairs) if return_pairs else collides
+
+    def _batches(self, count: int, batch: int | None, plan: _Plan) -> Iterator[tuple[int, int]]:
+        """``(start, stop)`` of each query's configurations: ``batch`` at a time when given;
+        else paced (see :data:`QUERY_SECONDS`), the time between one range and the next being
+        the caller's query."""
+        most = self._batch_size(batch, plan)
+        size = most if batch is not None else min(FIRST_BATCH, most)
+        start = 0
+        while start < count:
+            t0 = time.perf_counter()
+            yield start, min(start + size, count)
+            start += size
+            if batch is None:
+                pace = QUERY_SECONDS / max(time.perf_counter() - t0, 1e-3)
+                size = max(1, min(most, int(size * min(pace, 2.0))))
+
+    def _paddings(self, padding: Any, bodies: list[Body]) -> np.ndarray | None:
+        """(B,) the padding of each body of a check (None without padding)."""
+        if padding is None:
+            return None
+        robot = len(self.bodies) + len(self._attached)
+        links = len(self.bodies)
+        if isinstance(padding, dict):
+            known = set(self.links) | set(self._attached)
+            unknown = sorted(set(padding) - known)
+            if unknown:
+                raise ValueError(f"{self.name}: padding names {unknown[:3]}, which are neither "
+                                 "links nor attached objects")
+            values = [padding.get(_owner(b), 0.0) if k < robot else 0.0
+                      for k, b in enumerate(bodies)]
+        else:  # the links' padding (attached objects are padded only by name)
+            values = [padding if k < links else 0.0 for k in range(len(bodies))]
+        pads = np.array([float(v) if isinstance(v, (int, float, np.floating))
+                         and not isinstance(v, bool) else np.nan for v in values])
+        if not np.isfinite(pads).all() or (pads < 0).any():
+            raise ValueError(f"{self.name}: padding must be non-negative world units, got "
+                             f"{padding!r}")
+        return pads if pads.any() else None
+
+    def _padded_detector(self, clearance: float) -> Detector:
+        """The detector of padded checks whose largest padding sum is ``clearance``."""
+        from ..detector import Detector
+
+        cache = self._padded
+        if clearance not in cache:
+            cache.clear()
+            cache[clearance] = Detector(records="none", broad_phase="numpy",
+                                        clearance=clearance)
+        return cache[clearance]
+
+    def _batch_size(self, batch: int | None, plan: _Plan) -> int:
+        if batch is None:
+            return max(1, DEFAULT_BODIES_PER_QUERY // max(plan.bodies, 1))
+        if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
+            raise ValueError(f"batch must be a positive whole number of configurations, got "
+                             f"{batch!r}")
+        return int(batch)
+
+    def _check_batch(self, qs: np.ndarray, start: int, plan: _Plan, bodies: list[Body],
+                     environment: Environment | None, collides: np.ndarray,
+                     pairs: list[list[tuple[str, str]]] | None,
+                     pads: np.ndarray | None = None) -> None:
+        from ..errors import GpuMemoryError
+
+        if not plan.scenes or not len(qs):
+            return
+        poses = self.poses(qs)
+        if environment is not None and len(environment):
+            env = np.array([b.origin for b in environment.bodies])
+            poses = np.concatenate([poses, np.broadcast_to(env, (len(qs), *env.shape))], axis=1)
+        meshes = [b.mesh for b in bodies]
+        names = [b.name for b in bodies]
+        scene_meshes = [[meshes[i] for i in s] for s in plan.scenes]
+        scene_names = [[names[i] for i in s] for s in plan.scenes]
+        scenes = [(scene_meshes[k], poses[c, s], scene_names[k])
+                  for c in range(len(qs)) for k, s in enumerate(plan.scenes)]
+        try:
+            results = self._query(scenes, plan, pads)
+        except GpuMemoryError:
+            if len(qs) == 1:
+                raise
+            half = len(qs) // 2
+            self._check_batch(qs[:half], start, plan, bodies, environment, collides, pairs,
+                              pads)
+            self._check_batch(qs[half:], start + half, plan, bodies, environment, collides,
+                              pairs, pads)
+            return
+        k = len(plan.scenes)
+        if plan.exact:
+            hit = np.array([len(r.pairs) > 0 for r in results]).reshape(len(qs), k)
+        else:
+            hit = np.array([bool(plan.checked[sc[r.pairs[:, 0]], sc[r.pairs[:, 1]]].any())
+                            for r, sc in zip(results, plan.scenes * len(qs))]
+                           ).reshape(len(qs), k)
+        collides[start:start + len(qs)] = hit.any(axis=1)
+        if pairs is not None:
+            for c in np.flatnonzero(hit.any(axis=1)):
+                found = set()
+                for s in np.flatnonzero(hit[c]):
+                    scene = plan.scenes[s]
+                    for a, b in results[c * k + s].pairs.tolist():
+                        if not plan.checked[scene[a], scene[b]]:
+                            continue
+                        found.add(tuple(sorted((_owner(bodies[scene[a]]),
+                                                _owner(bodies[scene[b]])))))
+                pairs[start + c] = sorted(found)
+
+    def _query(self, scenes: list, plan: _Plan, pads: np.ndarray | None) -> list:
+        """The batch's results; with padding, each scene's pairs kept by their own padding
+        (environment pairs by the robot body's, the robot's own pairs by none)."""
+        if pads is None:
+            return self.detector.find_collisions_batch(scenes, tolerance=self.tolerance)
+        robot = len(self.bodies) + len(self._attached)
+        clearance = max(float(pads.max()), 1e-12)
+        results = self._padded_detector(clearance).find_collisions_batch(
+            scenes, tolerance=self.tolerance)
+        for k, result in enumerate(results):
+            scene = np.asarray(plan.scenes[k % len(plan.scenes)])
+            a, b = scene[result.pairs[:, 0]], scene[result.pairs[:, 1]]
+            # Against the environment the padded robot; its own pairs unpadded (MoveIt's).
+            limit = np.where((a >= robot) | (b >= robot), pads[a] + pads[b], 0.0)
+            keep = result.distances < limit + result.distance_errors
+            result.pairs = result.pairs[keep]
+            result.distances = result.distances[keep]
+            result.distance_errors = result.distance_errors[keep]
+        return results
+
+    def interpolate(self, qs: Any, resolution: float) -> np.ndarray:
+        """A path through waypoints ``qs`` (W, J), linearly interpolated so that no joint moves
+        more than ``resolution`` between consecutive configurations (radians or metres).
+
+        Returns
+        -------
+        (M, J) float64
+            Starts with the first waypoint and ends with the last; every waypoint is on it.
+        """
+        qs = self._configurations(qs)
+        if isinstance(resolution, bool) or not isinstance(resolution, (int, float)) or \
+                not math.isfinite(resolution) or resolution <= 0:
+            raise ValueError(f"resolution must be a positive number, got {resolution!r}")
+        parts = [qs[:1]]
+        for a, b in zip(qs[:-1], qs[1:]):
+            steps = max(1, int(math.ceil(np.abs(b - a).max() / resolution - 1e-12)))
+            s = np.arange(1, steps + 1)[:, None] / steps
+            parts.append(a + s * (b - a))
+        return np.concatenate(parts)
+
+    def check_path(self, qs: Any, resolution: float = 0.01, *,
+                   environment: Environment | None = None, self_collision: bool = True,
+                   batch: int | None = None) -> int | None:
+        """The first colliding configuration of a path, densely interpolated.
+
+        Parameters
+        ----------
+        qs : (W, J) float
+            Waypoints.
+        resolution : float
+            Most a joint moves between checked configurations (see :meth:`interpolate`).
+        environment, self_collision, batch
+            As :meth:`check`; batches are checked in order and the check stops at the first
+            batch with a collision.
+
+        Returns
+        -------
+        int or None
+            Index into ``robot.interpolate(qs, resolution)`` of the first configuration that
+            collides; None when none does.
+        """
+        path = self.interpolate(qs, resolution)
+        plan, _ = self._plan(environment, self_collision)
+        for start, stop in self._batches(len(path), batch, plan):
+            hit = self.check(path[start:stop], environment=environment,
+                             self_collision=self_collision, batch=stop - start)
+            if hit.any():
+                return start + int(np.flatnonzero(hit)[0])
+        return None
+
+    # -- the allowed-collision matrix -----------------------------------------------------
+
+    def adjacent_links(self) -> list[tuple[str, str]]:
+        """Pairs of links with collision geometry that MoveIt's Setup Assistant calls adjacent:
+        joined by a joint, or through links without collision geometry (sorted pairs)."""
+        geometric = {b.link for b in self.bodies}
+        neighbours: dict[str, set[str]] = {n: set() for n in self.links}
+        for j in self.joints:
+            neighbours[j.parent].add(j.child)
+            neighbours[j.child].add(j.parent)
+        out = set()
+        for start in geometric:
+            seen, todo = {start}, [start]
+            while todo:
+                n = todo.pop()
+                for m in neighbours[n]:
+                    if m in seen:
+                        continue
+                    seen.add(m)
+                    if m in geometric:
+                        out.add(tuple(sorted((start, m))))
+                    else:
+                        todo.append(m)
+        return sorted(out)
+
+    def compute_allowed_collisions(self, samples: int = 10_000, *, seed: int = 0,
+                                   always_fraction: float = 0.95, always_samples: int = 100,
+                                   batch: int | None = None) -> AllowedCollisionMatrix:
+        """An allowed-collision matrix made by MoveIt Setup Assistant's rules, in its order
+        (a pair takes the first reason that applies):
+
+        1. ``Adjacent``: :meth:`adjacent_links`;
+        2. ``Default``: pairs in collision in :meth:`default_configuration`;
+        3. ``Always``: pairs in collision in at least ``always_fraction`` of the first
+           ``always_samples`` random configurations;
+        4. ``Never``: pairs in collision in none of ``samples`` random configurations.
+
+        Random configurations are uniform within the joint limits, from ``seed``; the checks are
+        :meth:`check`'s, without :attr:`allowed` and without attached objects.
+
+        Returns
+        -------
+        AllowedCollisionMatrix
+            A new matrix (assign it to :attr:`allowed`, or write it with
+            :meth:`AllowedCollisionMatrix.write_srdf`).
+        """
+        if not isinstance(samples, (int, np.integer)) or samples < 1:
+            raise ValueError(f"samples must be a positive whole number, got {samples!r}")
+        if not 0 < always_fraction <= 1:
+            raise ValueError(f"always_fraction must be in (0, 1], got {always_fraction!r}")
+        saved, attached = self.allowed, self._attached
+        try:
+            self.allowed, self._attached = AllowedCollisionMatrix(), {}
+            self._plans.clear()
+            _, default = self.check(self.default_configuration()[None], return_pairs=True)
+            qs = self.random_configurations(max(samples, always_samples), seed)
+            _, found = self.check(qs, return_pairs=True, batch=batch)
+        finally:
+            self.allowed, self._attached = saved, attached
+            self._plans.clear()
+        return matrix_from_samples(self.adjacent_links(), default[0], found,
+                                   sorted({b.link for b in self.bodies}), samples=samples,
+                                   always_samples=always_samples,
+                                   always_fraction=always_fraction)
+
+    def write_srdf(self, path: str | Path) -> None:
+        """Write :attr:`allowed` as an SRDF file."""
+        self.allowed.write_srdf(path, self.name)
+
+
+def _owner(body: Body) -> str:
+    """The name a body's collisions are reported under: its link (robot), its own name
+    (attached object, environment body)."""
+    return body.name if body.source == "attached" else body.link
+
+
+def _clique_cover(n: int, pairs: list[tuple[int, int]],
+                  extra: Sequence[tuple[int, int]] = ()) -> list[np.ndarray]:
+    """Scenes covering every pair of ``pairs`` (of ``n`` bodies), each a clique of the graph of
+    ``pairs`` and ``extra`` (so no other pair is tested): grown greedily from an uncovered pair
+    by the body that covers most uncovered pairs."""
+    adjacent = [set() for _ in range(n)]
+    for i, j in list(pairs) + list(extra):
+        adjacent[i].add(j)
+        adjacent[j].add(i)
+    uncovered = {(min(i, j), max(i, j)) for i, j in pairs}
+    scenes = []
+    for i, j in sorted(uncovered):
+        if (i, j) not in uncovered:
+            continue
+        clique = [i, j]
+        candidates = adjacent[i] & adjacent[j]
+        while candidates:
+            best = max(sorted(candidates), key=lambda v: sum(
+                (min(v, u), max(v, u)) in uncovered for u in clique))
+            if not any((min(best, u), max(best, u)) in uncovered for u in clique):
+                break
+            clique.append(best)
+            candidates &= adjacent[best]
+        for a in range(len(clique)):
+            for b in range(a + 1, len(clique)):
+                uncovered.discard((min(clique[a], clique[b]), max(clique[a], clique[b])))
+        scenes.append(np.array(sorted(clique), dtype=np.int64))
+    return scenes
+
+
+# ---------------------------------------------------------------------------------------------
+# URDF pieces
