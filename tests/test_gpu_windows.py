@@ -1,5 +1,5 @@
 """Pass P1 (:mod:`pycinder.focused.plan.windows`) against the NumPy planner it ports
-(:func:`pycinder.focused.plan.tiles._plan_chunk`), never against its own output.
+(:func:`pycinder.focused.plan.hostwindows._plan_chunk`), never against its own output.
 
 Random scenes (rotated, non-uniformly scaled, sheared and mirrored boxes, flat ones, equal
 extents, touching and apart pairs, far and tiny bodies, several scales) are planned both ways and
@@ -21,7 +21,7 @@ ulps of the pair's distance from the origin) is allowed on top everywhere.
 import numpy as np
 import pytest
 
-from pycinder.focused.plan import tiles
+from pycinder.focused.plan import hostwindows
 from pycinder.gpu.device import get_gpu
 from pycinder.gpu.layout import FLAG_COUNT_BACK, FLAG_MIRROR, FLAG_OPEN
 from pycinder.gpu.bindings import workgroup_grid
@@ -91,7 +91,7 @@ def tolerances(rng: np.random.Generator, scene: dict, pairs: np.ndarray,
     return rng.uniform(lo, hi, len(pairs)) * np.minimum(size[pairs[:, 0]], size[pairs[:, 1]])
 
 
-def frame_boxes(pairs: np.ndarray, bounds: tiles.BodyBounds) -> tuple[np.ndarray, np.ndarray]:
+def frame_boxes(pairs: np.ndarray, bounds: hostwindows.BodyBounds) -> tuple[np.ndarray, np.ndarray]:
     """NumPy's overlap box of every pair in each frame (world, a's, b's): lo, hi (3, K, 3), as
     ``_plan_chunk`` finds them (for the tests' margins: which decisions are close)."""
     a, b = pairs[:, 0], pairs[:, 1]
@@ -113,8 +113,8 @@ def frame_boxes(pairs: np.ndarray, bounds: tiles.BodyBounds) -> tuple[np.ndarray
 def window_areas(extent: np.ndarray, tol: np.ndarray) -> np.ndarray:
     """``_plan_chunk``'s estimated window area of boxes of extents (..., 3)."""
     e = np.sort(extent, axis=-1)
-    win_x = (e[..., 2] * tiles._SIN + e[..., 1] * tiles._COS) / tol + 2 * tiles.MARGIN_PX + 1
-    win_y = e[..., 0] / tol + 2 * tiles.MARGIN_PX + 1
+    win_x = (e[..., 2] * hostwindows._SIN + e[..., 1] * hostwindows._COS) / tol + 2 * hostwindows.MARGIN_PX + 1
+    win_y = e[..., 0] / tol + 2 * hostwindows.MARGIN_PX + 1
     return win_x * win_y
 
 
@@ -135,8 +135,8 @@ def check(gw: GpuWindows, scene: dict, pairs: np.ndarray, tol: np.ndarray, *,
     bounds = gw.upload_bodies(**scene)
     raw = gw.windows_of(pairs, tol)
     got = gw.to_plan(raw, pairs, tol)
-    rb = bounds if reference is None else tiles.body_bounds(**reference)
-    ref = tiles._plan_chunk(pairs, tol, rb, 0)
+    rb = bounds if reference is None else hostwindows.body_bounds(**reference)
+    ref = hostwindows._plan_chunk(pairs, tol, rb, 0)
     k = len(pairs)
     a, b = pairs[:, 0], pairs[:, 1]
     centres = np.abs(rb.obb_centre).max(axis=1)
@@ -211,7 +211,7 @@ def check(gw: GpuWindows, scene: dict, pairs: np.ndarray, tol: np.ndarray, *,
     world = np.einsum("kji,kcj->kci", g_frame, box)                     # frame rows: x = R^T y
     uvz = np.einsum("kij,kcj->kci", g_axes, world - g_origin[:, None]) / px[:, None, None]
     slack = PX_TOL + nz / px
-    margin = tiles.MARGIN_PX
+    margin = hostwindows.MARGIN_PX
     outside = np.maximum.reduce([
         margin - uvz[..., 0].min(axis=1), uvz[..., 0].max(axis=1) - (g_w - margin),
         margin - uvz[..., 1].min(axis=1), uvz[..., 1].max(axis=1) - (g_h - margin),
@@ -349,7 +349,7 @@ def test_equal_touching_and_apart_boxes(gw):
     assert counts["excused"] == 0
     kept = gw.to_plan(gw.windows_of(pairs, tol), pairs, tol)["bodies"].tolist()
     assert [0, 8] in kept and [0, 9] not in kept
-    ref = tiles._plan_chunk(pairs, tol, tiles.body_bounds(**scene), 0)
+    ref = hostwindows._plan_chunk(pairs, tol, hostwindows.body_bounds(**scene), 0)
     got = gw.run(pairs, tol, **scene)
     assert np.array_equal(got["pair"], ref["pair"])
     flags = got["flags"] & ~FLAG_COUNT_BACK
@@ -366,8 +366,8 @@ def test_all_apart_is_none(gw):
     scene["world_hi"] = scene["world_hi"] + step
     pairs = all_pairs(10)
     assert gw.run(pairs, np.full(len(pairs), 0.01), **scene) is None
-    assert tiles._plan_chunk(pairs, np.full(len(pairs), 0.01),
-                             tiles.body_bounds(**scene), 0) is None
+    assert hostwindows._plan_chunk(pairs, np.full(len(pairs), 0.01),
+                             hostwindows.body_bounds(**scene), 0) is None
 
 
 def test_anchors_are_exact_in_two_floats():
@@ -380,7 +380,7 @@ def test_anchors_are_exact_in_two_floats():
     assert np.array_equal(hi.astype(np.float64) + lo.astype(np.float64), anchor)
     assert (np.abs(anchor - c) <= 2.0 ** -46 * 2 * np.abs(c).max(axis=1, keepdims=True)).all()
     scene = random_scene(rng, 20, offset=1e7)
-    bodies, anchor = plan_bodies(**without_open(scene), bounds=tiles.body_bounds(**scene))
+    bodies, anchor = plan_bodies(**without_open(scene), bounds=hostwindows.body_bounds(**scene))
     assert bodies.dtype == BODY.dtype
     assert np.array_equal(bodies["hi"].astype(np.float64) + bodies["lo"], anchor)
     assert (np.abs(bodies["centre"]) < 1e-6).all()
@@ -443,6 +443,6 @@ def test_encode_chains_into_a_callers_encoder(gw):
     device.queue.submit([encoder.finish()])
     raw = gw.readback.read(nbytes, np.uint8).view(WINDOW.dtype)
     got = gw.to_plan(raw, pairs, tol)
-    ref = tiles._plan_chunk(pairs, tol, bounds, 0)
+    ref = hostwindows._plan_chunk(pairs, tol, bounds, 0)
     assert np.array_equal(got["pair"], ref["pair"])
     assert np.abs(got["origin"] - ref["origin"]).max() < 1e-3 * tol.min()

@@ -18,7 +18,7 @@ import trimesh
 import pycinder
 import pycinder.focused.frame.crossingtest as crossing_test
 from pycinder.testing import grid_plate, surface_distance
-from pycinder.focused.plan.tiles import TILT
+from pycinder.focused.plan.hostwindows import TILT
 
 T = 2.5e-5
 LENGTH = 2.0

@@ -1,5 +1,5 @@
 // Tile planner, pass P1 (compute; pycinder/passes/windows.py): the window of each candidate
-// pair, as pycinder.focused.plan.tiles._plan_chunk plans it, in single precision. One invocation per pair.
+// pair, as pycinder.focused.plan.hostwindows._plan_chunk plans it, in single precision. One invocation per pair.
 //
 // Each body comes measured from its own anchor (a point at its oriented box's centre, given
 // exactly as hi + lo in two f32 vectors). A pair is planned in the frame of its anchor body

@@ -1,5 +1,5 @@
 """Pass P1 of the GPU tile planner, windows: each candidate pair's window, as
-:func:`pycinder.focused.plan.tiles._plan_chunk` plans it, in single precision (``plan_windows.wgsl``).
+:func:`pycinder.focused.plan.hostwindows._plan_chunk` plans it, in single precision (``plan_windows.wgsl``).
 
 One invocation per candidate pair (a, b) finds where the pair's bounding volumes overlap in each
 of three frames (the world's axes, body a's and body b's), whether they are apart, the frame of
@@ -14,7 +14,7 @@ WGSL has no float64, and a scene may lie far from the world's origin, or hold a 
 a huge one. So nothing is measured from the world's origin on the GPU:
 
 - The host (float64, O(N) in the bodies) computes every body's bounds as
-  :func:`pycinder.focused.plan.tiles.body_bounds` does, and picks the body's *anchor*: its oriented box's
+  :func:`pycinder.focused.plan.hostwindows.body_bounds` does, and picks the body's *anchor*: its oriented box's
   centre ``c``, rounded to a multiple of ``2**(e - 46)`` (where ``max |c| < 2**e``), so that the
   anchor is exactly ``hi + lo`` of two float32 vectors. Every other quantity of the body is taken
   relative to its own anchor and rounded to float32 (:data:`BODY`): its boxes' centres (measured
@@ -58,7 +58,8 @@ from ...gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ...gpu.device import Gpu, get_gpu
 from ...gpu.structs import Struct
 from ...gpu.layout import FLAG_COUNT_BACK, ROW, WORKGROUP
-from .tiles import MARGIN_PX, PROBE_FACES, TILT, BodyBounds, body_bounds, interval_meet, sum3
+from .hostwindows import MARGIN_PX, TILT, BodyBounds, body_bounds, interval_meet, sum3
+from .tiles import PROBE_FACES
 from .atlas import WINDOW as ATLAS_WINDOW
 from ...gpu.bindings import Resource, Stage, dispatch
 from ...gpu.table import PassInfo
@@ -147,7 +148,7 @@ def plan_bodies(local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarray
     transforms : (N, 4, 4) float
         World-from-body matrices.
     bounds : BodyBounds
-        Their bounds, from :func:`pycinder.focused.plan.tiles.body_bounds`.
+        Their bounds, from :func:`pycinder.focused.plan.hostwindows.body_bounds`.
 
     Returns
     -------
@@ -258,7 +259,7 @@ class GpuWindows:
         open_bodies : (N,) bool, optional
             Bodies that are not solids.
         bounds : BodyBounds, optional
-            :func:`pycinder.focused.plan.tiles.body_bounds` of the same arguments, when the caller has it.
+            :func:`pycinder.focused.plan.hostwindows.body_bounds` of the same arguments, when the caller has it.
         faces : (N,) int, optional
             Faces of each body: a pair is dense (its large window is probed in a plan of any
             size) when its bodies have :data:`~pycinder.focused.plan.tiles.PROBE_FACES` or more together.
@@ -365,7 +366,7 @@ class GpuWindows:
 
     def to_plan(self, raw: np.ndarray, pairs: np.ndarray, tolerance: np.ndarray, first: int = 0
                 ) -> dict | None:
-        """The kept windows of ``raw`` as :func:`pycinder.focused.plan.tiles._plan_chunk` returns them.
+        """The kept windows of ``raw`` as :func:`pycinder.focused.plan.hostwindows._plan_chunk` returns them.
 
         Parameters
         ----------
@@ -400,7 +401,7 @@ class GpuWindows:
     def run(self, pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
             local_hi: np.ndarray, world_lo: np.ndarray, world_hi: np.ndarray,
             transforms: np.ndarray, open_bodies: np.ndarray | None = None) -> dict | None:
-        """The windows of ``pairs``, as :func:`pycinder.focused.plan.tiles._plan_chunk` returns them (one
+        """The windows of ``pairs``, as :func:`pycinder.focused.plan.hostwindows._plan_chunk` returns them (one
         upload, one submission, one readback).
 
         Parameters
