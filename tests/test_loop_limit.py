@@ -123,7 +123,7 @@ def test_crossing_test_past_its_budget_runs_the_tile_again_with_thinner_boxes(mo
 def test_a_tile_past_the_crossing_budget_goes_straight_to_thinner_boxes(monkeypatch):
     """Longer lists cannot help a tile that pass F6 left unfinished: every retry cuts its box,
     and the next frames get no retry rounds of longer lists on the GPU."""
-    import pycinder.focused.again as again
+    import pycinder.focused.frame.again as again
 
     plate = grid_plate(1.0, 40)
     meshes = [_wavy(plate, 0.0), _wavy(plate, 0.021)]

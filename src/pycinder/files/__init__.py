@@ -6,7 +6,7 @@
 
 * **Formats**: STL, OBJ, PLY, OFF, glTF (``.gltf`` and ``.glb``) and 3MF (which needs lxml:
   ``pip install 'pycinder[files]'``). Point clouds and 2-D drawings are not meshes. IFC files
-  (``.ifc``) are read by :mod:`pycinder.bim.ifc`, one body per element (``pip install
+  (``.ifc``) are read by :mod:`pycinder.files.ifc`, one body per element (``pip install
   'pycinder[bim]'``).
 * **Scene files** (glTF, 3MF, OBJ with several ``o`` objects) give one body per geometry instance,
   named ``file:node`` after the scene graph, with the instance's transform; a file with one body
@@ -156,7 +156,7 @@ def load_file(path: str, label: str, limits: Limits = Limits()) -> list[FileBody
 
     ext = check_file(path, label, limits)
     if ext == "ifc":  # one body per element, by IfcOpenShell (pycinder[bim])
-        from ..bim.ifc import load_file as load_ifc
+        from .ifc import load_file as load_ifc
 
         return load_ifc(path, label, limits)
     scene, logged = _load_scene(path, ext, label)

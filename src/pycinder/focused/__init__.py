@@ -9,6 +9,6 @@ The stages, in the order a query flows through them, one subpackage each:
 - :mod:`~pycinder.focused.modes`: the query modes that measure pairs exactly (hard clashes, pass
   H1; clearance, pass C1), plug-ins the strategy calls and that never import it.
 
-:mod:`~pycinder.focused.strategy` joins them; :mod:`~pycinder.focused.again` runs the pairs a
+:mod:`~pycinder.focused.strategy` joins them; :mod:`~pycinder.focused.frame.again` runs the pairs a
 frame left undecided again.
 """

@@ -23,8 +23,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .again import (LARGER_LISTS, RETRIES, RoundTooLarge, retry_on_gpu, smaller_rounds,
-                    undecided_tiles)
+from .frame.again import (LARGER_LISTS, RETRIES, RoundTooLarge, retry_on_gpu, smaller_rounds,
+                          undecided_tiles)
 from .broad.prune import sweep_and_prune
 from ..errors import GpuMemoryError, LossWarning, warn_at_caller
 from ..gpu.device import Gpu
@@ -232,7 +232,7 @@ class FocusedStrategy:
 
     def _complete(self, q: _Query) -> CollisionResult:
         """The rest of :meth:`run` once the first frame is submitted: its readback, the runs
-        again of undecided tiles (as :mod:`pycinder.focused.again` decides), and the decoding."""
+        again of undecided tiles (as :mod:`pycinder.focused.frame.again` decides), and the decoding."""
         scene, stats, records, pairs = q.scene, q.stats, q.records, q.pairs
         found = np.zeros(len(pairs), dtype=bool)
         rows: list[tuple[TilePlan, np.ndarray]] = []
@@ -343,7 +343,7 @@ class FocusedStrategy:
                   ) -> tuple[TilePlan, FocusedOutput]:
         """Run ``plan``'s passes (or read ``submitted``, the plan's frame already on the GPU);
         when a round is too large for the device's buffers, plan the same tiles in smaller
-        rounds and run them again (:func:`pycinder.focused.again.smaller_rounds`). Returns the plan
+        rounds and run them again (:func:`pycinder.focused.frame.again.smaller_rounds`). Returns the plan
         run."""
         budget, width = self._budget(capacity), plan.atlas_width
         while True:

@@ -11,7 +11,7 @@ Each pass is an object owning its pipelines, its parameters struct and its bindi
 (``passes/<pass>.py``); :data:`PASSES` lists them in the order they run, and the pass table of
 the docs is generated from it. The readback brings the counters, a hit flag per candidate pair,
 the first records and the timestamps; the per-tile counts only when a tile must run again.
-What makes a frame run again is decided in :mod:`pycinder.focused.again`.
+What makes a frame run again is decided in :mod:`pycinder.focused.frame.again`.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import wgpu
 
-from ..again import grown_caps
+from .again import grown_caps
 from ...gpu.buffers import DEFAULT_TIMEOUT
 from ...gpu.device import Gpu
 from ...gpu.layout import C_AGAIN, C_CUTS, C_EDGES, C_RECORDS, FLAG_OPEN, ROUND_COUNTERS, TILE
@@ -163,7 +163,7 @@ class FocusedFrames:
 
     def finish(self, sub: Submitted) -> FocusedOutput:
         """Wait for a submitted frame and read what it found; run it again while a buffer had to
-        grow (:func:`pycinder.focused.again.grown_caps`), so nothing is dropped.
+        grow (:func:`pycinder.focused.frame.again.grown_caps`), so nothing is dropped.
 
         Raises
         ------

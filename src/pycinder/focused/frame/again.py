@@ -33,10 +33,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..gpu.layout import C_MAX_EDGES, C_MAX_TRIS, C_RECORDS, UNDECIDED_BUDGET_BIT
-from .frame.atlas import RETRY_LISTS, Caps
-from ..request import RecordMode
-from .plan.tiles import MAX_TILE, TilePlan, repack, split_depth
+from ...gpu.layout import C_MAX_EDGES, C_MAX_TRIS, C_RECORDS, UNDECIDED_BUDGET_BIT
+from .atlas import RETRY_LISTS, Caps
+from ...request import RecordMode
+from ..plan.tiles import MAX_TILE, TilePlan, repack, split_depth
 
 RETRIES = 5
 """Times undecided tiles are run again: first with longer lists, then with thinner boxes."""
