@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import importlib
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -52,3 +54,50 @@ def test_public_name_has_an_entry(name: str) -> None:
 
 def test_cli_reference() -> None:
     assert "```{pycinder-cli}" in (API / "cli.md").read_text(encoding="utf-8")
+
+
+DOCS = API.parent
+PAGES = [p for p in DOCS.rglob("*.md") if "_build" not in p.parts] + [
+    DOCS.parent / "README.md", DOCS.parent / "benchmarks" / "README.md"]
+MENTION = re.compile(r"(?<![\w./-])pycinder(?:\.\w+)+")
+FROM_IMPORT = re.compile(r"from\s+(pycinder(?:\.\w+)*)\s+import\s+\(?([\w, ]+)")
+
+
+def mentioned_paths() -> set[str]:
+    """Every dotted path the docs and READMEs name (``pycinder.ifc.read_ifc``), and every name
+    their examples import (``from pycinder.robot import Robot`` -> ``pycinder.robot.Robot``)."""
+    names: set[str] = set()
+    for page in PAGES:
+        text = page.read_text(encoding="utf-8")
+        names.update(MENTION.findall(text))
+        for module, imported in FROM_IMPORT.findall(text):
+            names.update(f"{module}.{n.strip()}" for n in imported.split(",") if n.strip())
+    return names
+
+
+@pytest.mark.parametrize("name", sorted(mentioned_paths()))
+def test_documented_import_path_works(name: str) -> None:
+    resolve(name)
+
+
+@pytest.mark.parametrize("earlier", sorted(pycinder.MOVED))
+def test_earlier_module_path_is_the_moved_module(earlier: str) -> None:
+    """A module that moved imports under its earlier path as itself, in a fresh interpreter,
+    every way a user writes it, and its classes pickle by their own module."""
+    now = pycinder.MOVED[earlier]
+    parent, short = earlier.rsplit(".", 1)
+    code = f"""
+import importlib, pickle, sys
+import {earlier} as a
+import {now} as b
+from {parent} import {short} as c
+import {parent}
+assert a is b is c is sys.modules[{earlier!r}] is {earlier}, "not one module"
+assert a.__name__ == a.__spec__.name == {now!r}, (a.__name__, a.__spec__.name)
+classes = [v for v in vars(b).values() if isinstance(v, type) and v.__module__ == {now!r}]
+assert all(pickle.loads(pickle.dumps(k)) is k for k in classes)
+print(len(classes))
+"""
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr

@@ -3,8 +3,9 @@ window, its place in the atlas and its round, and every round's rows and the atl
 to what :mod:`pycinder.focused.plan.tiles` makes.
 
 The reference calls the NumPy planner's own functions (``_phases_of``, ``fitted_width``,
-``_layout``) as :func:`~pycinder.focused.plan.tiles.plan_tiles` and ``_place`` chain them, and a few plans go
-through :func:`~pycinder.focused.plan.tiles.plan_tiles` itself, whose geometry is replaced by the windows.
+``_layout``) as :func:`~pycinder.focused.plan.tiles.plan_tiles` and ``_place`` chain them, and a
+few plans go through :func:`~pycinder.focused.plan.tiles.plan_tiles` itself, whose geometry is
+replaced by the windows.
 """
 
 import time
@@ -12,7 +13,7 @@ import time
 import numpy as np
 import pytest
 
-from pycinder.focused.plan import tiles
+from pycinder.focused.plan import hostwindows, tiles
 from pycinder.errors import GpuMemoryError
 from pycinder.gpu.layout import FLAG_SKIP_IF_HIT
 from pycinder.focused.plan.atlas import AtlasPlan, AtlasPlanner, atlas_windows
@@ -302,7 +303,7 @@ def test_plan_tiles_itself(planner, monkeypatch, probe, faces, budget):
                 "w": w[i].astype(np.float64), "h": h[i].astype(np.float64),
                 "slab": np.zeros((m, 2)), "flags": np.zeros(m, np.int64)}
 
-    monkeypatch.setattr(tiles, "_plan_chunk", fake_chunk)
+    monkeypatch.setattr(hostwindows, "_plan_chunk", fake_chunk)
     n = 2 * k
     box = np.tile([0.0, 0.0, 0.0], (n, 1)), np.tile([1.0, 1.0, 1.0], (n, 1))
     plan = tiles.plan_tiles(pairs, np.ones(k), *box, *box, np.tile(np.eye(4), (n, 1, 1)),

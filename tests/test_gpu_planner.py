@@ -1,6 +1,7 @@
-"""The GPU tile planner (``planner="gpu"``, :mod:`pycinder.focused.plan.gpu`) against the NumPy planner it
-ports and against exact geometry: whole plans compared tile by tile on random scenes (rotated,
-scaled, sheared, mirrored, far and tiny bodies), and the answers of queries planned either way."""
+"""The GPU tile planner (``planner="gpu"``, :mod:`pycinder.focused.plan.gpu`) against the NumPy
+planner it ports and against exact geometry: whole plans compared tile by tile on random scenes
+(rotated, scaled, sheared, mirrored, far and tiny bodies), and the answers of queries planned
+either way."""
 
 import warnings
 

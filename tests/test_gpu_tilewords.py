@@ -1,8 +1,9 @@
-"""Pass P3 of the GPU tile planner (:mod:`pycinder.focused.plan.tilewords`): the tiles as the frame's
-passes read them, written on the GPU after passes P1 and P2 in the same submission, against the
-host's float64 composition of the same plan (``tile_words(plan, plan.tile_from_body(...))``,
-with ``plan`` the :class:`~pycinder.focused.plan.tiles.TilePlan` that :class:`~pycinder.focused.plan.gpu.GpuPlanner`
-builds from the same windows and atlas), never against the GPU's own output.
+"""Pass P3 of the GPU tile planner (:mod:`pycinder.focused.plan.tilewords`): the tiles as the
+frame's passes read them, written on the GPU after passes P1 and P2 in the same submission, against
+the host's float64 composition of the same plan (``tile_words(plan, plan.tile_from_body(...))``,
+with ``plan`` the :class:`~pycinder.focused.plan.tiles.TilePlan` that
+:class:`~pycinder.focused.plan.gpu.GpuPlanner` builds from the same windows and atlas), never
+against the GPU's own output.
 
 Integer fields and the slab must be equal; the matrices equal up to single precision's rounding
 relative to each tile's own size: the rotation rows relative to their size (``|R| / pixel``), the

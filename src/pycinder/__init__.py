@@ -14,9 +14,9 @@ from .gpu.device import ForkedProcessError, NoAdapterError, share_default_device
 from .manager import CollisionManager, ContactData, DistanceData, scene_to_collision
 from .records import RECORD_DTYPE
 from .request import MAX_BODIES, CollisionRequest
-from .tolerance import DEFAULT_RELATIVE_TOLERANCE
 from .result import CollisionResult, FocusedStats, SceneStats, Stats
 from .scene import PreparedBodies
+from .tolerance import DEFAULT_RELATIVE_TOLERANCE
 from .util import moved
 from .util.quiet import quiet_native_probes
 from .view import View

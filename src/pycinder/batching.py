@@ -5,9 +5,9 @@ scene, and the result split back per scene (:meth:`pycinder.Detector.find_collis
       -> the focused strategy (broad phase within each scene, tiles, passes: one submission)
       -> per scene: its pairs and records, with body indices local to it
 
-A query has a floor of a few milliseconds however small it is (a submission, a readback, host
-work per stage). A batch pays it once for all its scenes. Each scene keeps its own answer: the
-broad phase pairs only bodies of one scene (:func:`pycinder.focused.broad.prune.side_by_side`), and every
+A query has a floor of a few milliseconds however small it is (a submission, a readback, host work
+per stage). A batch pays it once for all its scenes. Each scene keeps its own answer: the broad
+phase pairs only bodies of one scene (:func:`pycinder.focused.broad.prune.side_by_side`), and every
 pair gets its scene's tolerance, so a scene's pairs are those a query of that scene alone gives.
 """
 

@@ -231,9 +231,10 @@ class Detector:
     def in_collision(self, bodies: Sequence[Any], transforms: Any = None, *,
                      names: Sequence[str | None] | None = None, groups: Any = None) -> bool:
         """Whether any two bodies interfere, as :meth:`find_collisions` would answer, for less:
-        the pairs likeliest to collide (:func:`~pycinder.focused.plan.tiles.likely_pairs`) run first, and the
-        GPU skips every tile that has not started once any pair is found (the focused strategy;
-        the scene strategy runs its whole query). Arguments as :meth:`find_collisions`.
+        the pairs likeliest to collide (:func:`~pycinder.focused.plan.tiles.likely_pairs`) run
+        first, and the GPU skips every tile that has not started once any pair is found (the
+        focused strategy; the scene strategy runs its whole query). Arguments as
+        :meth:`find_collisions`.
 
         Returns
         -------

@@ -22,13 +22,13 @@ errors as trimesh's class (which runs python-fcl). What backs each answer:
   both meshes are convex (as trimesh), pycinder's contact depth otherwise (where python-fcl
   reports 0, or nothing for a body inside another). Needs python-fcl: ``pip install
   'pycinder[distance]'``.
-* **Query modes**: the options are those of :class:`~pycinder.CollisionRequest`, the mode
-  options included. ``CollisionManager(min_depth=d)`` makes ``in_collision_*`` report hard
-  clashes (pairs deeper than ``d``, never touching convex pairs; see
-  :mod:`pycinder.focused.modes.hardclash`), ``CollisionManager(clearance=c)`` pairs closer than ``c`` (see
-  :mod:`pycinder.focused.modes.clearance`); their names and booleans answer that question. Such a manager
-  measures no contacts: ``return_data=True``, and ``min_distance_*`` where non-convex objects
-  overlap, raise a ``ValueError`` (use a manager without the mode for them).
+* **Query modes**: the options are those of :class:`~pycinder.CollisionRequest`, the mode options
+  included. ``CollisionManager(min_depth=d)`` makes ``in_collision_*`` report hard clashes (pairs
+  deeper than ``d``, never touching convex pairs; see :mod:`pycinder.focused.modes.hardclash`),
+  ``CollisionManager(clearance=c)`` pairs closer than ``c`` (see
+  :mod:`pycinder.focused.modes.clearance`); their names and booleans answer that question. Such a
+  manager measures no contacts: ``return_data=True``, and ``min_distance_*`` where non-convex
+  objects overlap, raise a ``ValueError`` (use a manager without the mode for them).
 """
 
 from __future__ import annotations
@@ -46,11 +46,11 @@ import numpy as np
 from .contacts import ContactData
 from .detector import Detector
 from .gpu.device import keep_from_parent
-from .util.optional import require
 from .request import CollisionRequest
 from .result import CollisionResult
 from .scene import PreparedBodies
 from .scene.bodies import mesh_arrays
+from .util.optional import require
 
 EXTERNAL = "__external"
 """The name trimesh gives the probe of ``in_collision_single`` and ``min_distance_single``."""

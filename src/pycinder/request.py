@@ -200,8 +200,8 @@ class CollisionRequest:
         float64. ``"gpu"``: compute passes plan every pair's view and window and pack the atlas
         (:class:`pycinder.focused.plan.gpu.GpuPlanner`), one more submission and map per query; a
         plan equals the host's up to single precision's rounding, relative to each pair's own
-        extent (see :mod:`pycinder.focused.plan.gpu`). A query that stops at its first pair plans on the
-        host.
+        extent (see :mod:`pycinder.focused.plan.gpu`). A query that stops at its first pair plans
+        on the host.
     records : {"found", "all", "none"}, optional
         Focused strategy: ``"found"`` (default) stops testing a pair as soon as one of its tiles
         found it colliding (large windows are probed at their centre first) and returns the
@@ -218,16 +218,16 @@ class CollisionRequest:
         ``records`` other than ``"all"`` is an error, as is ``contacts=True`` with the scene
         strategy (its one image has no tiles to measure contacts in).
     clearance : float, optional
-        Focused strategy: report every pair whose surfaces are closer than this many world
-        units, overlapping pairs included, with its distance; never a pair more than
-        ``clearance * 9/8`` apart (see :mod:`pycinder.focused.modes.clearance`). The tolerance of the
-        interference test inside it is ``clearance / 4`` unless a finer one is given.
+        Focused strategy: report every pair whose surfaces are closer than this many world units,
+        overlapping pairs included, with its distance; never a pair more than ``clearance * 9/8``
+        apart (see :mod:`pycinder.focused.modes.clearance`). The tolerance of the interference test
+        inside it is ``clearance / 4`` unless a finer one is given.
     min_depth : float, optional
         Focused strategy: hard clashes. Report every pair that penetrates deeper than this many
-        world units (the shortest translation that separates it is longer), with its depth;
-        never a pair of convex bodies at most ``min_depth / 2`` deep, touching and apart pairs
-        included (see :mod:`pycinder.focused.modes.hardclash`). It is measured exactly, face pair by face pair,
-        with no pixels: ``tolerance`` and ``records`` do not apply (it keeps no records). Not
+        world units (the shortest translation that separates it is longer), with its depth; never a
+        pair of convex bodies at most ``min_depth / 2`` deep, touching and apart pairs included
+        (see :mod:`pycinder.focused.modes.hardclash`). It is measured exactly, face pair by face
+        pair, with no pixels: ``tolerance`` and ``records`` do not apply (it keeps no records). Not
         with ``clearance``.
     """
 

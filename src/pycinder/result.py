@@ -204,16 +204,16 @@ class CollisionResult:
     distance_errors : (K,) float64 or None
         The bound on each of :attr:`distances`' error.
     depths : (K,) float64 or None
-        A hard-clash query (``min_depth=d``): each pair's penetration depth, an upper bound of
-        the shortest translation that separates it (see :mod:`pycinder.focused.modes.hardclash`); None for
-        other queries.
+        A hard-clash query (``min_depth=d``): each pair's penetration depth, an upper bound of the
+        shortest translation that separates it (see :mod:`pycinder.focused.modes.hardclash`); None
+        for other queries.
     depth_errors : (K,) float64 or None
         The bound on each of :attr:`depths`' error, for convex bodies (a non-convex pair's
         depth is at most its figure plus the rounding part of this bound).
     measured_contacts : Contacts or None
         Contacts of pairs whose every record was dropped (more records than one buffer of the
-        device holds): one per pair, measured whole by pass H1 (its depth, along the direction
-        that separates it; see :mod:`pycinder.focused.modes.hardclash`); :meth:`contacts` includes them.
+        device holds): one per pair, measured whole by pass H1 (its depth, along the direction that
+        separates it; see :mod:`pycinder.focused.modes.hardclash`); :meth:`contacts` includes them.
 
     Notes
     -----

@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from .util.optional import require
 from .tolerance import body_sizes, pair_tolerance
+from .util.optional import require
 
 SURFACE_SAMPLES = 1500
 """Evenly spaced surface points per body (besides its vertices) for the depth test."""
@@ -267,9 +267,9 @@ def box_world_bounds(local_lo: np.ndarray, local_hi: np.ndarray, transforms: np.
 def random_boxes(n: int, seed: int, *, scale: float = 1.0, offset: float = 0.0,
                  spread: float | None = None, mirror: bool = True, shear: bool = True
                  ) -> dict[str, np.ndarray]:
-    """The tile planners' inputs (:func:`pycinder.focused.plan.tiles.plan_tiles`') for ``n`` random boxes of
-    :func:`random_box_bodies`, placed ``offset`` from the world's origin (default spread: about
-    one candidate pair a box), with every pair of overlapping world boxes a candidate.
+    """The tile planners' inputs (:func:`pycinder.focused.plan.tiles.plan_tiles`') for ``n`` random
+    boxes of :func:`random_box_bodies`, placed ``offset`` from the world's origin (default spread:
+    about one candidate pair a box), with every pair of overlapping world boxes a candidate.
 
     Returns
     -------

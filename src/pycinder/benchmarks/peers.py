@@ -23,10 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from ..focused.broad.prune import sweep_and_prune
-from ..util import optional
 from ..detector import Detector
+from ..focused.broad.prune import sweep_and_prune
 from ..scene import PreparedBodies
+from ..util import optional
 from .scenes import Scene
 from .system import System
 from .warp_peer import Warp

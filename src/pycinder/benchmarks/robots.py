@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 import trimesh
 
-from ..util.optional import require
 from ..robot import Body, Environment, Robot
 from ..testing import crosses_deeply, ground_truth, pair_tolerances, surface_distance
+from ..util.optional import require
 
 ROBOTS = {
     "panda": "franka_panda/panda.urdf",

@@ -24,8 +24,8 @@ import numpy as np
 
 from ..testing import ground_truth
 from .peers import PEERS, Pycinder
-from .system import System
 from .scenes import SCENES, Scene, SphereField, Stairs
+from .system import System
 
 DEFAULT_SCENES = ["floor", "stairs", "many", "deforming", "narrow", "sweep-extent", "sweep-bodies",
                   "sweep-triangles", "sweep-tolerance", "manager", "contacts", "contract", "modes",

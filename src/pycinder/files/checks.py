@@ -355,7 +355,8 @@ def _check_3mf(c: FileCheck, head: bytes) -> None:
 
 
 def _check_ifc(c: FileCheck, head: bytes) -> None:
-    """An IFC file is STEP text (ISO 10303-21); its elements are read by :mod:`pycinder.files.ifc`."""
+    """An IFC file is STEP text (ISO 10303-21); its elements are read by
+    :mod:`pycinder.files.ifc`."""
     if not head.lstrip().startswith(b"ISO-10303-21"):
         raise c.fail("is not an IFC file in STEP form (it does not start with ISO-10303-21; "
                      "ifcXML and ifcZIP are not read)")

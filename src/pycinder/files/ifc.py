@@ -33,9 +33,9 @@ from typing import Any
 
 import numpy as np
 
+from ..util.optional import require
 from .checks import (FileBody, FileError, FileErrors, FileWarning, Limits, check_file,
                      display_name, file_labels)
-from ..util.optional import require
 
 __all__ = ["IfcBody", "IfcModel", "Group", "read_ifc", "default_cache_dir", "files_are_ifc"]
 

@@ -23,24 +23,24 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .frame.again import (LARGER_LISTS, RETRIES, RoundTooLarge, retry_on_gpu, smaller_rounds,
-                          undecided_tiles)
-from .broad.prune import sweep_and_prune
 from ..errors import GpuMemoryError, LossWarning, warn_at_caller
 from ..gpu.device import Gpu
 from ..gpu.layout import (C_SAMPLES, C_TOTAL_TRIS, FLAG_STOP_AT_FIRST, RECORD_ID_MASK,
                           RECORD_KIND_SHIFT, RECORD_SIDE_BIT, RECORD_SURFACE)
-from .frame.atlas import ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS
-from .broad import GpuBroadPhase, in_range
-from .frame.frames import FocusedFrames, FocusedOutput, FrameInputs, Submitted
 from ..records import RECORD_DTYPE, empty_records, pair_keys, unique_pairs
 from ..request import CollisionRequest, RecordMode, record_mode
 from ..result import CollisionResult, Stats
 from ..scene import Scene
 from ..scene.bodies import world_edge_normals, world_face_normals
 from ..scene.pack import ShapePack, pack_shapes, shape_layout
-from ..util.text import plural
 from ..tolerance import pair_tolerances
+from ..util.text import plural
+from .broad import GpuBroadPhase, in_range
+from .broad.prune import sweep_and_prune
+from .frame.again import (LARGER_LISTS, RETRIES, RoundTooLarge, retry_on_gpu, smaller_rounds,
+                          undecided_tiles)
+from .frame.atlas import ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS
+from .frame.frames import FocusedFrames, FocusedOutput, FrameInputs, Submitted
 
 if TYPE_CHECKING:
     from .modes.clearance import Clearance
@@ -232,7 +232,8 @@ class FocusedStrategy:
 
     def _complete(self, q: _Query) -> CollisionResult:
         """The rest of :meth:`run` once the first frame is submitted: its readback, the runs
-        again of undecided tiles (as :mod:`pycinder.focused.frame.again` decides), and the decoding."""
+        again of undecided tiles (as :mod:`pycinder.focused.frame.again` decides), and the
+        decoding."""
         scene, stats, records, pairs = q.scene, q.stats, q.records, q.pairs
         found = np.zeros(len(pairs), dtype=bool)
         rows: list[tuple[TilePlan, np.ndarray]] = []
@@ -342,8 +343,8 @@ class FocusedStrategy:
                   records: RecordMode, capacity: int, submitted: Submitted | None = None
                   ) -> tuple[TilePlan, FocusedOutput]:
         """Run ``plan``'s passes (or read ``submitted``, the plan's frame already on the GPU);
-        when a round is too large for the device's buffers, plan the same tiles in smaller
-        rounds and run them again (:func:`pycinder.focused.frame.again.smaller_rounds`). Returns the plan
+        when a round is too large for the device's buffers, plan the same tiles in smaller rounds
+        and run them again (:func:`pycinder.focused.frame.again.smaller_rounds`). Returns the plan
         run."""
         budget, width = self._budget(capacity), plan.atlas_width
         while True:

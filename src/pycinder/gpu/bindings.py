@@ -19,8 +19,8 @@ import wgpu
 
 from .buffers import GrowableBuffer
 from .device import Gpu, shader_source
-from .structs import Struct, declarations
 from .layout import ROW
+from .structs import Struct, declarations
 
 Resource = Union[wgpu.GPUBuffer, GrowableBuffer, tuple, wgpu.GPUTextureView, wgpu.GPUSampler]
 """A buffer, a growable buffer (its current buffer), ``(buffer, offset, size)``, a texture view

@@ -21,13 +21,13 @@ Disallowed pairs are never put on the GPU: the pairs to check are covered by cli
 bodies whose every pair is checked), each a scene of the batched query, so a configuration's
 scenes test exactly its checked pairs.
 
-Padding is MoveIt's: the robot checked against the environment is the padded robot (each link
-grown by its padding), and self-collision is checked with the unpadded robot, as MoveIt's
-``PlanningScene`` does. A link (or an attached object named in a padding dict) and an
-environment body collide when their surfaces are closer than the link's padding. It runs
-through the clearance mode (:mod:`pycinder.focused.modes.clearance`) at the largest padding, and each pair is
-kept by its own: a pair closer than its padding is always reported, one more than its padding
-plus an eighth of the largest padding apart never is.
+Padding is MoveIt's: the robot checked against the environment is the padded robot (each link grown
+by its padding), and self-collision is checked with the unpadded robot, as MoveIt's
+``PlanningScene`` does. A link (or an attached object named in a padding dict) and an environment
+body collide when their surfaces are closer than the link's padding. It runs through the clearance
+mode (:mod:`pycinder.focused.modes.clearance`) at the largest padding, and each pair is kept by its
+own: a pair closer than its padding is always reported, one more than its padding plus an eighth of
+the largest padding apart never is.
 """
 
 from .acm import REASONS, AllowedCollisionMatrix, matrix_from_samples

@@ -7,9 +7,9 @@ culling units of the focused passes, and :mod:`.pack` lays a scene out for the w
 
 from ..errors import DegenerateFaceWarning, OpenMeshWarning
 from .bodies import Scene, Shape, ShapeCache, body_label, check_transforms, check_vertices
-from .prepared import PreparedBodies, prepare_scene
 from .clusters import CLUSTER_FACES, Clusters
 from .pack import PackedScene, pack, repack
+from .prepared import PreparedBodies, prepare_scene
 from .topology import Topology, TopologyCache, build_topology
 
 __all__ = [

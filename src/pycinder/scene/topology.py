@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .clusters import Clusters, build_clusters
 from ..errors import DegenerateFaceWarning, OpenMeshWarning, warn_at_caller
+from .clusters import Clusters, build_clusters
 
 DEFAULT_CACHE_BYTES = 512 * 2**20
 

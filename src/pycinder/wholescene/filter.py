@@ -17,10 +17,10 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 import wgpu
 
+from ..gpu.bindings import Stage
 from ..gpu.buffers import GrowableBuffer, Targets
 from ..gpu.device import Gpu
 from ..gpu.structs import Struct
-from ..gpu.bindings import Stage
 from ..gpu.table import PassInfo
 
 if TYPE_CHECKING:

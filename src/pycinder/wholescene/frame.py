@@ -6,14 +6,14 @@ and the debug capture share.
     first; nothing else when nothing survived) -> records
 
 The passes are objects (:class:`~pycinder.wholescene.raycast.RaycastPasses`,
-:class:`~pycinder.wholescene.filter.FilterPass`, :class:`~pycinder.wholescene.reduce.MipReduce`), each
-encoding itself onto a :class:`~pycinder.wholescene.encoding.SceneFrame`; :class:`WholeSceneFrame` walks them in order and
-times them with the one :class:`~pycinder.gpu.bindings.Profiler` that the focused strategy
-also uses. Normally each render step replays a render bundle recorded once per topology, and
-everything goes in one submission, the timestamps travelling with the header. With a hook,
-every pass gets its own render pass and submission and the hook runs after each, so the debug
-capture can read the depth, stencil and colour buffers between passes (the paper's Figures 9 to
-13).
+:class:`~pycinder.wholescene.filter.FilterPass`, :class:`~pycinder.wholescene.reduce.MipReduce`),
+each encoding itself onto a :class:`~pycinder.wholescene.encoding.SceneFrame`;
+:class:`WholeSceneFrame` walks them in order and times them with the one
+:class:`~pycinder.gpu.bindings.Profiler` that the focused strategy also uses. Normally each render
+step replays a render bundle recorded once per topology, and everything goes in one submission, the
+timestamps travelling with the header. With a hook, every pass gets its own render pass and
+submission and the hook runs after each, so the debug capture can read the depth, stencil and
+colour buffers between passes (the paper's Figures 9 to 13).
 """
 
 from __future__ import annotations
@@ -23,16 +23,16 @@ from collections.abc import Callable
 import numpy as np
 import wgpu
 
-from ..gpu.buffers import GrowableBuffer, Readback, SceneBuffers, Targets
-from ..gpu.device import Gpu
 from ..gpu.bindings import Profiler
+from ..gpu.buffers import Readback, SceneBuffers, Targets
+from ..gpu.device import Gpu
+from ..gpu.table import PassInfo
+from ..result import Stats
 from .encoding import SceneFrame
 from .filter import FilterPass, read_counters
 from .raycast import RaycastPasses
-from .reduce import MipReduce
-from ..gpu.table import PassInfo
 from .readback import ReadbackMode
-from ..result import Stats
+from .reduce import MipReduce
 
 Hook = Callable[[str], None]
 """Called with ``"pass N"`` after pass N (``"pass 7"`` after passes 5-7, which run body by body)

@@ -16,11 +16,11 @@ from typing import TYPE_CHECKING, ClassVar
 
 import wgpu
 
+from ..gpu.bindings import Stage
 from ..gpu.buffers import RECORD_FORMAT, SceneBuffers, Targets
 from ..gpu.device import Gpu
-from ..gpu.structs import Struct
-from ..gpu.bindings import Stage
 from ..gpu.states import DEPTH_CLEAR, PASSES, PLAN, STENCIL_MASK, PassState, RenderStep
+from ..gpu.structs import Struct
 from ..gpu.table import PassInfo
 
 if TYPE_CHECKING:

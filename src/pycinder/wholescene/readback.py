@@ -22,11 +22,11 @@ import numpy as np
 import wgpu
 
 from ..gpu.device import Gpu
-from .filter import COUNTERS_BYTES, RECORD_BYTES, FilterPass
-from .reduce import MipReduce
 from ..records import decode_compact, decode_image
 from ..request import CollisionRequest
 from ..result import Stats
+from .filter import COUNTERS_BYTES, RECORD_BYTES, FilterPass
+from .reduce import MipReduce
 
 
 class ReadbackMode:

@@ -14,11 +14,11 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 import wgpu
 
+from ..gpu.bindings import PARAM_STRIDE, Stage
 from ..gpu.device import Gpu
 from ..gpu.structs import Struct
-from ..gpu.bindings import PARAM_STRIDE, Stage
-from .filter import RECORD_BYTES, WORKGROUP
 from ..gpu.table import PassInfo
+from .filter import RECORD_BYTES, WORKGROUP
 
 if TYPE_CHECKING:
     from .encoding import SceneFrame

@@ -18,19 +18,19 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..errors import ClippedBodyWarning, warn_at_caller
-from .frame import Hook, WholeSceneFrame
 from ..gpu.buffers import SceneBuffers, Targets
 from ..gpu.device import Gpu, check_resolution
-from .filter import FilterPass
-from .raycast import RaycastPasses
-from .readback import READBACK_MODES
 from ..records import empty_records, unique_pairs
 from ..request import CollisionRequest
 from ..result import CollisionResult, Stats
 from ..scene import Scene
 from ..scene.pack import PackedScene, repack
-from .selfint import SELF_INTERFERENCE
 from ..view import View, world_corners
+from .filter import FilterPass
+from .frame import Hook, WholeSceneFrame
+from .raycast import RaycastPasses
+from .readback import READBACK_MODES
+from .selfint import SELF_INTERFERENCE
 
 
 class WholeSceneStrategy:

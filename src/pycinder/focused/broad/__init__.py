@@ -1,9 +1,9 @@
 """The broad phase on the GPU: world boxes, a bitonic sort and a sweep, in one submission.
 
 The GPU equivalent of :func:`pycinder.scene.bodies.world_boxes` followed by
-:func:`pycinder.focused.broad.prune.sweep_and_prune` (and the focused strategy's filter to pairs of bodies in
-different groups): :class:`GpuBroadPhase`. Its passes, one class each, all in one command buffer
-(:data:`PASSES`; the table is generated from them by :func:`pass_table`):
+:func:`pycinder.focused.broad.prune.sweep_and_prune` (and the focused strategy's filter to pairs of
+bodies in different groups): :class:`GpuBroadPhase`. Its passes, one class each, all in one command
+buffer (:data:`PASSES`; the table is generated from them by :func:`pass_table`):
 
 - B1-B3 (:mod:`~pycinder.focused.broad.boxes`): each body's world box; the grid across the sweep
   axis, from which the widest boxes (at most 32) are kept out; each box's sort element (within

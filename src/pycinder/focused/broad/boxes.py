@@ -7,9 +7,9 @@ from typing import ClassVar
 
 import wgpu
 
-from ...gpu.structs import Struct
-from ...gpu.layout import WORKGROUP
 from ...gpu.bindings import dispatch
+from ...gpu.layout import WORKGROUP
+from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
 from .common import BODY, PARAMS, BroadBuffers, BroadFrame, BroadPass
 

@@ -14,10 +14,10 @@ from typing import ClassVar
 
 import wgpu
 
+from ...gpu.bindings import Stage
 from ...gpu.buffers import GrowableBuffer
 from ...gpu.device import Gpu
 from ...gpu.structs import Field, Struct
-from ...gpu.bindings import Stage
 from ...gpu.table import PassInfo
 
 PAD_SCALE = 2.0 ** -19

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from ...scene.bodies import world_boxes
-from .prune import sweep_and_prune
 from .common import BODY, COORDINATE_LIMIT, MAX_KEY
+from .prune import sweep_and_prune
 
 HOST_CHUNK = 1 << 22
 """Box tests per NumPy step when the host finishes unfinished sweeps."""

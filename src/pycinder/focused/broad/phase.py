@@ -10,9 +10,9 @@ from dataclasses import dataclass
 import numpy as np
 import wgpu
 
+from ...gpu.bindings import PARAM_STRIDE
 from ...gpu.buffers import DEFAULT_TIMEOUT, Readback
 from ...gpu.device import Gpu, get_gpu
-from ...gpu.bindings import PARAM_STRIDE
 from .boxes import Columns, GridSetup, WorldBoxes
 from .common import (COUNTS, FIRST_PAIRS, GRID, ORIGIN_PAD_SCALE, PARAMS, PARAMS_BINDING, READBACK,
                      SORT_BLOCK, BroadBuffers, BroadFrame)

@@ -12,8 +12,8 @@ from typing import ClassVar
 import numpy as np
 import wgpu
 
-from ...gpu.structs import Struct
 from ...gpu.bindings import PARAM_STRIDE, dispatch
+from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
 from .common import PARAMS, SORT_BLOCK, SORT_THREADS, BroadBuffers, BroadFrame, BroadPass
 

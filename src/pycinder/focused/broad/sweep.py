@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import wgpu
 
-from ...gpu.layout import WORKGROUP
 from ...gpu.bindings import dispatch
+from ...gpu.layout import WORKGROUP
 from ...gpu.table import PassInfo
 from .common import BroadBuffers, BroadFrame, BroadPass
 

@@ -7,8 +7,8 @@ cheapest to the dearest:
    box than its list holds, so some samples were undecided. When the last query needed retries
    (frames of an animation are alike), the frame ends with retry rounds: pass F7 flags the
    undecided tiles whose pair no tile found, and passes F1-F6 run again for them with lists
-   :data:`~pycinder.focused.frame.atlas.RETRY_LISTS` times longer, in the same submission. The strategy
-   chooses this with :func:`retry_on_gpu`.
+   :data:`~pycinder.focused.frame.atlas.RETRY_LISTS` times longer, in the same submission. The
+   strategy chooses this with :func:`retry_on_gpu`.
 2. **A buffer was too small (host, same frame).** A pass filled a buffer whose size the host
    chose (clipped triangles, listed edges, records): the frame is run again, whole, with the
    buffer grown (:func:`grown_caps`). Records are not worth a rerun past the device's largest
@@ -34,9 +34,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...gpu.layout import C_MAX_EDGES, C_MAX_TRIS, C_RECORDS, UNDECIDED_BUDGET_BIT
-from .atlas import RETRY_LISTS, Caps
 from ...request import RecordMode
 from ..plan.tiles import MAX_TILE, TilePlan, repack, split_depth
+from .atlas import RETRY_LISTS, Caps
 
 RETRIES = 5
 """Times undecided tiles are run again: first with longer lists, then with thinner boxes."""

@@ -8,11 +8,11 @@ from typing import ClassVar
 
 import wgpu
 
+from ...gpu.bindings import Stage, dispatch
 from ...gpu.device import Gpu
 from ...gpu.structs import Struct
-from .atlas import Encoding
-from ...gpu.bindings import Stage, dispatch
 from ...gpu.table import PassInfo
+from .atlas import Encoding
 
 PARAMS = Struct("FinalizeParams", [
     ("face_cap", "u32", "face items the buffer holds"),

@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 import wgpu
 
+from ...gpu.bindings import PARAM_STRIDE
 from ...gpu.buffers import GrowableBuffer
 from ...gpu.structs import Struct
-from ...gpu.bindings import PARAM_STRIDE
 
 
 class ParamBlocks:

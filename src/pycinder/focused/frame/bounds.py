@@ -8,12 +8,12 @@ from typing import ClassVar
 import numpy as np
 import wgpu
 
-from ...gpu.device import Gpu
-from ...gpu.structs import Struct
-from ...gpu.layout import WORKGROUP
-from .atlas import Encoding
 from ...gpu.bindings import Profiler, Stage, dispatch
+from ...gpu.device import Gpu
+from ...gpu.layout import WORKGROUP
+from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
+from .atlas import Encoding
 
 PARAMS = Struct("BoundsParams", [("count", "u32", "clusters to update")], uniform=True)
 

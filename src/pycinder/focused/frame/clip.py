@@ -6,13 +6,13 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+from ...gpu.bindings import Stage, dispatch
 from ...gpu.device import Gpu
 from ...gpu.structs import Struct
+from ...gpu.table import PassInfo
 from .arguments import Arguments
 from .atlas import Encoding
-from ...gpu.bindings import Stage, dispatch
 from .scope import ComputeScope
-from ...gpu.table import PassInfo
 
 PARAMS = Struct("ClipParams", [
     ("tri_cap", "u32", "triangles the buffer holds (and faces the cut list holds)"),

@@ -10,12 +10,12 @@ from typing import ClassVar
 
 import wgpu
 
-from ...gpu.device import Gpu
-from ...gpu.structs import Struct
-from .atlas import Encoding, Round
 from ...gpu.bindings import Profiler, Stage
+from ...gpu.device import Gpu
 from ...gpu.states import FOCUSED_CROSSINGS
+from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
+from .atlas import Encoding, Round
 
 ATLAS = Struct("Atlas", [
     ("width", "u32", "atlas pixels per row (the stride of the per-pixel buffers)"),

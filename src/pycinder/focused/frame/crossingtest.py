@@ -7,14 +7,14 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+from ...gpu.bindings import Stage, dispatch
 from ...gpu.device import Gpu
 from ...gpu.structs import Struct
+from ...gpu.table import PassInfo
 from .atlas import Encoding, Round
-from ...gpu.bindings import Stage, dispatch
 from .edgetest import early_out
 from .scope import ComputeScope
 from .surfacetest import pair_records, record_cap
-from ...gpu.table import PassInfo
 
 CROSSING_BUDGET = 49152
 """Loop steps a thread of pass F6 may take before it stops and counts its tile undecided: well

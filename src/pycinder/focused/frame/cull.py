@@ -8,14 +8,14 @@ from typing import ClassVar
 
 import wgpu
 
+from ...gpu.bindings import Stage, dispatch
 from ...gpu.device import Gpu
-from ...gpu.structs import Struct
 from ...gpu.layout import WORKGROUP
+from ...gpu.structs import Struct
+from ...gpu.table import PassInfo
 from .arguments import Arguments
 from .atlas import Encoding, Round
-from ...gpu.bindings import Stage, dispatch
 from .scope import ComputeScope
-from ...gpu.table import PassInfo
 
 RetryDispatch = Callable[[wgpu.GPUComputePassEncoder, Encoding, Round], None]
 """Encodes a retry round's cull dispatch (``retry.wgsl``'s ``retry_args``)."""

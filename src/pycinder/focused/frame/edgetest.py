@@ -8,14 +8,14 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+from ...gpu.bindings import Stage, dispatch
 from ...gpu.device import Gpu
 from ...gpu.structs import Struct
+from ...gpu.table import PassInfo
 from .arguments import Arguments
 from .atlas import Encoding, Round
-from ...gpu.bindings import Stage, dispatch
 from .scope import ComputeScope
 from .surfacetest import pair_records, record_cap
-from ...gpu.table import PassInfo
 
 PARAMS = Struct("EdgeTestParams", [
     ("atlas_width", "u32", "atlas pixels per row"),

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 import wgpu
 
+from ...gpu.bindings import Profiler
 from ...gpu.buffers import Readback
 from ...gpu.device import Gpu
 from ...gpu.layout import C_AGAIN, C_RECORDS, C_RETRY_TILES, C_UNDECIDED, COUNTERS, RECORD, TILE
@@ -17,7 +18,6 @@ from ...request import RecordMode
 from ...scene.pack import ShapePack
 from ..plan.tiles import TilePlan
 from .atlas import LIST_CAPACITY, AtlasBuffers, FrameState
-from ...gpu.bindings import Profiler
 
 SPECULATIVE_RECORDS = 4096
 """Fewest records copied into the frame's one readback; a frame copies a quarter more than the
@@ -93,7 +93,8 @@ class FrameInputs:
 
     def words(self) -> np.ndarray:
         """(T,) :data:`~pycinder.gpu.layout.TILE` records of the plan, composed on the host
-        (:meth:`~pycinder.focused.plan.tiles.TilePlan.tile_from_body` in float64, then :func:`tile_words`)."""
+        (:meth:`~pycinder.focused.plan.tiles.TilePlan.tile_from_body` in float64, then
+        :func:`tile_words`)."""
         return tile_words(self.plan, self.plan.tile_from_body(self.transforms))
 
 

@@ -21,15 +21,15 @@ from dataclasses import dataclass, field
 import numpy as np
 import wgpu
 
-from .again import grown_caps
+from ...gpu.bindings import Profiler
 from ...gpu.buffers import DEFAULT_TIMEOUT
 from ...gpu.device import Gpu
 from ...gpu.layout import C_AGAIN, C_CUTS, C_EDGES, C_RECORDS, FLAG_OPEN, ROUND_COUNTERS, TILE
 from ...scene.pack import ShapePack
+from .again import grown_caps
 from .arguments import Arguments
 from .atlas import LIST_CAPACITY, PIXEL_BYTES, SLOTS, AtlasBuffers, Encoding, FrameState, Round
 from .blocks import ParamBlocks
-from ...gpu.bindings import Profiler
 from .bounds import Bounds
 from .clip import Clip
 from .crossings import Crossings

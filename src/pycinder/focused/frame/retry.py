@@ -10,13 +10,13 @@ from typing import ClassVar
 
 import wgpu
 
-from ...gpu.device import Gpu
-from ...gpu.structs import Struct
-from ...gpu.layout import WORKGROUP
-from .atlas import Encoding, Round
 from ...gpu.bindings import Profiler, Stage, dispatch
-from .cull import PARAMS as CULL_PARAMS
+from ...gpu.device import Gpu
+from ...gpu.layout import WORKGROUP
+from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
+from .atlas import Encoding, Round
+from .cull import PARAMS as CULL_PARAMS
 
 PARAMS = Struct("RetryParams", [
     ("tiles", "u32", "tiles of the frame"),

@@ -41,13 +41,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..broad.prune import sweep_and_prune
-from .distance import ITEM, Distance
-from .pairwork import check_rounding, pair_frames, spread
 from ...records import pair_keys
 from ...result import CollisionResult, Stats
 from ...scene import Scene
 from ...scene.pack import ShapePack
+from ..broad.prune import sweep_and_prune
+from .distance import ITEM, Distance
+from .pairwork import check_rounding, pair_frames, spread
 
 if TYPE_CHECKING:
     from .base import ModeHost

@@ -10,8 +10,8 @@ from typing import ClassVar
 import numpy as np
 
 from ...gpu.buffers import GrowableBuffer
-from .pairwork import FRAME, ITEM, PARAMS, ClusterPairPass
 from ...gpu.table import PassInfo
+from .pairwork import FRAME, ITEM, PARAMS, ClusterPairPass
 
 WORLD_LINES = 13
 """Lines fixed in the world: through a cube's centre and its faces, edges and corners."""

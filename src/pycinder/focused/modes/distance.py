@@ -1,6 +1,7 @@
 """Pass C1, distance: the distance between two bodies' surfaces, per candidate pair, exactly (in
 single precision), cluster pair by cluster pair (``distance.wgsl``). The clearance query's one
-pass; what it is given and what its figures promise is in :mod:`pycinder.focused.modes.clearance`."""
+pass; what it is given and what its figures promise is in
+:mod:`pycinder.focused.modes.clearance`."""
 
 from __future__ import annotations
 
@@ -9,8 +10,8 @@ from typing import ClassVar
 import numpy as np
 
 from ...gpu.buffers import GrowableBuffer
-from .pairwork import FRAME, ITEM, PARAMS, ClusterPairPass
 from ...gpu.table import PassInfo
+from .pairwork import FRAME, ITEM, PARAMS, ClusterPairPass
 
 FAR = int(np.float32(np.inf).view(np.uint32))
 """The figure of a pair no item measured (its bits: +inf)."""

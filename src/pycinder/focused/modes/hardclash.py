@@ -16,22 +16,21 @@ out. Its contract:
    depth (up to rounding); for convex bodies the penetration depth is within
    ``result.depth_errors`` below it.
 
-How. Along a direction ``n``, moving body a by ``s n`` leaves all of body b behind it on every
-ray parallel to ``n`` once ``s`` exceeds the largest ``(farthest point of b) - (nearest point of
-a)`` over those rays: that ``U(n)`` is a translation that separates the pair, so it is never
-less than the penetration depth. Pass H1 (:mod:`pycinder.focused.modes.depth`) finds it exactly over
-every face of a and face of b, both ways along 19 lines: the 13 through a cube's centre and its
-faces, edges and corners, and each body's own three axes. The pair's directional depth is the
-least of them (0 where a direction clears the pair: touching bodies). For convex bodies ``U(n)``
-is exactly the shortest separating translation along ``n``, at most the penetration depth over
-the cosine of the angle between ``n`` and the best direction; every direction is within
-:data:`DIRECTION_COS` of one of the 26, so the figure is at most ``1 / 0.886`` times the
-penetration depth, which keeps promise 2. A pair whose shortest separating translation lies
-along one of the 19 lines (boxes and beams meeting face to face, whichever way they are turned)
-is measured exactly; where it lies elsewhere (two turned boxes meeting edge to edge) the figure
-is up to that factor high, within ``result.depth_errors``. Open bodies have no inside: their
-surfaces' points are the rays' extremes, so two surfaces crossing deeper than ``d`` are a
-clash.
+How. Along a direction ``n``, moving body a by ``s n`` leaves all of body b behind it on every ray
+parallel to ``n`` once ``s`` exceeds the largest ``(farthest point of b) - (nearest point of a)``
+over those rays: that ``U(n)`` is a translation that separates the pair, so it is never less than
+the penetration depth. Pass H1 (:mod:`pycinder.focused.modes.depth`) finds it exactly over every
+face of a and face of b, both ways along 19 lines: the 13 through a cube's centre and its faces,
+edges and corners, and each body's own three axes. The pair's directional depth is the least of
+them (0 where a direction clears the pair: touching bodies). For convex bodies ``U(n)`` is exactly
+the shortest separating translation along ``n``, at most the penetration depth over the cosine of
+the angle between ``n`` and the best direction; every direction is within :data:`DIRECTION_COS` of
+one of the 26, so the figure is at most ``1 / 0.886`` times the penetration depth, which keeps
+promise 2. A pair whose shortest separating translation lies along one of the 19 lines (boxes and
+beams meeting face to face, whichever way they are turned) is measured exactly; where it lies
+elsewhere (two turned boxes meeting edge to edge) the figure is up to that factor high, within
+``result.depth_errors``. Open bodies have no inside: their surfaces' points are the rays' extremes,
+so two surfaces crossing deeper than ``d`` are a clash.
 
 Precision. Each pair is measured in a frame of its own, centred where its world boxes meet;
 single precision bounds a figure's rounding by :data:`ERROR_SCALE` times ``L``, the farthest
@@ -55,14 +54,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..broad.prune import sweep_and_prune
-from .clearance import ERROR_SCALE
-from .depth import ITEM_FLIPPED, ITEM_WHOLE, LINES, WHOLE_FACES, WHOLE_WORK, Depth, lines
-from .pairwork import ITEM, check_rounding, pair_frames, spread
 from ...records import empty_records
 from ...result import CollisionResult, Stats
 from ...scene import Scene
 from ...scene.pack import ShapePack
+from ..broad.prune import sweep_and_prune
+from .clearance import ERROR_SCALE
+from .depth import ITEM_FLIPPED, ITEM_WHOLE, LINES, WHOLE_FACES, WHOLE_WORK, Depth, lines
+from .pairwork import ITEM, check_rounding, pair_frames, spread
 
 if TYPE_CHECKING:
     from .base import ModeHost
@@ -83,7 +82,8 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray
          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The work of pass H1: each pair's frame and its items: its two bodies whole, when one has at
     most :data:`~pycinder.focused.modes.depth.WHOLE_FACES` faces and they make at most
-    :data:`~pycinder.focused.modes.depth.WHOLE_WORK` face pairs, else every pair of their face clusters.
+    :data:`~pycinder.focused.modes.depth.WHOLE_WORK` face pairs, else every pair of their face
+    clusters.
 
     Parameters
     ----------

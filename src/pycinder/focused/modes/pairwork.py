@@ -1,12 +1,12 @@
 """Passes that reduce work over cluster pairs to a few figures per candidate pair: pass C1
-(:mod:`~pycinder.focused.modes.distance`, clearance) and H1 (:mod:`~pycinder.focused.modes.depth`, hard
-clashes).
+(:mod:`~pycinder.focused.modes.distance`, clearance) and H1 (:mod:`~pycinder.focused.modes.depth`,
+hard clashes).
 
 Each item is a cluster of body a and a cluster of body b (at most
-:data:`~pycinder.gpu.layout.CLUSTER_FACES` faces each) of one candidate pair; one workgroup takes one
-item, with the b cluster's faces in workgroup memory and a face of the a cluster per thread.
-Each pair is measured in a frame of its own (:data:`FRAME`), centred where its bodies meet, so
-that single precision is spent on the pair's own extent; its figures are kept with atomicMax or
+:data:`~pycinder.gpu.layout.CLUSTER_FACES` faces each) of one candidate pair; one workgroup takes
+one item, with the b cluster's faces in workgroup memory and a face of the a cluster per thread.
+Each pair is measured in a frame of its own (:data:`FRAME`), centred where its bodies meet, so that
+single precision is spent on the pair's own extent; its figures are kept with atomicMax or
 atomicMin on order-preserving bits, in ``words`` words per pair, and read back once.
 """
 
@@ -17,10 +17,10 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 import wgpu
 
+from ...gpu.bindings import Stage, dispatch
 from ...gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ...gpu.device import Gpu
 from ...gpu.structs import Struct
-from ...gpu.bindings import Stage, dispatch
 from ...gpu.table import PassInfo
 
 if TYPE_CHECKING:

@@ -1,14 +1,15 @@
-"""Pass P2 of the GPU tile planner, atlas: the integer part of :func:`pycinder.focused.plan.tiles.plan_tiles`
-(with ``lead=None``) on the GPU, tile for tile (``plan_atlas.wgsl``).
+"""Pass P2 of the GPU tile planner, atlas: the integer part of
+:func:`pycinder.focused.plan.tiles.plan_tiles` (with ``lead=None``) on the GPU, tile for tile
+(``plan_atlas.wgsl``).
 
 Given each candidate pair's window (:data:`WINDOW`: whether the pair has one, its size in pixels
 and whether the pair is dense), the pass makes the tiles of the plan that
 :func:`~pycinder.focused.plan.tiles._phases_of`, :func:`~pycinder.focused.plan.tiles.fitted_width`,
 :func:`~pycinder.focused.plan.tiles._layout`, :func:`~pycinder.focused.plan.tiles._place` and
-:func:`~pycinder.focused.plan.tiles.concat_plans` make, in the same order: for each tile its pair, its part
-of the window (``u0``, ``v0``, ``moved``, ``shift``), its extra flags, its place in the atlas
-and its round, and each round's rows and the atlas width (:data:`TILE`, :data:`SUMMARY`). Every
-figure is an integer, and equal to the NumPy planner's.
+:func:`~pycinder.focused.plan.tiles.concat_plans` make, in the same order: for each tile its pair,
+its part of the window (``u0``, ``v0``, ``moved``, ``shift``), its extra flags, its place in the
+atlas and its round, and each round's rows and the atlas width (:data:`TILE`, :data:`SUMMARY`).
+Every figure is an integer, and equal to the NumPy planner's.
 
 How it follows the NumPy planner
 --------------------------------
@@ -78,8 +79,8 @@ below ``MAX_TILES * 512``), and windows of 2**32 - 1 pixels (pass P1's "too wide
 there. (:class:`~pycinder.focused.plan.gpu.GpuPlanner` plans such a query on the host instead.)
 
 Total pixels are summed in 64 bits (two words, ``pixels_lo``, ``pixels_hi``): the comparison with
-:data:`~pycinder.focused.plan.tiles.PROBE_PLAN` is exact for any plan, as the NumPy planner's (an exact int64
-sum) is.
+:data:`~pycinder.focused.plan.tiles.PROBE_PLAN` is exact for any plan, as the NumPy planner's (an
+exact int64 sum) is.
 
 Kept windows must be at least a pixel wide and tall (pass P1's are at least ``2 * MARGIN_PX``).
 """
@@ -93,12 +94,12 @@ import numpy as np
 import wgpu
 
 from ...errors import GpuMemoryError
+from ...gpu.bindings import Resource, Stage, dispatch
 from ...gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ...gpu.device import Gpu, get_gpu
 from ...gpu.structs import Struct
-from .tiles import ATLAS_WIDTH, HEIGHT_CLASSES, MAX_TILE, MIN_ATLAS_WIDTH, PROBE, PROBE_PLAN
-from ...gpu.bindings import Resource, Stage, dispatch
 from ...gpu.table import PassInfo
+from .tiles import ATLAS_WIDTH, HEIGHT_CLASSES, MAX_TILE, MIN_ATLAS_WIDTH, PROBE, PROBE_PLAN
 
 GROUP = 256
 """Threads of the one-workgroup stages (``count``, ``bands``); their scans are written out for
@@ -225,8 +226,8 @@ def atlas_windows(kept: np.ndarray, w: np.ndarray, h: np.ndarray,
     w, h : (K,) int
         Window sizes in pixels (ignored where not kept).
     dense : (K,) bool, optional
-        Whether the pair's bodies have :data:`~pycinder.focused.plan.tiles.PROBE_FACES` faces or more
-        together (default: none is; pass ``faces=False`` to the planner for "every pair").
+        Whether the pair's bodies have :data:`~pycinder.focused.plan.tiles.PROBE_FACES` faces or
+        more together (default: none is; pass ``faces=False`` to the planner for "every pair").
 
     Returns
     -------
@@ -243,7 +244,8 @@ def atlas_windows(kept: np.ndarray, w: np.ndarray, h: np.ndarray,
 
 @dataclass
 class AtlasPlan:
-    """The integer part of a :class:`~pycinder.focused.plan.tiles.TilePlan`, read back from pass P2.
+    """The integer part of a :class:`~pycinder.focused.plan.tiles.TilePlan`, read back from pass
+    P2.
 
     pair : (T,) int64
         Each tile's candidate pair (``TilePlan.pair``).

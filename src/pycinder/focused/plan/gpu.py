@@ -1,12 +1,12 @@
 """The tile planner on the GPU (``planner="gpu"``): the same plan as
-:func:`pycinder.focused.plan.tiles.plan_tiles`, with the work per candidate pair and per tile done in compute
-passes.
+:func:`pycinder.focused.plan.tiles.plan_tiles`, with the work per candidate pair and per tile
+done in compute passes.
 
     bodies' bounds, relative to anchors, and faces    (host, O(N)) -> upload
     pairs and tolerances                              -> upload
-    P1 windows: each pair's view, window, slab        (compute, :mod:`pycinder.focused.plan.windows`)
-    P2 atlas: probes, pieces, bands, cuts, rounds     (compute, :mod:`pycinder.focused.plan.atlas`)
-    P3 tile words: each tile's matrices as the frame reads them   (compute, passes/tilewords.py)
+    P1 windows: each pair's view, window, slab        (compute, plan/windows.py)
+    P2 atlas: probes, pieces, bands, cuts, rounds     (compute, plan/atlas.py)
+    P3 tile words: each tile's matrices as the frame reads them   (compute, plan/tilewords.py)
     -> one submission, one map (a second of each when P2 needs more room than it had): the
        windows, the plan's summary and its tiles
     -> TilePlan: each tile's view gathered from its pair's window (host, NumPy), to decode
@@ -38,12 +38,12 @@ import wgpu
 from ...gpu.buffers import DEFAULT_TIMEOUT, Readback
 from ...gpu.device import Gpu
 from ...gpu.layout import TILE
+from ...util.text import plural
 from .atlas import BAND_SLACK, MAX_PAIRS, MAX_TILES, NO_FIT, SUMMARY, AtlasPlan, AtlasPlanner
 from .atlas import TILE as ATLAS_TILE
+from .tiles import TilePlan, check_pixels, empty_plan, plan_tiles
 from .tilewords import TileWords
 from .windows import WINDOW, GpuWindows
-from ...util.text import plural
-from .tiles import TilePlan, check_pixels, empty_plan, plan_tiles
 
 
 PASSES = (GpuWindows, AtlasPlanner, TileWords)
@@ -77,8 +77,8 @@ class GpuPlanner:
              transforms: np.ndarray, *, budget_pixels: int, probe: bool = True,
              open_bodies: np.ndarray | None = None, max_pixels: float = float("inf"),
              faces: np.ndarray | None = None) -> tuple[TilePlan, wgpu.GPUBuffer | None]:
-        """Tiles for candidate pairs, as :func:`pycinder.focused.plan.tiles.plan_tiles` makes them (whose
-        parameters these are; there are no lead pairs here).
+        """Tiles for candidate pairs, as :func:`pycinder.focused.plan.tiles.plan_tiles` makes them
+        (whose parameters these are; there are no lead pairs here).
 
         Parameters
         ----------

@@ -92,8 +92,9 @@ def plan_windows(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
                  local_hi: np.ndarray, world_lo: np.ndarray, world_hi: np.ndarray,
                  transforms: np.ndarray, *, open_bodies: np.ndarray | None = None,
                  chunk: int = 2048) -> dict | None:
-    """The windows of candidate pairs (parameters as :func:`~pycinder.focused.plan.tiles.plan_tiles`'),
-    planned in chunks shared among the host's worker threads.
+    """The windows of candidate pairs (parameters as
+    :func:`~pycinder.focused.plan.tiles.plan_tiles`'), planned in chunks shared among the host's
+    worker threads.
 
     Returns
     -------

@@ -3,11 +3,11 @@ atlas that holds them all.
 
 For a candidate pair the region is the box where the pair's bounding volumes overlap (both bodies'
 oriented boxes and world boxes), taken in one of three frames: the world's axes, or either body's
-own axes. The frame whose box projects to the smallest window wins. The view looks along that
-box's longest axis, tilted by :data:`~pycinder.focused.plan.hostwindows.TILT` towards its middle axis about its thinnest one, so that
-a thin contact slab stays one slab thick on screen and edges that follow the frame's axes are
-never seen end-on. If the boxes are apart along any axis of the three frames, the pair cannot
-touch and gets no tile (a separating-axis test for free).
+own axes. The frame whose box projects to the smallest window wins. The view looks along that box's
+longest axis, tilted by :data:`~pycinder.focused.plan.hostwindows.TILT` towards its middle axis
+about its thinnest one, so that a thin contact slab stays one slab thick on screen and edges that
+follow the frame's axes are never seen end-on. If the boxes are apart along any axis of the three
+frames, the pair cannot touch and gets no tile (a separating-axis test for free).
 
 The pixel size is the pair's tolerance (see :mod:`pycinder.request` for the contract). A window
 is cut into pieces of at most :data:`MAX_TILE` pixels, and the pieces are packed into the atlas:

@@ -5,19 +5,20 @@ submission (``plan_tile_words.wgsl``).
 One invocation per tile record of pass P2 (:attr:`AtlasPlanner.tiles
 <pycinder.focused.plan.atlas.AtlasPlanner>`, dispatched over its ``capacity``; those past the
 summary's ``tiles`` return at once) reads the tile's record, pass P1's window of its pair
-(:data:`~pycinder.focused.plan.windows.WINDOW`), the pair's bodies and each body's :data:`BODY`, and
-writes what the host otherwise writes with ``tile_words(plan, plan.tile_from_body(transforms))``
-(:func:`pycinder.focused.frame.frameio.tile_words`, :meth:`pycinder.focused.plan.tiles.TilePlan.tile_from_body`):
+(:data:`~pycinder.focused.plan.windows.WINDOW`), the pair's bodies and each body's :data:`BODY`,
+and writes what the host otherwise writes with ``tile_words(plan,
+plan.tile_from_body(transforms))`` (:func:`pycinder.focused.frame.frameio.tile_words`,
+:meth:`pycinder.focused.plan.tiles.TilePlan.tile_from_body`):
 
 - ``window``: the tile's (P2); ``slab``: its window's (P1), ``zw = 0``; ``bodies``: its pair's;
   ``flags``: the window's and the tile's; ``pair``: its candidate pair;
-- ``m0``, ``m1``: body a's and body b's tile-from-body (3, 4) rows. With ``axes`` and ``pixel``
-  the window's, its origin ``o`` relative to the pair's anchor (the anchor of body
-  ``window.anchor``, :func:`pycinder.focused.plan.windows.plan_bodies`), and the tile ``u``, ``v``
-  pixels from the window's corner (``u = (moved ? u0 : 0) + shift``, ``v = moved ? v0 : 0``,
-  as :meth:`pycinder.focused.plan.gpu.GpuPlanner._tiles` moves the origin), row ``i`` of a side with
-  world-from-body ``(R, t)`` is ``axes[i] . R / pixel`` and, in its last column,
-  ``axes[i] . (t - anchor - o) / pixel - u axes[i] . axes[0] - v axes[i] . axes[1]``.
+- ``m0``, ``m1``: body a's and body b's tile-from-body (3, 4) rows. With ``axes`` and ``pixel`` the
+  window's, its origin ``o`` relative to the pair's anchor (the anchor of body ``window.anchor``,
+  :func:`pycinder.focused.plan.windows.plan_bodies`), and the tile ``u``, ``v`` pixels from the
+  window's corner (``u = (moved ? u0 : 0) + shift``, ``v = moved ? v0 : 0``, as
+  :meth:`pycinder.focused.plan.gpu.GpuPlanner._tiles` moves the origin), row ``i`` of a side with
+  world-from-body ``(R, t)`` is ``axes[i] . R / pixel`` and, in its last column, ``axes[i] . (t -
+  anchor - o) / pixel - u axes[i] . axes[0] - v axes[i] . axes[1]``.
 
 Precision
 ---------
@@ -75,14 +76,14 @@ from typing import ClassVar
 import numpy as np
 import wgpu
 
+from ...gpu.bindings import Resource, Stage, dispatch
 from ...gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ...gpu.device import Gpu, get_gpu
-from ...gpu.structs import Struct
 from ...gpu.layout import ROW, TILE, WORKGROUP
+from ...gpu.structs import Struct
+from ...gpu.table import PassInfo
 from .atlas import SUMMARY
 from .atlas import TILE as ATLAS_TILE
-from ...gpu.bindings import Resource, Stage, dispatch
-from ...gpu.table import PassInfo
 from .windows import WINDOW, anchor_parts
 
 BODY = Struct("TileBody", [
@@ -187,7 +188,8 @@ class TileWords:
             World-from-body matrices, those pass P1 planned with.
         anchor : (N, 3) float64
             The anchors pass P1 uploaded with them (:attr:`GpuWindows.anchor
-            <pycinder.focused.plan.windows.GpuWindows>`), which its windows' origins are relative to.
+            <pycinder.focused.plan.windows.GpuWindows>`), which its windows' origins are relative
+            to.
         """
         bodies = tile_bodies(transforms, anchor)
         self.bodies.ensure(max(bodies.nbytes, BODY.size))
@@ -206,8 +208,9 @@ class TileWords:
         ----------
         encoder : wgpu.GPUCommandEncoder
         windows : GrowableBuffer or wgpu.GPUBuffer
-            Pass P1's windows (:attr:`GpuWindows.buffer <pycinder.focused.plan.windows.GpuWindows>`),
-            one :data:`~pycinder.focused.plan.windows.WINDOW` per candidate pair.
+            Pass P1's windows (:attr:`GpuWindows.buffer
+            <pycinder.focused.plan.windows.GpuWindows>`), one
+            :data:`~pycinder.focused.plan.windows.WINDOW` per candidate pair.
         pairs : GrowableBuffer or wgpu.GPUBuffer
             The candidate pairs P1 planned, ``vec2u`` (:attr:`GpuWindows.pairs`), indices into
             the bodies of :meth:`upload_bodies`.

@@ -1,5 +1,6 @@
 """Pass P1 of the GPU tile planner, windows: each candidate pair's window, as
-:func:`pycinder.focused.plan.hostwindows._plan_chunk` plans it, in single precision (``plan_windows.wgsl``).
+:func:`pycinder.focused.plan.hostwindows._plan_chunk` plans it, in single precision
+(``plan_windows.wgsl``).
 
 One invocation per candidate pair (a, b) finds where the pair's bounding volumes overlap in each
 of three frames (the world's axes, body a's and body b's), whether they are apart, the frame of
@@ -14,13 +15,14 @@ WGSL has no float64, and a scene may lie far from the world's origin, or hold a 
 a huge one. So nothing is measured from the world's origin on the GPU:
 
 - The host (float64, O(N) in the bodies) computes every body's bounds as
-  :func:`pycinder.focused.plan.hostwindows.body_bounds` does, and picks the body's *anchor*: its oriented box's
-  centre ``c``, rounded to a multiple of ``2**(e - 46)`` (where ``max |c| < 2**e``), so that the
-  anchor is exactly ``hi + lo`` of two float32 vectors. Every other quantity of the body is taken
-  relative to its own anchor and rounded to float32 (:data:`BODY`): its boxes' centres (measured
-  from the inputs, the translation and the world box's bounds less the anchor, so that they do
-  not round at the anchor's distance from the origin as ``body_bounds``'s do), its intervals
-  along the world's axes and its own frame's (from those centres), its half axes and frame.
+  :func:`pycinder.focused.plan.hostwindows.body_bounds` does, and picks the body's *anchor*: its
+  oriented box's centre ``c``, rounded to a multiple of ``2**(e - 46)`` (where ``max |c| < 2**e``),
+  so that the anchor is exactly ``hi + lo`` of two float32 vectors. Every other quantity of the
+  body is taken relative to its own anchor and rounded to float32 (:data:`BODY`): its boxes'
+  centres (measured from the inputs, the translation and the world box's bounds less the anchor, so
+  that they do not round at the anchor's distance from the origin as ``body_bounds``'s do), its
+  intervals along the world's axes and its own frame's (from those centres), its half axes and
+  frame.
 - Per pair, the shader anchors the pair at the body with the smaller world box (ties: a), and
   moves the other body's quantities by the offset between the anchors,
   ``d = (hi_o - hi_p) + (lo_o - lo_p)``. Both differences are exact for bodies whose anchors are
@@ -54,15 +56,15 @@ from typing import ClassVar
 import numpy as np
 import wgpu
 
+from ...gpu.bindings import Resource, Stage, dispatch
 from ...gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ...gpu.device import Gpu, get_gpu
-from ...gpu.structs import Struct
 from ...gpu.layout import FLAG_COUNT_BACK, ROW, WORKGROUP
+from ...gpu.structs import Struct
+from ...gpu.table import PassInfo
+from .atlas import WINDOW as ATLAS_WINDOW
 from .hostwindows import MARGIN_PX, TILT, BodyBounds, body_bounds, interval_meet, sum3
 from .tiles import PROBE_FACES
-from .atlas import WINDOW as ATLAS_WINDOW
-from ...gpu.bindings import Resource, Stage, dispatch
-from ...gpu.table import PassInfo
 
 BODY = Struct("PlanBody", [
     ("hi", "vec3f", "the body's anchor, high part: f32(anchor)"),
@@ -259,10 +261,11 @@ class GpuWindows:
         open_bodies : (N,) bool, optional
             Bodies that are not solids.
         bounds : BodyBounds, optional
-            :func:`pycinder.focused.plan.hostwindows.body_bounds` of the same arguments, when the caller has it.
+            :func:`pycinder.focused.plan.hostwindows.body_bounds` of the same arguments, when the
+            caller has it.
         faces : (N,) int, optional
-            Faces of each body: a pair is dense (its large window is probed in a plan of any
-            size) when its bodies have :data:`~pycinder.focused.plan.tiles.PROBE_FACES` or more together.
+            Faces of each body: a pair is dense (its large window is probed in a plan of any size)
+            when its bodies have :data:`~pycinder.focused.plan.tiles.PROBE_FACES` or more together.
             Default: none is (pass P2 is then told that every pair is).
 
         Returns
@@ -366,7 +369,8 @@ class GpuWindows:
 
     def to_plan(self, raw: np.ndarray, pairs: np.ndarray, tolerance: np.ndarray, first: int = 0
                 ) -> dict | None:
-        """The kept windows of ``raw`` as :func:`pycinder.focused.plan.hostwindows._plan_chunk` returns them.
+        """The kept windows of ``raw`` as :func:`pycinder.focused.plan.hostwindows._plan_chunk`
+        returns them.
 
         Parameters
         ----------
@@ -401,8 +405,8 @@ class GpuWindows:
     def run(self, pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
             local_hi: np.ndarray, world_lo: np.ndarray, world_hi: np.ndarray,
             transforms: np.ndarray, open_bodies: np.ndarray | None = None) -> dict | None:
-        """The windows of ``pairs``, as :func:`pycinder.focused.plan.hostwindows._plan_chunk` returns them (one
-        upload, one submission, one readback).
+        """The windows of ``pairs``, as :func:`pycinder.focused.plan.hostwindows._plan_chunk`
+        returns them (one upload, one submission, one readback).
 
         Parameters
         ----------
