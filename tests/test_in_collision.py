@@ -119,7 +119,7 @@ def test_the_likeliest_pairs_first_then_the_rest(monkeypatch):
     """The pairs whose boxes overlap most run first; when they do not collide, the rest still
     runs. Two rods through rings (boxes overlapping broadly, surfaces apart) and two cubes
     overlapping by 2.5 tolerances at a corner of their boxes."""
-    from pycinder.focused.strategy import strategy as focused
+    from pycinder.focused import strategy as focused
 
     monkeypatch.setattr(focused, "LEAD_PAIRS", 1)
     monkeypatch.setattr(focused, "LEAD_FROM", 3)

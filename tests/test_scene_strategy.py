@@ -131,7 +131,7 @@ def test_no_shader_declares_a_struct_the_host_writes():
     import re
 
     from pycinder.gpu.device import shader_source
-    from pycinder.wholescene.strategy import filter as filter_pass, raycast, reduce
+    from pycinder.wholescene import filter as filter_pass, raycast, reduce
 
     for shader, struct in zip(SHADERS, (raycast.FRAME, filter_pass.PARAMS, reduce.PARAMS)):
         source = shader_source(shader)

@@ -66,7 +66,7 @@ def test_environment_sets_or_caps_the_pool(clean_env):
 
 def test_one_thread_means_no_pool():
     env = {**os.environ, "PYCINDER_THREADS": "1"}
-    out = subprocess.run([sys.executable, "-c", "from pycinder import threads; "
+    out = subprocess.run([sys.executable, "-c", "from pycinder.util import threads; "
                           "print(threads.WORKERS, threads.pool())"],
                          env=env, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
