@@ -171,9 +171,11 @@ class Snapshotter:
         material.render_queue = 4000  # after the meshes, on top
         return gfx.Line(gfx.Geometry(positions=positions), material)
 
-    def render(self, a: Sequence[Any], b: Sequence[Any], camera: Camera) -> np.ndarray:
+    def render(self, a: Sequence[Any], b: Sequence[Any], camera: Camera,
+               translucent: Sequence[Any] = ()) -> np.ndarray:
         """(H, W, 3) uint8: elements ``a`` and ``b`` highlighted among their surroundings,
-        seen by ``camera``."""
+        seen by ``camera``; those of them in ``translucent`` (the larger element of each
+        clash) let what runs through them show."""
         gfx = self.gfx
         shown = list(a) + list(b)
         box = _bounds(shown)
@@ -187,9 +189,12 @@ class Snapshotter:
         light = gfx.DirectionalLight(intensity=1.6)
         light.local.position = tuple(-camera.direction + np.array([0.3, 0.2, 1.0]))
         scene.add(light)
+        clear = {id(x) for x in translucent}
         for group, colour in ((a, COLOUR_A), (b, COLOUR_B)):
-            if group:
-                scene.add(self._mesh(group, colour, 1.0))
+            for opacity in (1.0, 0.45):
+                chosen = [x for x in group if (id(x) in clear) == (opacity < 1)]
+                if chosen:
+                    scene.add(self._mesh(chosen, colour, opacity))
         if context:
             scene.add(self._mesh(context, CONTEXT, 0.28))
         for group, colour in ((a, COLOUR_A), (b, COLOUR_B)):
@@ -208,11 +213,12 @@ class Snapshotter:
         self.canvas.request_draw(lambda: self.renderer.render(scene, cam))
         return np.asarray(self.canvas.draw())[..., :3].copy()
 
-    def png(self, a: Sequence[Any], b: Sequence[Any], camera: Camera) -> bytes:
+    def png(self, a: Sequence[Any], b: Sequence[Any], camera: Camera,
+            translucent: Sequence[Any] = ()) -> bytes:
         """:meth:`render` as PNG bytes."""
         buffer = io.BytesIO()
-        self.image.fromarray(self.render(a, b, camera)).save(buffer, format="PNG",
-                                                             optimize=True)
+        self.image.fromarray(self.render(a, b, camera, translucent)).save(
+            buffer, format="PNG", optimize=True)
         return buffer.getvalue()
 
     def group(self, group: Any) -> tuple[bytes, Camera]:
@@ -226,8 +232,14 @@ class Snapshotter:
                 key = (body.file, body.global_id)
                 if key not in a and key not in b:
                     side[key] = body
-        # Framed: each clash's smaller element (a pipe, not the whole wall it runs through).
-        focus = [min((c.a, c.b), key=lambda x: float(np.prod(np.ptp(x.mesh.bounds, axis=0))))
-                 for c in group.clashes]
+        # Framed: each clash's smaller element (a pipe, not the whole wall it runs through);
+        # the larger one translucent.
+        def size(x: Any) -> float:
+            return float(np.prod(np.ptp(x.mesh.bounds, axis=0)))
+
+        ordered = [sorted((c.a, c.b), key=size) for c in group.clashes]
+        focus = [small for small, _ in ordered]
+        larger = {id(large): large for _, large in ordered if id(large) not in map(id, focus)}
         camera = group_camera(focus, aspect=self.size[0] / self.size[1])
-        return self.png(list(a.values()), list(b.values()), camera), camera
+        png = self.png(list(a.values()), list(b.values()), camera, list(larger.values()))
+        return png, camera
