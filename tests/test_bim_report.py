@@ -21,7 +21,7 @@ pytest.importorskip("sklearn", reason="grouping needs scikit-learn: pip install 
 from pycinder.benchmarks import building as B  # noqa: E402
 from pycinder.bim import ifc  # noqa: E402
 from pycinder.bim.groups import group_clashes, pair_key, topic_guid  # noqa: E402
-from pycinder.bim.tracking import read_previous, track  # noqa: E402
+from pycinder.bim.tracking import track  # noqa: E402
 from pycinder.cli import main  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
