@@ -151,6 +151,16 @@ def test_groups_on_a_generated_building(runs):
     assert group_of(group_clashes(clashes), p1) == sorted([p1, p2, p3])
     assert len(group_clashes(clashes, 1000.0)) == 1
     assert len(group_clashes(clashes, None)) == len(clashes)
+    # The benchmark's counts, and its report's line.
+    counts = B.group_counts(clashes)
+    assert counts == {"groups": len(clashes) - 2, "groups_by_element": len(clashes) - 1}
+    row = {"system": "pycinder", "mode": "min_depth", "elements": len(model.bodies), "must": 0,
+           "found": 0, "recall": 1.0, "touching": 0, "grazes": 0, "near": 0, "false": 0,
+           "reported": len(clashes), "tessellation_s": 0.0, "clash_s": 0.0, **counts}
+    text = "\n".join(B.markdown({"depth": B.DEPTH, "clearance": B.CLEARANCE, "rows": [row],
+                                 "sizes": []}))
+    assert (f"{len(clashes)} clashes; groups: {len(clashes) - 2} within 3 m, "
+            f"{len(clashes) - 1} by element") in text
 
 
 def _run(capsys, *argv) -> tuple[int, str, str]:
