@@ -114,7 +114,7 @@ def _warning_entry(w: warnings.WarningMessage, strict: bool) -> dict[str, str]:
 
 @contextlib.contextmanager
 def _progress(enabled: bool | None, description: str
-              ) -> Iterator[Callable[[int, int, str], None]]:
+              ) -> Iterator[Callable[[float, int, str], None]]:
     """A rich progress bar on stderr (transient) while the block runs, shown when ``enabled``
     (default: when stderr is a terminal and rich is installed). Yields ``update(done, total,
     text)``."""
@@ -133,7 +133,7 @@ def _progress(enabled: bool | None, description: str
                   console=console, transient=True) as bar:
         task = bar.add_task(description, total=None)
 
-        def update(done: int, total: int, text: str) -> None:
+        def update(done: float, total: int, text: str) -> None:
             bar.update(task, completed=done, total=total, description=text)
 
         yield update
@@ -683,8 +683,8 @@ def build_parser() -> argparse.ArgumentParser:
         ifc.add_argument(f"--{side}-exclude", default=None, metavar="SELECTOR",
                          help=f"clash set: leave these elements out of group {side.upper()}")
     ifc.add_argument("--bcf", default=None, metavar="OUT.bcf",
-                     help="write the clashes as a BCF 2.1 file: a topic per clash, both "
-                          "GlobalIds as components, a viewpoint at the clash")
+                     help="write the clashes as a BCF 2.1 file: a topic per group, its "
+                          "elements as components, a viewpoint with its picture and camera")
     ifc.add_argument("--group-distance", type=_distance_or_0, default=3.0, metavar="D",
                      help="clashes within D metres of each other, or of one element, form a "
                           "group: a BCF topic (default 3, IfcClash's; 0: by element only)")
