@@ -117,7 +117,7 @@ def _progress(enabled: bool | None, description: str
               ) -> Iterator[Callable[[float, int, str], None]]:
     """A rich progress bar on stderr (transient) while the block runs, shown when ``enabled``
     (default: when stderr is a terminal and rich is installed). Yields ``update(done, total,
-    text)``."""
+    text)``; a total of 0 makes the bar pulse (a step of unknown length)."""
     if enabled is None:
         enabled = sys.stderr.isatty()
     try:
@@ -134,7 +134,7 @@ def _progress(enabled: bool | None, description: str
         task = bar.add_task(description, total=None)
 
         def update(done: float, total: int, text: str) -> None:
-            bar.update(task, completed=done, total=total, description=text)
+            bar.update(task, completed=done, total=total or None, description=text)
 
         yield update
 
@@ -329,8 +329,7 @@ def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
             with _progress(args.progress, "reading IFC") as update:
                 model = read_ifc(args.files, cache=False if args.no_cache else args.cache_dir,
                                  progress=update, limits=_limits(args))
-                update(len(args.files), len(args.files) + 1,
-                       f"checking {plural(len(model.bodies), 'element')}")
+                update(0, 0, f"checking {plural(len(model.bodies), 'element')}")  # pulses
                 clashes = find_clashes(model, a, b, detector=det)
                 report = clash_report(
                     model, clashes, group_distance=None if args.no_groups else
