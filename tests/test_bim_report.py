@@ -126,9 +126,15 @@ def _ids(base: B.Building, *names: str) -> tuple[str, ...]:
     return tuple(by_name[n] for n in names)
 
 
-def test_groups_on_a_generated_building(runs):
+@pytest.fixture(scope="module")
+def first(runs):
+    """The first version's model and its hard clashes deeper than d."""
     model = ifc.read_ifc(runs.paths[0], cache=False)
-    clashes = ifc.find_clashes(model, min_depth=B.DEPTH)
+    return model, ifc.find_clashes(model, min_depth=B.DEPTH)
+
+
+def test_groups_on_a_generated_building(runs, first):
+    model, clashes = first
     beam, column, pipe = _ids(runs.base, "Beam south 0", "Column 1 0", "Pipe through beam 0")
     p1, p2 = pair_key(pipe, beam), pair_key(PIPE_TWO.global_id, beam)
     p3 = pair_key(PIPE_COLUMN.global_id, column)
@@ -161,6 +167,70 @@ def test_groups_on_a_generated_building(runs):
                                  "sizes": []}))
     assert (f"{len(clashes)} clashes; groups: {len(clashes) - 2} within 3 m, "
             f"{len(clashes) - 1} by element") in text
+
+
+def _topics(path: Path) -> dict[str, tuple]:
+    """Each topic of a BCF file as bcf-client reads it: GUID to its title, labels, status,
+    description, and per viewpoint its selection, colours, camera and snapshot."""
+    from bcf.v2.bcfxml import BcfXml
+
+    out = {}
+    with BcfXml.load(path) as read:
+        for t in read.topics.values():
+            views = []
+            for v in t.viewpoints.values():
+                info = v.visualization_info
+                colours = sorted((c.color, sorted(x.ifc_guid for x in c.component))
+                                 for c in info.components.coloring.color)
+                cam = info.perspective_camera
+                views.append([sorted(v.get_selected_guids()), colours,
+                              [getattr(getattr(cam, p), xyz)
+                               for p in ("camera_view_point", "camera_direction",
+                                         "camera_up_vector") for xyz in "xyz"],
+                              cam.field_of_view, v.snapshot])
+            out[t.topic.guid] = (t.topic.title, t.topic.labels, t.topic.topic_status,
+                                 t.topic.description, views)
+    return out
+
+
+def test_both_bcf_writers_write_the_same_topics(runs, first, tmp_path):
+    """The built-in writer and bcf-client's give bcf-client the same topics: groups, stable
+    GUIDs, statuses, cameras, colours and pictures (one group pictured, the others not)."""
+    pytest.importorskip("bcf", reason="reading BCF back needs bcf-client")
+    pytest.importorskip("pygfx", reason="snapshots need pygfx")
+    from pycinder.bim.bcf import write_bcf
+    from pycinder.bim.snapshot import COLOUR_A, COLOUR_B, Snapshotter
+
+    model, clashes = first
+    groups = group_clashes(clashes)
+    gone = "8c1f9f8e-3b1e-4d43-9a57-5d0f4b7f2a10"  # a previous topic, resolved now
+    tracking = track(groups, read_previous_from({gone: [("X", "Y")]}), source="x.json")
+    pictures = {groups[0].index: Snapshotter(model.bodies, (160, 120)).group(groups[0])}
+    written = [_topics(write_bcf(clashes, tmp_path / f"{w}.bcf", groups=groups,
+                                 tracking=tracking, snapshots=pictures, writer=w))
+               for w in ("builtin", "bcf-client")]
+    # The same, but for the cameras' last digits (the built-in writer writes six decimals).
+    cameras = [{g: [v[2] for v in t[4]] for g, t in w.items()} for w in written]
+    assert cameras[0].keys() == cameras[1].keys()
+    for g, views in cameras[0].items():
+        np.testing.assert_allclose(views, cameras[1][g], atol=1e-5)
+    for w in written:
+        for t in w.values():
+            for v in t[4]:
+                v[2] = None
+    assert written[0] == written[1]
+    topics = written[0]
+    assert set(topics) == {g.guid for g in groups} | {gone}
+    assert topics[gone][1:3] == (["resolved"], "Closed") and topics[gone][4] == []
+    colours = {"".join(f"{round(255 * x):02X}" for x in c) for c in (COLOUR_A, COLOUR_B)}
+    for g in groups:
+        title, labels, status, description, [view] = topics[g.guid]
+        assert (title, labels, status) == (g.title(), ["new"], "Open")
+        assert description.count("\n- ") == len(g.clashes)
+        assert view[0] == sorted(b.global_id for b in g.elements)
+        assert {c for c, _ in view[1]} <= colours and view[3] == 50.0
+        assert (view[4] is not None) == (g.index in pictures)
+    assert topics[groups[0].guid][4][0][4] == pictures[groups[0].index][0]
 
 
 def _run(capsys, *argv) -> tuple[int, str, str]:

@@ -31,7 +31,7 @@ from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
 
-from .groups import ClashGroup, group_clashes, pair_key
+from .groups import GUID_NAMESPACE, ClashGroup, group_clashes, pair_key
 from .snapshot import COLOUR_A, COLOUR_B, Camera, group_camera
 
 __all__ = ["write_bcf", "read_bcf_guids"]
@@ -71,7 +71,7 @@ class _Topic:
 
     @property
     def viewpoint_guid(self) -> str:
-        return str(uuid.uuid5(uuid.UUID(self.guid), "viewpoint"))
+        return str(uuid.uuid5(GUID_NAMESPACE, f"{self.guid}/viewpoint"))
 
 
 def _group_topic(g: ClashGroup, statuses: Mapping[tuple[str, str], str],
@@ -256,14 +256,14 @@ def _write_builtin(topics: Sequence[_Topic], path: Path, project: str, author: s
             if t.snapshot:
                 z.writestr(f"{t.guid}/snapshot.png", t.snapshot)
             cam = t.camera
-            colouring = "".join(f"<Color Color={quoteattr(colour)}>"
-                                + "".join(_component(g) for g in ids) + "</Color>"
-                                for colour, ids in t.colours.items() if ids)
+            colours = "".join(f"<Color Color={quoteattr(colour)}>"
+                              + "".join(_component(g) for g in ids) + "</Color>"
+                              for colour, ids in t.colours.items() if ids)
+            colouring = f"<Coloring>{colours}</Coloring>" if colours else ""
             z.writestr(f"{t.guid}/viewpoint.bcfv", head + (
                 f"<VisualizationInfo Guid={quoteattr(view)}><Components>"
                 f"<Selection>{''.join(_component(g) for g in t.selected)}</Selection>"
-                '<Visibility DefaultVisibility="true" />'
-                f"<Coloring>{colouring}</Coloring></Components>"
+                f'<Visibility DefaultVisibility="true" />{colouring}</Components>'
                 f"<PerspectiveCamera>{_xyz('CameraViewPoint', cam.position)}"
                 f"{_xyz('CameraDirection', cam.direction)}{_xyz('CameraUpVector', cam.up)}"
                 f"<FieldOfView>{cam.fov:g}</FieldOfView></PerspectiveCamera>"

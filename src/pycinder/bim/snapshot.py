@@ -72,7 +72,7 @@ def group_camera(bodies: Sequence[Any], point: np.ndarray | None = None, *,
                  fov: float = 50.0, aspect: float = 4 / 3) -> Camera:
     """A camera that looks at ``point`` (default: the bodies' centre) from above and to the
     side (:data:`VIEW_FROM`), far enough back that the bodies' bounding sphere about the
-    point fits the frame.
+    point (of radius at least 0.75 m) fits the frame.
 
     Parameters
     ----------
@@ -182,7 +182,7 @@ class Snapshotter:
         near = np.all((self.lo <= box[1] + self.surroundings)
                       & (self.hi >= box[0] - self.surroundings), axis=1)
         ids = {id(x) for x in shown}
-        context = [x for x, keep in zip(self.bodies, near.tolist()) if keep and id(x) not in ids]
+        context = [x for x, keep in zip(self.bodies, near.tolist(), strict=True) if keep and id(x) not in ids]
         scene = gfx.Scene()
         scene.add(gfx.Background.from_color("#f4f5f7", "#dfe3ea"))
         scene.add(gfx.AmbientLight(intensity=0.7))

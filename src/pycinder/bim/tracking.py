@@ -123,7 +123,7 @@ def _read_json(path: Path) -> list[PreviousTopic]:
         raise ValueError(f"{path.name}: not the JSON of 'pycinder check --json' on IFC files "
                          f"({type(exc).__name__}: {exc})") from None
     if "groups" not in report:  # no groups: a topic per clash
-        return [PreviousTopic(topic_guid(k), n, "active", {k: n}) for k, n in zip(keys, names)]
+        return [PreviousTopic(topic_guid(k), n, "active", {k: n}) for k, n in zip(keys, names, strict=True)]
     out = [PreviousTopic(g["guid"], g.get("title", ""), "active",
                          {keys[i]: names[i] for i in g["clashes"]}) for g in report["groups"]]
     for g in report.get("resolved_groups", []):
@@ -227,9 +227,4 @@ def track(groups: Sequence[ClashGroup], previous: Sequence[PreviousTopic],
             out.closed.append(PreviousTopic(t.guid, t.title, "resolved",
                                             {p: d for p, d in t.pairs.items() if p not in now}))
     return out
-
-
-def status_of(tracking: Tracking | None, key: tuple[str, str]) -> str:
-    """A clash's status, ``"new"`` where nothing is tracked."""
-    return "new" if tracking is None else tracking.clashes.get(key, "new")
 
