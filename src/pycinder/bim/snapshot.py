@@ -182,7 +182,8 @@ class Snapshotter:
         near = np.all((self.lo <= box[1] + self.surroundings)
                       & (self.hi >= box[0] - self.surroundings), axis=1)
         ids = {id(x) for x in shown}
-        context = [x for x, keep in zip(self.bodies, near.tolist(), strict=True) if keep and id(x) not in ids]
+        context = [x for x, keep in zip(self.bodies, near.tolist(), strict=True)
+                   if keep and id(x) not in ids]
         scene = gfx.Scene()
         scene.add(gfx.Background.from_color("#f4f5f7", "#dfe3ea"))
         scene.add(gfx.AmbientLight(intensity=0.7))

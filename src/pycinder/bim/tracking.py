@@ -123,7 +123,8 @@ def _read_json(path: Path) -> list[PreviousTopic]:
         raise ValueError(f"{path.name}: not the JSON of 'pycinder check --json' on IFC files "
                          f"({type(exc).__name__}: {exc})") from None
     if "groups" not in report:  # no groups: a topic per clash
-        return [PreviousTopic(topic_guid(k), n, "active", {k: n}) for k, n in zip(keys, names, strict=True)]
+        return [PreviousTopic(topic_guid(k), n, "active", {k: n})
+                for k, n in zip(keys, names, strict=True)]
     out = [PreviousTopic(g["guid"], g.get("title", ""), "active",
                          {keys[i]: names[i] for i in g["clashes"]}) for g in report["groups"]]
     for g in report.get("resolved_groups", []):
