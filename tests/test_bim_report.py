@@ -344,7 +344,18 @@ def test_bad_options_are_named(runs, capsys, tmp_path):
     assert code == 2 and "junk.json: not the JSON of 'pycinder check --json'" in err
     with pytest.raises(SystemExit):
         _run(capsys, *runs.paths[0], "--group-distance", "-1")
-    assert "--group-distance" in capsys.readouterr().err
+    assert "--group-distance: '-1' is not a positive distance" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        _run(capsys, *runs.paths[0], "--group-distance", "2", "--no-groups")
+    assert "not allowed with argument" in capsys.readouterr().err
+    # 0: by element alone (the two pipes through the south beam of cell 0 are one group).
+    code, out, err = _run(capsys, *runs.paths[0], "--min-depth", B.DEPTH, "--json",
+                          "--group-distance", "0", "--cache-dir", tmp_path / "cache")
+    report = json.loads(out)
+    assert code == 1 and report["group_distance"] == 0, err
+    assert len(report["groups"]) == len(report["pairs"]) - 1
+    code, _, err = _run(capsys, "box.stl", "--snapshots", tmp_path)
+    assert code == 2 and "--snapshots applies to IFC files" in err
 
 
 def _check(args: list[str], folder: Path) -> subprocess.CompletedProcess:

@@ -684,10 +684,11 @@ def build_parser() -> argparse.ArgumentParser:
     ifc.add_argument("--bcf", default=None, metavar="OUT.bcf",
                      help="write the clashes as a BCF 2.1 file: a topic per group, its "
                           "elements as components, a viewpoint with its picture and camera")
-    ifc.add_argument("--group-distance", type=_distance_or_0, default=3.0, metavar="D",
-                     help="clashes within D metres of each other, or of one element, form a "
-                          "group: a BCF topic (default 3, IfcClash's; 0: by element only)")
-    ifc.add_argument("--no-groups", action="store_true", help="a group (a topic) per clash")
+    grouping = ifc.add_mutually_exclusive_group()
+    grouping.add_argument("--group-distance", type=_distance_or_0, default=3.0, metavar="D",
+                          help="clashes within D metres of each other, or of one element, form "
+                               "a group: a BCF topic (default 3, IfcClash's; 0: by element)")
+    grouping.add_argument("--no-groups", action="store_true", help="a group (a topic) per clash")
     ifc.add_argument("--snapshots", default=None, metavar="DIR",
                      help="write a picture of each group here (group-N.png; BCF topics carry "
                           "them with --bcf)")
