@@ -72,7 +72,7 @@ def group_camera(bodies: Sequence[Any], point: np.ndarray | None = None, *,
                  fov: float = 50.0, aspect: float = 4 / 3) -> Camera:
     """A camera that looks at ``point`` (default: the bodies' centre) from above and to the
     side (:data:`VIEW_FROM`), far enough back that the bodies' bounding sphere about the
-    point (of radius at least 0.75 m) fits the frame.
+    point (of radius at least 0.4 m) fits the frame.
 
     Parameters
     ----------
@@ -92,7 +92,7 @@ def group_camera(bodies: Sequence[Any], point: np.ndarray | None = None, *,
     target = box.mean(axis=0) if point is None else np.asarray(point, np.float64)
     radius = max(float(np.max(np.linalg.norm(
         np.array([[box[i, 0], box[j, 1], box[k, 2]] for i in (0, 1) for j in (0, 1)
-                  for k in (0, 1)]) - target, axis=1))), 0.75)
+                  for k in (0, 1)]) - target, axis=1))), 0.4)
     half = np.radians(fov) / 2
     half = min(half, np.arctan(np.tan(half) * aspect))  # the narrower of the two
     distance = 1.1 * radius / np.sin(half)
