@@ -197,15 +197,18 @@ def test_both_bcf_writers_write_the_same_topics(runs, first, tmp_path):
     """The built-in writer and bcf-client's give bcf-client the same topics: groups, stable
     GUIDs, statuses, cameras, colours and pictures (one group pictured, the others not)."""
     pytest.importorskip("bcf", reason="reading BCF back needs bcf-client")
-    pytest.importorskip("pygfx", reason="snapshots need pygfx")
+    from PIL import Image
+
     from pycinder.bim.bcf import write_bcf
-    from pycinder.bim.snapshot import COLOUR_A, COLOUR_B, Snapshotter
+    from pycinder.bim.snapshot import COLOUR_A, COLOUR_B, group_camera
 
     model, clashes = first
     groups = group_clashes(clashes)
     gone = "8c1f9f8e-3b1e-4d43-9a57-5d0f4b7f2a10"  # a previous topic, resolved now
     tracking = track(groups, read_previous_from({gone: [("X", "Y")]}), source="x.json")
-    pictures = {groups[0].index: Snapshotter(model.bodies, (160, 120)).group(groups[0])}
+    picture = io.BytesIO()  # any PNG: the pictures' rendering is tested with the command
+    Image.new("RGB", (8, 6), (200, 40, 30)).save(picture, format="PNG")
+    pictures = {groups[0].index: (picture.getvalue(), group_camera(groups[0].elements))}
     written = [_topics(write_bcf(clashes, tmp_path / f"{w}.bcf", groups=groups,
                                  tracking=tracking, snapshots=pictures, writer=w))
                for w in ("builtin", "bcf-client")]
@@ -239,6 +242,15 @@ def _run(capsys, *argv) -> tuple[int, str, str]:
     return code, out, err
 
 
+def _rendering(*argv) -> tuple[int, str, str]:
+    """``pycinder check`` in a process of its own: pictures are rendered by pygfx on wgpu's
+    default device, which the demos (tested in this process too) configure for themselves."""
+    done = subprocess.run([sys.executable, "-m", "pycinder", "check", *map(str, argv)],
+                          env={**os.environ, "PYTHONPATH": str(ROOT / "src")},
+                          capture_output=True, text=True, timeout=600)
+    return done.returncode, done.stdout, done.stderr
+
+
 def _colour_pixels(png: bytes) -> tuple[int, int]:
     """Pixels of the PNG within 40 (of 255) of each highlight colour, per channel."""
     from PIL import Image
@@ -256,8 +268,8 @@ def test_bcf_groups_snapshots_and_tracking(runs, capsys, tmp_path):
     from bcf.v2.bcfxml import BcfXml
 
     first_bcf, first_json = tmp_path / "first.bcf", tmp_path / "first.json"
-    code, out, err = _run(capsys, *runs.paths[0], "--min-depth", B.DEPTH, "--json", "--bcf",
-                          first_bcf, "--snapshots", tmp_path / "pictures", "--no-cache")
+    code, out, err = _rendering(*runs.paths[0], "--min-depth", B.DEPTH, "--json", "--bcf",
+                                first_bcf, "--snapshots", tmp_path / "pictures", "--no-cache")
     assert code == 1, err
     first_json.write_text(out)
     first = json.loads(out)
@@ -295,9 +307,9 @@ def test_bcf_groups_snapshots_and_tracking(runs, capsys, tmp_path):
     added = pair_key(PIPE_NEW.global_id, north)
     before = {tuple(sorted((p["a_global_id"], p["b_global_id"]))) for p in first["pairs"]}
     for against in (first_bcf, first_json):
-        code, out, err = _run(capsys, *runs.paths[1], "--min-depth", B.DEPTH, "--json",
-                              "--against", against, "--bcf", tmp_path / "second.bcf",
-                              "--no-cache")
+        code, out, err = _rendering(*runs.paths[1], "--min-depth", B.DEPTH, "--json",
+                                    "--against", against, "--bcf", tmp_path / "second.bcf",
+                                    "--no-cache")
         assert code == 1, err
         second = json.loads(out)
         status = {tuple(sorted((p["a_global_id"], p["b_global_id"]))): p["status"]
@@ -344,9 +356,12 @@ def test_bad_options_are_named(runs, capsys, tmp_path):
     assert code == 2 and "junk.json: not the JSON of 'pycinder check --json'" in err
     with pytest.raises(SystemExit):
         _run(capsys, *runs.paths[0], "--group-distance", "-1")
-    assert "--group-distance: '-1' is not a positive distance" in capsys.readouterr().err
+    assert "--group-distance: '-1' is not 0 or a positive distance" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         _run(capsys, *runs.paths[0], "--group-distance", "2", "--no-groups")
+    assert "not allowed with argument" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        _run(capsys, *runs.paths[0], "--snapshots", tmp_path, "--no-snapshots")
     assert "not allowed with argument" in capsys.readouterr().err
     # 0: by element alone (the two pipes through the south beam of cell 0 are one group).
     code, out, err = _run(capsys, *runs.paths[0], "--min-depth", B.DEPTH, "--json",

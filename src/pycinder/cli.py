@@ -5,7 +5,8 @@
                    [--min-depth D | --clearance C]
     pycinder check A.ifc [B.ifc ...] [--a SELECTOR] [--a-file FILE] [--b SELECTOR]
                    [--b-file FILE] [--bcf OUT.bcf] [--json] [--min-depth D | --clearance C]
-                   [--group-distance D | --no-groups] [--snapshots DIR] [--against PREVIOUS]
+                   [--group-distance D | --no-groups] [--snapshots DIR | --no-snapshots]
+                   [--against PREVIOUS]
     pycinder debug-buffers [FILE...] --out DIR [--resolution N] [--self-interference MODE]
     pycinder demo {stairs,snow-bunny,normals} [--frames N] [--out FILE.mp4|FILE.gif|DIR]
     pycinder bench [SCENE...] [--repeat N] [--peers ...] [--out DIR]
@@ -277,7 +278,8 @@ def request_mode(args: argparse.Namespace) -> str:
 
 _IFC_ONLY = (("a", "--a"), ("b", "--b"), ("a_file", "--a-file"), ("b_file", "--b-file"),
              ("a_exclude", "--a-exclude"), ("b_exclude", "--b-exclude"), ("bcf", "--bcf"),
-             ("snapshots", "--snapshots"), ("against", "--against"))
+             ("snapshots", "--snapshots"), ("no_snapshots", "--no-snapshots"),
+             ("against", "--against"))
 
 
 def _no_ifc_options(args: argparse.Namespace) -> None:
@@ -310,7 +312,7 @@ def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
     """``check`` on IFC files: one body per element, a clash set, the mode's pairs as text or
     JSON, and a BCF file with --bcf; returns 0 (no clash), 1 (clashes) or 2 (an error)."""
     from .bim.ifc import find_clashes, make_detector, read_ifc
-    from .bim.report import clash_report
+    from .bim.report import clash_report, report_options
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -331,10 +333,8 @@ def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
                                  progress=update, limits=_limits(args))
                 update(0, 0, f"checking {plural(len(model.bodies), 'element')}")  # pulses
                 clashes = find_clashes(model, a, b, detector=det)
-                report = clash_report(
-                    model, clashes, group_distance=None if args.no_groups else
-                    args.group_distance, against=args.against, snapshots=args.snapshots,
-                    bcf=args.bcf, project=", ".join(model.files), progress=update)
+                report = clash_report(model, clashes, **report_options(args), bcf=args.bcf,
+                                      project=", ".join(model.files), progress=update)
         except _ERRORS as exc:
             return _fail(args, _messages(exc), caught)
     notes = [_warning_entry(w, args.strict) for w in caught]
@@ -584,13 +584,6 @@ def _distance(text: str) -> float:
     return value
 
 
-def _distance_or_0(text: str) -> float:
-    with contextlib.suppress(ValueError):
-        if float(text) == 0:
-            return 0.0
-    return _distance(text)
-
-
 def _count(text: str) -> int:
     try:
         value = int(text.replace("_", "").replace(",", ""))
@@ -684,17 +677,9 @@ def build_parser() -> argparse.ArgumentParser:
     ifc.add_argument("--bcf", default=None, metavar="OUT.bcf",
                      help="write the clashes as a BCF 2.1 file: a topic per group, its "
                           "elements as components, a viewpoint with its picture and camera")
-    grouping = ifc.add_mutually_exclusive_group()
-    grouping.add_argument("--group-distance", type=_distance_or_0, default=3.0, metavar="D",
-                          help="clashes within D metres of each other, or of one element, form "
-                               "a group: a BCF topic (default 3, IfcClash's; 0: by element)")
-    grouping.add_argument("--no-groups", action="store_true", help="a group (a topic) per clash")
-    ifc.add_argument("--snapshots", default=None, metavar="DIR",
-                     help="write a picture of each group here (group-N.png; BCF topics carry "
-                          "them with --bcf)")
-    ifc.add_argument("--against", default=None, metavar="PREVIOUS",
-                     help="a previous run's .bcf or --json output: mark clashes new, active "
-                          "or resolved, and keep its topics' GUIDs")
+    from .bim.report import add_arguments as add_report_arguments
+
+    add_report_arguments(ifc)  # grouping, pictures, tracking
     ifc.add_argument("--cache-dir", default=None, metavar="DIR",
                      help="folder of the tessellation cache (default: $PYCINDER_CACHE_DIR/ifc "
                           "or the user's cache folder, pycinder/ifc)")

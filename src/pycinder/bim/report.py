@@ -6,16 +6,18 @@ for; the command line prints what it returns.
 
 from __future__ import annotations
 
+import argparse
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .groups import ClashGroup, check_group_distance, group_clashes, pair_key
+from .groups import (DEFAULT_GROUP_DISTANCE, ClashGroup, check_group_distance, group_clashes,
+                     pair_key)
 from .tracking import Tracking, read_previous, track
 
-__all__ = ["ClashReport", "clash_report"]
+__all__ = ["ClashReport", "clash_report", "add_arguments", "report_options"]
 
 Progress = Callable[[int, int, str], None]
 
@@ -111,9 +113,46 @@ class ClashReport:
         return text
 
 
+def _group_distance(text: str) -> float:
+    """``--group-distance``: 0 or a positive distance in metres."""
+    try:
+        return float(check_group_distance(float(text)) or 0.0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not 0 or a positive distance") from None
+
+
+def add_arguments(group: Any) -> None:
+    """Add the report's options to ``pycinder check``'s IFC options (an argparse argument
+    group): ``--group-distance D`` or ``--no-groups``, ``--snapshots DIR`` or
+    ``--no-snapshots``, and ``--against PREVIOUS`` (read back by :func:`report_options`)."""
+    grouping = group.add_mutually_exclusive_group()
+    grouping.add_argument("--group-distance", type=_group_distance, default=DEFAULT_GROUP_DISTANCE,
+                          metavar="D", help="clashes within D metres of each other, or of one "
+                          "element, form a group: a BCF topic (default 3, IfcClash's; 0: by "
+                          "element alone)")
+    grouping.add_argument("--no-groups", action="store_true", help="a group (a topic) per clash")
+    pictures = group.add_mutually_exclusive_group()
+    pictures.add_argument("--snapshots", default=None, metavar="DIR",
+                          help="write a picture of each group here, group-N.png (with --bcf, "
+                               "each topic carries its group's picture anyway)")
+    pictures.add_argument("--no-snapshots", action="store_true",
+                          help="render no pictures: BCF topics without them")
+    group.add_argument("--against", default=None, metavar="PREVIOUS",
+                       help="a previous run's .bcf or --json output: mark clashes new, active "
+                            "or resolved, and keep its topics' GUIDs")
+
+
+def report_options(args: argparse.Namespace) -> dict[str, Any]:
+    """:func:`clash_report`'s options from the command line's (see :func:`add_arguments`)."""
+    return {"group_distance": None if args.no_groups else args.group_distance,
+            "against": args.against, "snapshots": args.snapshots,
+            "pictures": not args.no_snapshots}
+
+
 def clash_report(model: Any, clashes: Sequence[Any], *,
-                 group_distance: float | None = 3.0, against: str | os.PathLike[str] | None = None,
-                 snapshots: str | os.PathLike[str] | None = None,
+                 group_distance: float | None = DEFAULT_GROUP_DISTANCE,
+                 against: str | os.PathLike[str] | None = None,
+                 snapshots: str | os.PathLike[str] | None = None, pictures: bool = True,
                  bcf: str | os.PathLike[str] | None = None, project: str = "pycinder clashes",
                  picture_size: tuple[int, int] = (640, 480),
                  progress: Progress | None = None) -> ClashReport:
@@ -131,6 +170,8 @@ def clash_report(model: Any, clashes: Sequence[Any], *,
         The previous run's ``.bcf`` or ``.json`` (:func:`~pycinder.bim.tracking.read_previous`).
     snapshots : path, optional
         A folder (created) for a PNG per group, ``group-<index>.png``.
+    pictures : bool
+        Render each group's picture for the BCF file (with ``snapshots``, always).
     bcf : path, optional
         A BCF file to write, a topic per group with its picture.
     project : str
@@ -159,8 +200,8 @@ def clash_report(model: Any, clashes: Sequence[Any], *,
     tracking = (track(groups, previous, source=Path(against).name)
                 if previous is not None and against is not None else None)
     report = ClashReport(clashes, groups, tracking, group_distance=distance)
-    pictures: dict[int, Any] = {}
-    if (snapshots is not None or bcf is not None) and groups:
+    shots: dict[int, Any] = {}
+    if (snapshots is not None or (bcf is not None and pictures)) and groups:
         from .snapshot import Snapshotter
 
         shooter = Snapshotter(model.bodies, picture_size)
@@ -170,14 +211,14 @@ def clash_report(model: Any, clashes: Sequence[Any], *,
         for k, g in enumerate(groups):
             if progress:
                 progress(k, len(groups), f"picturing group {g.index} of {len(groups)}")
-            pictures[g.index] = shooter.group(g)
+            shots[g.index] = shooter.group(g)
             if folder is not None:
                 out = folder / f"group-{g.index}.png"
-                out.write_bytes(pictures[g.index][0])
+                out.write_bytes(shots[g.index][0])
                 report.snapshots[g.index] = str(out)
     if bcf is not None:
         from .bcf import write_bcf
 
-        write_bcf(clashes, bcf, groups=groups, tracking=tracking, snapshots=pictures,
+        write_bcf(clashes, bcf, groups=groups, tracking=tracking, snapshots=shots,
                   project=project)
     return report

@@ -124,6 +124,13 @@ class Snapshotter:
     ------
     ImportError
         Without pygfx, rendercanvas or pillow (``pip install 'pycinder[bim]'``).
+
+    Notes
+    -----
+    pygfx renders on wgpu's default device, which the first picture creates (pycinder's
+    queries keep a device of their own). The demos configure that device for pycinder and
+    pygfx both before anything creates it, so a demo run after pictures were rendered in the
+    same process stops with an error that says to start it in a fresh process.
     """
 
     def __init__(self, bodies: Sequence[Any], size: tuple[int, int] = (640, 480), *,
