@@ -196,8 +196,10 @@ def _run(capsys, *args):
 
 def test_cli_json_and_bcf(fed, capsys, tmp_path):
     out_bcf = tmp_path / "clashes.bcf"
+    # Pictures are rendered and checked in test_bim_report.py, in processes of their own.
     code, out, err = _run(capsys, *fed.paths, "--json", "--a-file", "mep.ifc", "--b-file",
-                          "structure.ifc", "--bcf", out_bcf, "--cache-dir", fed.cache)
+                          "structure.ifc", "--bcf", out_bcf, "--cache-dir", fed.cache,
+                          "--no-snapshots")
     assert code == 1, err
     report = json.loads(out)
     assert report["errors"] == [] and report["mode"] == "default"
@@ -210,7 +212,11 @@ def test_cli_json_and_bcf(fed, capsys, tmp_path):
                          and p["a_class"] in ("IfcPipeSegment", "IfcDuctSegment")
                          and p["b_class"] in ("IfcBeam", "IfcColumn")
                          and p["depth"] is None and p["distance"] is None for p in pairs)
-    expected = [{p["a_global_id"], p["b_global_id"]} for p in pairs]
+    # A topic per group, selecting the group's elements; every pair is in its group.
+    groups = {g["id"]: g for g in report["groups"]}
+    assert all({p["a_global_id"], p["b_global_id"]} <= set(groups[p["group"]]["elements"])
+               for p in pairs)
+    expected = [set(g["elements"]) for g in report["groups"]]
     try:
         from bcf.v2.bcfxml import BcfXml
     except ImportError:
@@ -220,12 +226,14 @@ def test_cli_json_and_bcf(fed, capsys, tmp_path):
         with BcfXml.load(out_bcf) as read:
             got = [set(v.get_selected_guids())
                    for t in read.topics.values() for v in t.viewpoints.values()]
+            assert all(v.snapshot is None for t in read.topics.values()
+                       for v in t.viewpoints.values())
     assert sorted(map(sorted, got)) == sorted(map(sorted, expected))
     code, out, _ = _run(capsys, *fed.paths, "--a", "IfcPipeSegment", "--b", "IfcBeam",
                         "--cache-dir", fed.cache)
     lines = out.strip().splitlines()
-    assert code == 1 and lines and all("(IfcPipeSegment)  <->  " in x and x.endswith("(IfcBeam)")
-                                       for x in lines)
+    assert code == 1 and lines and all(x.startswith("[") and "(IfcPipeSegment)  <->  " in x
+                                       and x.endswith("(IfcBeam)") for x in lines)
 
 
 def test_bcf_builtin_writer(fed, tmp_path):
@@ -303,7 +311,7 @@ def _bcf_descriptions(path) -> list[str]:
 def test_cli_hard_clashes_json_and_bcf(house, fed, hard, capsys, tmp_path):
     out_bcf = tmp_path / "hard.bcf"
     code, out, err = _run(capsys, *fed.paths, "--json", "--min-depth", B.DEPTH, "--bcf",
-                          out_bcf, "--cache-dir", fed.cache)
+                          out_bcf, "--cache-dir", fed.cache, "--no-snapshots")
     assert code == 1, err
     report = json.loads(out)
     assert report["errors"] == [] and report["mode"] == "min_depth"
@@ -317,14 +325,17 @@ def test_cli_hard_clashes_json_and_bcf(house, fed, hard, capsys, tmp_path):
         assert p["mode"] == "min_depth" and p["distance"] is None
         assert (p["depth"], p["depth_error"]) == (c.depth, c.depth_error)
     descriptions = _bcf_descriptions(out_bcf)
-    assert len(descriptions) == len(pairs)
+    assert len(descriptions) == len(report["groups"])
+    lines = [x for t in descriptions for x in t.splitlines() if x.startswith("- ")]
+    assert len(lines) == len(pairs)
     assert all("; depth " in t and "(error at most " in t and t.endswith("mode: min_depth")
-               for t in descriptions), descriptions
+               for t in lines), descriptions
     # Text: each clash with its depth; a clash set with none deeper than d exits 0.
     code, out, _ = _run(capsys, *fed.paths, "--min-depth", B.DEPTH, "--a", "IfcPipeSegment",
                         "--b", "IfcBeam", "--cache-dir", fed.cache)
     [line] = out.strip().splitlines()
-    assert code == 1 and line.startswith("Pipe through beam 0 [") and "(IfcBeam)  depth " in line
+    assert code == 1 and line.startswith("[1] Pipe through beam 0 [")
+    assert "(IfcBeam)  depth " in line
     assert float(line.rsplit("depth ", 1)[1].removesuffix(" m")) == pytest.approx(0.25, abs=2e-3)
     code, out, _ = _run(capsys, *fed.paths, "--min-depth", B.DEPTH, "--a", "IfcPipeSegment",
                         "--b", "IfcDuctSegment", "--cache-dir", fed.cache)

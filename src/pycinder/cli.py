@@ -5,6 +5,8 @@
                    [--min-depth D | --clearance C]
     pycinder check A.ifc [B.ifc ...] [--a SELECTOR] [--a-file FILE] [--b SELECTOR]
                    [--b-file FILE] [--bcf OUT.bcf] [--json] [--min-depth D | --clearance C]
+                   [--group-distance D | --no-groups] [--snapshots DIR | --no-snapshots]
+                   [--against PREVIOUS]
     pycinder debug-buffers [FILE...] --out DIR [--resolution N] [--self-interference MODE]
     pycinder demo {stairs,snow-bunny,normals} [--frames N] [--out FILE.mp4|FILE.gif|DIR]
     pycinder bench [SCENE...] [--repeat N] [--peers ...] [--out DIR]
@@ -91,7 +93,8 @@ content (a re-check after a change in one file re-tessellates only that file). S
 form one model. A clash set tests group A against group B (--a/--a-file against
 --b/--b-file), or A against itself (--a alone); default: every element against every other.
 --json gives for each pair both names, GlobalIds, classes and files, the mode, and the depth
-or distance where the mode gives one, with the bound on its error."""
+or distance where the mode gives one, with the bound on its error, its group, status and GUID;
+and the groups, and with --against the resolved clashes (see the guide's Buildings page)."""
 
 
 def _cli_words(message: str, strict: bool) -> str:
@@ -112,10 +115,10 @@ def _warning_entry(w: warnings.WarningMessage, strict: bool) -> dict[str, str]:
 
 @contextlib.contextmanager
 def _progress(enabled: bool | None, description: str
-              ) -> Iterator[Callable[[int, int, str], None]]:
+              ) -> Iterator[Callable[[float, int, str], None]]:
     """A rich progress bar on stderr (transient) while the block runs, shown when ``enabled``
     (default: when stderr is a terminal and rich is installed). Yields ``update(done, total,
-    text)``."""
+    text)``; a total of 0 makes the bar pulse (a step of unknown length)."""
     if enabled is None:
         enabled = sys.stderr.isatty()
     try:
@@ -131,8 +134,8 @@ def _progress(enabled: bool | None, description: str
                   console=console, transient=True) as bar:
         task = bar.add_task(description, total=None)
 
-        def update(done: int, total: int, text: str) -> None:
-            bar.update(task, completed=done, total=total, description=text)
+        def update(done: float, total: int, text: str) -> None:
+            bar.update(task, completed=done, total=total or None, description=text)
 
         yield update
 
@@ -274,7 +277,9 @@ def request_mode(args: argparse.Namespace) -> str:
 
 
 _IFC_ONLY = (("a", "--a"), ("b", "--b"), ("a_file", "--a-file"), ("b_file", "--b-file"),
-             ("a_exclude", "--a-exclude"), ("b_exclude", "--b-exclude"), ("bcf", "--bcf"))
+             ("a_exclude", "--a-exclude"), ("b_exclude", "--b-exclude"), ("bcf", "--bcf"),
+             ("snapshots", "--snapshots"), ("no_snapshots", "--no-snapshots"),
+             ("against", "--against"))
 
 
 def _no_ifc_options(args: argparse.Namespace) -> None:
@@ -307,6 +312,7 @@ def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
     """``check`` on IFC files: one body per element, a clash set, the mode's pairs as text or
     JSON, and a BCF file with --bcf; returns 0 (no clash), 1 (clashes) or 2 (an error)."""
     from .bim.ifc import find_clashes, make_detector, read_ifc
+    from .bim.report import clash_report, report_options
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -325,20 +331,16 @@ def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
             with _progress(args.progress, "reading IFC") as update:
                 model = read_ifc(args.files, cache=False if args.no_cache else args.cache_dir,
                                  progress=update, limits=_limits(args))
-                update(len(args.files), len(args.files) + 1,
-                       f"checking {plural(len(model.bodies), 'element')}")
+                update(0, 0, f"checking {plural(len(model.bodies), 'element')}")  # pulses
                 clashes = find_clashes(model, a, b, detector=det)
-            if args.bcf:
-                from .bim.bcf import write_bcf
-
-                write_bcf(clashes, args.bcf, project=", ".join(model.files))
+                report = clash_report(model, clashes, **report_options(args), bcf=args.bcf,
+                                      project=", ".join(model.files), progress=update)
         except _ERRORS as exc:
             return _fail(args, _messages(exc), caught)
     notes = [_warning_entry(w, args.strict) for w in caught]
     if args.json:
         report: dict[str, Any] = {
-            "collision": bool(clashes),
-            "pairs": [c.as_dict() for c in clashes],
+            "collision": bool(clashes), **report.as_json(),
             "bodies": model.names,
             "files": model.files,
             "clash_set": {"a": a.describe() if a else "every element",
@@ -355,14 +357,13 @@ def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
     else:
         for note in notes:
             print(f"warning: {note['message']}", file=sys.stderr)
-        for c in clashes:
-            figure = (f"  depth {c.depth:.4g} m" if c.depth is not None else
-                      f"  distance {c.distance:.4g} m" if c.distance is not None else "")
-            print(f"{c.a.name} ({c.a.ifc_class})  <->  {c.b.name} ({c.b.ifc_class}){figure}")
+        for line in report.text():
+            print(line)
         if not clashes:
             print("no clashes")
+        print(report.summary(), file=sys.stderr)
         if args.bcf:
-            print(f"wrote {display_name(args.bcf)} ({plural(len(clashes), 'topic')})",
+            print(f"wrote {display_name(args.bcf)} ({plural(report.topics, 'topic')})",
                   file=sys.stderr)
     return 1 if clashes else 0
 
@@ -674,8 +675,11 @@ def build_parser() -> argparse.ArgumentParser:
         ifc.add_argument(f"--{side}-exclude", default=None, metavar="SELECTOR",
                          help=f"clash set: leave these elements out of group {side.upper()}")
     ifc.add_argument("--bcf", default=None, metavar="OUT.bcf",
-                     help="write the clashes as a BCF 2.1 file: a topic per clash, both "
-                          "GlobalIds as components, a viewpoint at the clash")
+                     help="write the clashes as a BCF 2.1 file: a topic per group, its "
+                          "elements as components, a viewpoint with its picture and camera")
+    from .bim.report import add_arguments as add_report_arguments
+
+    add_report_arguments(ifc)  # grouping, pictures, tracking
     ifc.add_argument("--cache-dir", default=None, metavar="DIR",
                      help="folder of the tessellation cache (default: $PYCINDER_CACHE_DIR/ifc "
                           "or the user's cache folder, pycinder/ifc)")

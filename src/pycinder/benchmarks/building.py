@@ -298,7 +298,7 @@ def _cell_parts(k: int, origin: np.ndarray, new_id: Callable[[], str]
     beam_lo = top - 0.4
     box("IfcBeam", "Beam south", (0.3, 0, beam_lo), (W - 0.3, 0.3, top), "structure")
     box("IfcBeam", "Beam north", (0.3, D - 0.3, beam_lo), (W - 0.3, D, top), "structure")
-    west = box("IfcWall", "Wall west", (0, 0.3, 0), (0.2, D - 0.3, top), "architecture")
+    box("IfcWall", "Wall west", (0, 0.3, 0), (0.2, D - 0.3, top), "architecture")
     east = box("IfcWall", "Wall east", (W - 0.2, 0.3, 0), (W, D - 0.3, top), "architecture")
     run = (W - 0.4) / 3
     for i in range(3):
@@ -331,7 +331,6 @@ def _cell_parts(k: int, origin: np.ndarray, new_id: Callable[[], str]
     if k % 4 == 0:  # a door through the east wall, clear of every other element
         openings.append((east.global_id, tuple(map(float, o + (W - 0.3, 1.0, 0.0))),
                          tuple(map(float, o + (W + 0.1, 2.0, 2.1)))))
-    del west
     return parts, openings
 
 
@@ -613,10 +612,19 @@ def _pycinder_runs(paths: Sequence[Path], building: Building,
         reported = {tuple(sorted((c.a.global_id, c.b.global_id))) for c in clashes}
         row = {"system": "pycinder", "mode": mode, "tessellation_s": tess, "clash_s": clash_s}
         row.update(score(building, reported, mode))  # type: ignore[arg-type]
+        row.update(group_counts(clashes))
         if mode == "min_depth":
             row.update(check_depths(building, clashes))
         rows.append(row)
     return rows
+
+
+def group_counts(clashes: Sequence[Any]) -> dict[str, int]:
+    """How many groups the clashes form (:func:`pycinder.bim.groups.group_clashes`): ``groups``
+    at the default distance, ``groups_by_element`` by element alone."""
+    from ..bim.groups import group_clashes as group
+
+    return {"groups": len(group(clashes)), "groups_by_element": len(group(clashes, 0))}
 
 
 def check_depths(building: Building, clashes: Sequence[Any]) -> dict[str, Any]:
@@ -750,6 +758,10 @@ def markdown(r: dict[str, Any]) -> list[str]:
             f"{row['tessellation_s']:.1f} | {row['clash_s']:.1f} |")
     for name, why in r.get("left_out", {}).items():
         lines += ["", f"{name} was left out: {why}"]
+    lines += [""] + [f"- pycinder {row['mode']}, {row['elements']:,} elements: {row['reported']:,}"
+                     f" clashes; groups: {row['groups']:,} within 3 m, "
+                     f"{row['groups_by_element']:,} by element" for row in r["rows"]
+                     if "groups" in row]
     for row in r["rows"]:
         if "depths_checked" in row:
             lines += ["", f"pycinder min_depth, {row['elements']:,} elements: "

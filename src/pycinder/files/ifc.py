@@ -42,7 +42,8 @@ __all__ = ["IfcBody", "IfcModel", "Group", "read_ifc", "default_cache_dir", "fil
 CACHE_FORMAT = 1
 """Version of the cache's file layout (part of every cache key)."""
 
-Progress = Callable[[int, int, str], None]
+Progress = Callable[[float, int, str], None]
+"""``progress(done, total, text)``: ``done`` of ``total`` steps, a fraction within a step."""
 
 
 def _ifcopenshell() -> Any:
@@ -322,8 +323,8 @@ def _tessellate(path: str, label: str, threads: int, progress: Progress | None,
                 faces.append(t)
                 ids.append(shape.id)
             if progress and len(ids) % 64 == 0:
-                progress(done0, steps, f"tessellating {label}: {len(ids):,} of {total:,} "
-                                       "elements")
+                progress(done0 + len(ids) / total, steps,
+                         f"tessellating {label}: {len(ids):,} of {total:,} elements")
             if not it.next():
                 break
     if not ids:
@@ -414,7 +415,8 @@ def read_ifc(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], *
     threads : int, optional
         Tessellation threads (default: the CPU count).
     progress : callable, optional
-        Called as ``progress(done, total, text)`` while files are read and tessellated.
+        Called as ``progress(done, total, text)`` while files are read and tessellated: ``done``
+        of ``total`` files, with the fraction of a file's elements tessellated so far.
     limits : Limits, optional
         Largest file in bytes and most triangles per file (default
         :class:`~pycinder.files.Limits`).

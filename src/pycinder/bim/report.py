@@ -1,0 +1,224 @@
+"""A clash run's report: clashes grouped (:mod:`.groups`), tracked against a previous run
+(:mod:`.tracking`), pictured (:mod:`.snapshot`) and written as BCF (:mod:`.bcf`), as text and
+as ``pycinder check --json``'s fields. :func:`clash_report` does every step that was asked
+for; the command line prints what it returns.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .groups import (DEFAULT_GROUP_DISTANCE, ClashGroup, check_group_distance, group_clashes,
+                     pair_key)
+from .tracking import Tracking, read_previous, track
+
+__all__ = ["ClashReport", "clash_report", "add_arguments", "report_options"]
+
+Progress = Callable[[int, int, str], None]
+
+
+@dataclass
+class ClashReport:
+    """The clashes of a run with their groups, statuses and pictures.
+
+    Attributes
+    ----------
+    clashes : list of Clash
+    groups : list of ClashGroup
+    tracking : Tracking or None
+        Against the previous run, where one was given.
+    snapshots : dict
+        Group index to the PNG file written for it (with a snapshot folder).
+    group_distance : float or None
+        The grouping distance in metres (None: a group per clash).
+    """
+
+    clashes: list[Any]
+    groups: list[ClashGroup]
+    tracking: Tracking | None = None
+    snapshots: dict[int, str] = field(default_factory=dict)
+    group_distance: float | None = None
+
+    @property
+    def topics(self) -> int:
+        """The BCF topics written: a group each, and each closed topic of the previous run."""
+        return len(self.groups) + (len(self.tracking.closed) if self.tracking else 0)
+
+    def status(self, c: Any) -> str:
+        """A clash's status: ``"new"`` or ``"active"`` (``"new"`` with no previous run)."""
+        key = pair_key(c.a.global_id, c.b.global_id)
+        return "new" if self.tracking is None else self.tracking.clashes.get(key, "new")
+
+    def as_json(self) -> dict[str, Any]:
+        """``pycinder check --json``'s fields for the clashes: ``pairs`` (each clash's
+        :meth:`~pycinder.bim.ifc.Clash.as_dict` with its ``group``, ``status`` and ``guid``),
+        ``groups``, ``resolved`` (the previous run's clashes that are gone),
+        ``resolved_groups`` (its topics that no group continues), ``group_distance`` and
+        ``against``."""
+        from .groups import topic_guid
+
+        group_of = {id(c): g.index for g in self.groups for c in g.clashes}
+        index = {id(c): k for k, c in enumerate(self.clashes)}
+        pairs = []
+        for c in self.clashes:
+            key = pair_key(c.a.global_id, c.b.global_id)
+            pairs.append({**c.as_dict(), "group": group_of[id(c)], "status": self.status(c),
+                          "guid": topic_guid(key)})
+        groups = [{"id": g.index, "guid": g.guid, "title": g.title(), "status": g.status,
+                   "clashes": [index[id(c)] for c in g.clashes],
+                   "elements": [b.global_id for b in g.elements],
+                   "point": [round(float(x), 6) for x in g.point],
+                   "resolved": [list(p) for p in g.resolved],
+                   "snapshot": self.snapshots.get(g.index)} for g in self.groups]
+        t = self.tracking
+        return {"pairs": pairs, "groups": groups,
+                "resolved": [] if t is None else [
+                    {"a_global_id": a, "b_global_id": b, "description": what,
+                     "guid": topic_guid((a, b))} for (a, b), what in t.resolved.items()],
+                "resolved_groups": [] if t is None else [
+                    {"guid": x.guid, "title": x.title, "pairs": [list(p) for p in x.pairs]}
+                    for x in t.closed],
+                "group_distance": self.group_distance,
+                "against": None if t is None else t.source}
+
+    def text(self) -> list[str]:
+        """The report's lines: a clash a line, prefixed with its group (``[2]``, and its
+        status with a previous run: ``[2 new]``), then the resolved clashes."""
+        lines = []
+        for g in self.groups:
+            for c in g.clashes:
+                figure = (f"  depth {c.depth:.4g} m" if c.depth is not None else
+                          f"  distance {c.distance:.4g} m" if c.distance is not None else "")
+                tag = f"{g.index} {self.status(c)}" if self.tracking is not None else g.index
+                lines.append(f"[{tag}] {c.a.name} ({c.a.ifc_class})  <->  {c.b.name} "
+                             f"({c.b.ifc_class}){figure}")
+        if self.tracking is not None:
+            for (a, b), what in self.tracking.resolved.items():
+                lines.append(f"[resolved] {a} <-> {b}" + (f": {what}" if what else ""))
+        return lines
+
+    def summary(self) -> str:
+        """One line: how many clashes, groups and, with a previous run, of each status."""
+        n, g = len(self.clashes), len(self.groups)
+        text = (f"{n} clash{'es' if n != 1 else ''} in {g} group{'s' if g != 1 else ''}")
+        if self.tracking is not None:
+            counts = self.tracking.counts()
+            text += (f"; against {self.tracking.source}: {counts['new']} new, "
+                     f"{counts['active']} active, {counts['resolved']} resolved")
+        return text
+
+
+def _group_distance(text: str) -> float:
+    """``--group-distance``: 0 or a positive distance in metres."""
+    try:
+        return float(check_group_distance(float(text)) or 0.0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not 0 or a positive distance") from None
+
+
+def add_arguments(group: Any) -> None:
+    """Add the report's options to ``pycinder check``'s IFC options (an argparse argument
+    group): ``--group-distance D`` or ``--no-groups``, ``--snapshots DIR`` or
+    ``--no-snapshots``, and ``--against PREVIOUS`` (read back by :func:`report_options`)."""
+    grouping = group.add_mutually_exclusive_group()
+    grouping.add_argument("--group-distance", type=_group_distance, default=DEFAULT_GROUP_DISTANCE,
+                          metavar="D", help="clashes within D metres of each other, or of one "
+                          "element, form a group: a BCF topic (default 3, IfcClash's; 0: by "
+                          "element alone)")
+    grouping.add_argument("--no-groups", action="store_true", help="a group (a topic) per clash")
+    pictures = group.add_mutually_exclusive_group()
+    pictures.add_argument("--snapshots", default=None, metavar="DIR",
+                          help="write a picture of each group here, group-N.png (with --bcf, "
+                               "each topic carries its group's picture anyway)")
+    pictures.add_argument("--no-snapshots", action="store_true",
+                          help="render no pictures: BCF topics without them")
+    group.add_argument("--against", default=None, metavar="PREVIOUS",
+                       help="a previous run's .bcf or --json output: mark clashes new, active "
+                            "or resolved, and keep its topics' GUIDs")
+
+
+def report_options(args: argparse.Namespace) -> dict[str, Any]:
+    """:func:`clash_report`'s options from the command line's (see :func:`add_arguments`)."""
+    return {"group_distance": None if args.no_groups else args.group_distance,
+            "against": args.against, "snapshots": args.snapshots,
+            "pictures": not args.no_snapshots}
+
+
+def clash_report(model: Any, clashes: Sequence[Any], *,
+                 group_distance: float | None = DEFAULT_GROUP_DISTANCE,
+                 against: str | os.PathLike[str] | None = None,
+                 snapshots: str | os.PathLike[str] | None = None, pictures: bool = True,
+                 bcf: str | os.PathLike[str] | None = None, project: str = "pycinder clashes",
+                 picture_size: tuple[int, int] = (640, 480),
+                 progress: Progress | None = None) -> ClashReport:
+    """Group, track, picture and write a run's clashes.
+
+    Parameters
+    ----------
+    model : IfcModel
+        The model the clashes are of (the pictures' surroundings).
+    clashes : sequence of Clash
+        From :func:`pycinder.bim.ifc.find_clashes`.
+    group_distance : float or None
+        Metres (:func:`~pycinder.bim.groups.group_clashes`); None: a group per clash.
+    against : path, optional
+        The previous run's ``.bcf`` or ``.json`` (:func:`~pycinder.bim.tracking.read_previous`).
+    snapshots : path, optional
+        A folder (created) for a PNG per group, ``group-<index>.png``.
+    pictures : bool
+        Render each group's picture for the BCF file (with ``snapshots``, always).
+    bcf : path, optional
+        A BCF file to write, a topic per group with its picture.
+    project : str
+        The BCF project's name.
+    picture_size : (int, int)
+        The pictures' width and height in pixels.
+    progress : callable, optional
+        Called as ``progress(done, total, text)`` while pictures are rendered.
+
+    Returns
+    -------
+    ClashReport
+
+    Raises
+    ------
+    ValueError
+        A negative grouping distance, a previous run that is not a pycinder BCF or JSON file,
+        a snapshot folder that is a file.
+    """
+    distance = check_group_distance(group_distance)
+    previous = read_previous(against) if against is not None else None
+    if snapshots is not None and Path(snapshots).exists() and not Path(snapshots).is_dir():
+        raise ValueError(f"{os.fspath(snapshots)}: the snapshot folder is a file")
+    clashes = list(clashes)
+    groups = group_clashes(clashes, distance)
+    tracking = (track(groups, previous, source=Path(against).name)
+                if previous is not None and against is not None else None)
+    report = ClashReport(clashes, groups, tracking, group_distance=distance)
+    shots: dict[int, Any] = {}
+    if (snapshots is not None or (bcf is not None and pictures)) and groups:
+        from .snapshot import Snapshotter
+
+        shooter = Snapshotter(model.bodies, picture_size)
+        folder = Path(snapshots) if snapshots is not None else None
+        if folder is not None:
+            folder.mkdir(parents=True, exist_ok=True)
+        for k, g in enumerate(groups):
+            if progress:
+                progress(k, len(groups), f"picturing group {g.index} of {len(groups)}")
+            shots[g.index] = shooter.group(g)
+            if folder is not None:
+                out = folder / f"group-{g.index}.png"
+                out.write_bytes(shots[g.index][0])
+                report.snapshots[g.index] = str(out)
+    if bcf is not None:
+        from .bcf import write_bcf
+
+        write_bcf(clashes, bcf, groups=groups, tracking=tracking, snapshots=shots,
+                  project=project)
+    return report
