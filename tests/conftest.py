@@ -27,3 +27,16 @@ def assert_matches_truth(found: np.ndarray, truth, *, context: str = "") -> dict
     assert not score["false"], f"{context}: separate pairs reported: {score['false']}"
     assert not score["missed"], f"{context}: pairs that must be found were missed: {score['missed']}"
     return score
+
+
+def pytest_terminal_summary(terminalreporter) -> None:
+    """One line per test that compared stored answers, saying which comparison it made (bit
+    for bit or within bounds: see ``tests/test_answers.py``)."""
+    lines = [f"{report.nodeid}: compared {value}"
+             for reports in terminalreporter.stats.values() for report in reports
+             if getattr(report, "when", None) == "call"
+             for name, value in getattr(report, "user_properties", ()) if name == "comparison"]
+    if lines:
+        terminalreporter.write_sep("-", "stored answers")
+        for line in lines:
+            terminalreporter.write_line(line)
