@@ -1,0 +1,115 @@
+"""No wait without a cause: a wait that passes its deadline says whether the device was lost,
+which passes its submission held and whether the GPU started and finished it; a lost device is
+replaced by a new one, and the detector answers the next query correctly."""
+
+from __future__ import annotations
+
+import logging
+import pickle
+import time
+
+import numpy as np
+import pytest
+import trimesh
+
+import pycinder
+from pycinder.errors import GpuDeviceLostError, GpuTimeoutError
+from pycinder.gpu import buffers as gpu_buffers
+from pycinder.gpu.device import get_gpu
+from pycinder.gpu.watch import Diagnosis, describe_passes, watch_of
+
+BOX = trimesh.creation.box((1.0, 1.0, 1.0))
+
+
+def _scene(x: float = 0.8) -> tuple[list, list]:
+    pose = np.eye(4)
+    pose[0, 3] = x
+    return [BOX, BOX], [np.eye(4), pose]
+
+
+def _never(promise: object, timeout: float) -> bool:
+    """A frame's map that never comes: waits out its deadline."""
+    time.sleep(timeout)
+    return False
+
+
+def test_a_timeout_says_the_device_was_not_lost_and_what_the_gpu_did(monkeypatch):
+    det = pycinder.Detector(timeout=0.5)
+    assert det.find_collisions(*_scene()).pairs.tolist() == [[0, 1]]
+    monkeypatch.setattr(gpu_buffers, "wait_for", _never)
+    t0 = time.perf_counter()
+    with pytest.raises(GpuTimeoutError) as caught:
+        det.find_collisions(*_scene())
+    elapsed = time.perf_counter() - t0
+    message = str(caught.value)
+    assert caught.value.device_lost is False
+    assert "the device was not lost" in message
+    # the markers are read for real: the frame was submitted, and lavapipe finished it
+    assert caught.value.progress.startswith("the GPU finished submission"), message
+    assert "passes:" in message and "detector was reset" in message
+    assert elapsed < 0.5 + 2 * 0.5 + 5, f"the timeout took {elapsed:.1f} s"
+    monkeypatch.undo()
+    assert det.find_collisions(*_scene()).pairs.tolist() == [[0, 1]]
+
+
+def test_a_device_lost_while_waiting_is_said_and_replaced(monkeypatch):
+    det = pycinder.Detector(timeout=0.5)
+    old = det.gpu.device
+    assert det.find_collisions(*_scene()).pairs.tolist() == [[0, 1]]
+
+    def lost(promise: object, timeout: float) -> bool:
+        logging.getLogger("wgpu").error("DEVICE LOST!")  # what wgpu-native's callback logs
+        return _never(promise, timeout)
+
+    monkeypatch.setattr(gpu_buffers, "wait_for", lost)
+    t0 = time.perf_counter()
+    with pytest.raises(GpuTimeoutError, match=r"within 0.5 s: the device was lost \(wgpu logged"
+                                              r".*DEVICE LOST.*made a new device") as caught:
+        det.find_collisions(*_scene())
+    assert time.perf_counter() - t0 < 0.5 + 5
+    assert caught.value.device_lost is True
+    monkeypatch.undo()
+    assert det.gpu.device is not old and get_gpu().device is det.gpu.device
+    assert det.find_collisions(*_scene()).pairs.tolist() == [[0, 1]]
+    assert det.find_collisions(*_scene(1.5)).pairs.tolist() == []
+
+
+def test_a_destroyed_device_fails_one_query_clearly_and_the_next_is_answered():
+    det = pycinder.Detector(timeout=5)
+    assert det.find_collisions(*_scene()).pairs.tolist() == [[0, 1]]
+    old = det.gpu.device
+    old.destroy()
+    t0 = time.perf_counter()
+    with pytest.raises(GpuDeviceLostError, match="device was lost: the detector made a new"):
+        det.find_collisions(*_scene())
+    assert time.perf_counter() - t0 < 5
+    assert det.gpu.device is not old
+    assert det.find_collisions(*_scene()).pairs.tolist() == [[0, 1]]
+    other = pycinder.Detector()  # made after: on the new device
+    assert other.gpu.device is det.gpu.device
+    assert other.find_collisions(*_scene(1.5)).pairs.tolist() == []
+
+
+def test_the_watch_counts_submissions_and_notes_their_passes():
+    det = pycinder.Detector()
+    watch = watch_of(det.gpu.device)
+    assert watch is not None
+    before = watch.submissions
+    det.find_collisions(*_scene())
+    assert watch.submissions > before
+    assert watch.last is not None and watch.last.number == watch.submissions
+    assert watch.progress().startswith(f"the GPU finished submission {watch.submissions}")
+    found = watch.explain()
+    assert isinstance(found, Diagnosis) and found.lost is None
+    assert "the device was not lost" in found.sentence
+
+
+def test_passes_are_described_in_order_with_repeats_counted():
+    assert describe_passes(["a", "b", "a", "c"]) == "4 passes: a (x2), b, c"
+    assert describe_passes([f"p{k}" for k in range(14)], most=12).endswith("and 2 more")
+
+
+def test_a_timeout_error_keeps_what_it_found_through_pickling():
+    err = GpuTimeoutError("late", device_lost=True, progress="progress unknown")
+    again = pickle.loads(pickle.dumps(err))
+    assert (str(again), again.device_lost, again.progress) == ("late", True, "progress unknown")
