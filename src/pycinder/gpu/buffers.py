@@ -242,7 +242,11 @@ def timeout_error(device: wgpu.GPUDevice, what: str, timeout: float) -> GpuTimeo
     if watch is None:
         return GpuTimeoutError(f"the GPU did not finish {what} within {timeout:g} s (the device "
                                "may be lost or overloaded: it is not watched)")
-    found = watch.explain()
+    try:
+        found = watch.explain()
+    except Exception as exc:  # the diagnosis must not hide the timeout
+        return GpuTimeoutError(f"the GPU did not finish {what} within {timeout:g} s (what the "
+                               f"device did could not be found: {exc})")
     return GpuTimeoutError(f"the GPU did not finish {what} within {timeout:g} s: "
                            f"{found.sentence}", device_lost=found.lost is not None,
                            progress=found.progress)
