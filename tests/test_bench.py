@@ -2,10 +2,12 @@
 
 import json
 
-import fcl  # noqa: F401  (the test extra brings python-fcl, the first peer)
 import numpy as np
 import pytest
 import trimesh
+
+pytest.importorskip("fcl", reason="python-fcl is the first peer and the exact truth (the test "
+                                  "and bench extras)")
 
 from pycinder.benchmarks import peers, report, runner
 from pycinder.benchmarks.scenes import Scene, SphereField, SpreadPairs

@@ -236,6 +236,7 @@ def test_gltf_claiming_huge_buffers_is_refused(tmp_path, capsys):
 
 
 def test_progress_bar_when_asked(files, capsys):
+    pytest.importorskip("rich", reason="the progress bar is rich's (the demo and bench extras)")
     assert main(["check", "--progress", str(files / "box.stl"), str(files / "far.ply")]) == 0
     captured = capsys.readouterr()
     assert "no collisions" in captured.out and "loading" in captured.err

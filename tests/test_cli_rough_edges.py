@@ -204,6 +204,7 @@ def test_output_kind(tmp_path):
 
 
 def test_demo_writes_png_frames_to_a_folder(tmp_path, capsys):
+    pytest.importorskip("pygfx", reason="the demos draw with pygfx (the demo and test extras)")
     assert main(["demo", "stairs", "--frames", "2", "--no-progress", "--out",
                  str(tmp_path / "frames")]) == 0
     capsys.readouterr()

@@ -18,9 +18,10 @@ import numpy as np
 import wgpu
 
 from .batching import join_scenes, split
-from .errors import GpuError, GpuTimeoutError
+from .errors import GpuError, GpuTimeoutError, with_message
 from .focused.strategy import FocusedStrategy
-from .gpu.device import check_not_forked, fork_generation, get_gpu, keep_from_parent
+from .gpu.device import (check_not_forked, device_lost, fork_generation, get_gpu,
+                         keep_from_parent, renew_gpu)
 from .request import CollisionRequest
 from .result import CollisionResult, Stats
 from .scene import PreparedBodies, Scene, ShapeCache, prepare_scene
@@ -100,15 +101,20 @@ class Detector:
         return WholeSceneStrategy(self.gpu, self.request)
 
     def _recover(self, exc: Exception) -> GpuError:
-        """After a GPU error: rebuild the strategy's pipelines and buffers, so that the next
-        query starts clean, and say so in the error."""
+        """After a GPU error: rebuild the strategy's pipelines and buffers (on a new device
+        where the device was lost), so that the next query starts clean, and say so in the
+        error."""
+        lost = device_lost(self.gpu, exc)
         try:
+            if lost is not None:
+                self.gpu = renew_gpu(self.gpu)
             self.strategy = self._make_strategy()
         except Exception as again:  # the device itself is gone
-            return GpuError(f"{exc}; the GPU device could not be used again ({again}): "
-                            "recreate the Detector in a new process")
-        kind = type(exc) if isinstance(exc, GpuError) else GpuError
-        return kind(f"{exc} (the detector was reset and can be used again)")
+            return with_message(exc, f"{exc}; the GPU device could not be used again "
+                                     f"({again}): recreate the Detector in a new process")
+        return with_message(exc, f"{exc} (the device was lost: the detector made a new device "
+                                 "and can be used again)" if lost is not None else
+                            f"{exc} (the detector was reset and can be used again)")
 
     def prepare(self, bodies: Sequence[Any], names: Sequence[str | None] | None = None
                 ) -> PreparedBodies:

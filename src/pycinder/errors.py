@@ -49,7 +49,51 @@ class GpuError(RuntimeError):
 
 
 class GpuTimeoutError(GpuError):
-    """A wait on the GPU passed its deadline (``CollisionRequest.timeout``)."""
+    """A wait on the GPU passed its deadline (``CollisionRequest.timeout``).
+
+    The message says what was waited for, whether the device was lost, which passes the
+    submission held and whether the GPU started and finished it (see
+    :mod:`pycinder.gpu.watch`).
+
+    Attributes
+    ----------
+    device_lost : bool or None
+        Whether the device was lost (None where nothing was known).
+    progress : str or None
+        Whether the GPU started and finished the submission waited for, in words.
+    """
+
+    def __init__(self, message: str, *, device_lost: bool | None = None,
+                 progress: str | None = None) -> None:
+        super().__init__(message)
+        self.device_lost = device_lost
+        self.progress = progress
+
+    def __reduce__(self) -> tuple:
+        return _rebuild_timeout, (str(self), self.device_lost, self.progress)
+
+
+def _rebuild_timeout(message: str, device_lost: bool | None, progress: str | None
+                     ) -> GpuTimeoutError:
+    return GpuTimeoutError(message, device_lost=device_lost, progress=progress)
+
+
+class GpuDeviceLostError(GpuError):
+    """The GPU device was lost (the driver reset it, or it was destroyed) while a query used it:
+    the detector that raised it has made a new device and can be used again."""
+
+
+def with_message(exc: BaseException, message: str) -> GpuError:
+    """``exc`` as a :class:`GpuError` of its own type (or :class:`GpuError` for another
+    exception, :class:`GpuDeviceLostError` for one that says the device is lost) with
+    ``message``, keeping a :class:`GpuTimeoutError`'s attributes."""
+    if isinstance(exc, GpuTimeoutError):
+        return GpuTimeoutError(message, device_lost=exc.device_lost, progress=exc.progress)
+    if isinstance(exc, GpuError):
+        return type(exc)(message)
+    if "device is lost" in str(exc).lower() or "device was lost" in str(exc).lower():
+        return GpuDeviceLostError(message)
+    return GpuError(message)
 
 
 class GpuMemoryError(GpuError, MemoryError):

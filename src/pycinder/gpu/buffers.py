@@ -15,6 +15,7 @@ import wgpu
 from ..errors import GpuMemoryError, GpuTimeoutError
 from ..request import DEFAULT_TIMEOUT
 from ..scene.pack import PackedScene
+from .watch import wait_for, watch_of
 
 STORAGE = wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_DST
 _READ_NOSYNC = "READ_NOSYNC"
@@ -222,9 +223,7 @@ class Readback:
         """Wait at most ``timeout`` seconds for a mapping asked for with :meth:`start`, copy out
         the first ``nbytes`` and unmap."""
         if not wait_for(promise, timeout):
-            raise GpuTimeoutError(
-                f"the GPU did not finish {waiting_for or self.buf.label} within {timeout:g} s "
-                "(the device may be lost or overloaded)")
+            raise timeout_error(self.buf.device, waiting_for or self.buf.label, timeout)
         promise.sync_wait()
         b = self.buf.buffer
         try:
@@ -234,14 +233,20 @@ class Readback:
         return data
 
 
-def wait_for(promise: object, timeout: float) -> bool:
-    """Wait for a wgpu promise for at most ``timeout`` seconds; False when it is still pending.
-
-    wgpu-native resolves promises on a polling thread that sets an event; waiting on that event
-    with a timeout is the only bounded wait wgpu-py offers. Other backends fall back to an
-    unbounded wait.
-    """
-    event = getattr(promise, "_thread_event", None)
-    if event is None:  # pragma: no cover - another wgpu backend
-        return True
-    return bool(event.wait(timeout))
+def timeout_error(device: wgpu.GPUDevice, what: str, timeout: float) -> GpuTimeoutError:
+    """The error of a wait for ``what`` on ``device`` that passed its ``timeout``: with whether
+    the device was lost, the passes its last submission held and whether the GPU started and
+    finished it (:meth:`~pycinder.gpu.watch.DeviceWatch.explain`; each question waits at most
+    :data:`~pycinder.gpu.watch.PROGRESS_DEADLINE` seconds)."""
+    watch = watch_of(device)
+    if watch is None:
+        return GpuTimeoutError(f"the GPU did not finish {what} within {timeout:g} s (the device "
+                               "may be lost or overloaded: it is not watched)")
+    try:
+        found = watch.explain()
+    except Exception as exc:  # the diagnosis must not hide the timeout
+        return GpuTimeoutError(f"the GPU did not finish {what} within {timeout:g} s (what the "
+                               f"device did could not be found: {exc})")
+    return GpuTimeoutError(f"the GPU did not finish {what} within {timeout:g} s: "
+                           f"{found.sentence}", device_lost=found.lost is not None,
+                           progress=found.progress)

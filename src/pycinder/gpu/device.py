@@ -11,6 +11,7 @@ from importlib import resources
 import wgpu
 
 from .cffi_types import preparse
+from .watch import install, watch_of
 
 INSTALL_HINT = (
     "pycinder needs a WebGPU adapter (Vulkan, Metal, D3D12 or OpenGL). On a machine without a GPU, "
@@ -322,7 +323,55 @@ def _get_gpu() -> Gpu:
         device = adapter.request_device_sync(required_features=wanted, required_limits=limits)
     depth_format = "depth32float-stencil8" if "depth32float-stencil8" in device.features \
         else "depth24plus-stencil8"
-    return Gpu(device.adapter, device, depth_format, "timestamp-query" in device.features)
+    install(device)
+    return Gpu(device.adapter, device, depth_format, "timestamp-query" in device.features,
+               lock=_next_lock or threading.RLock())
+
+
+_renewing = threading.Lock()
+_next_lock: threading.RLock | None = None
+"""The lock the next :class:`Gpu` made takes: the lost one's, while :func:`renew_gpu` runs."""
+
+
+def device_lost(gpu: Gpu, exc: BaseException | None = None) -> str | None:
+    """Why ``gpu``'s device was lost (``exc``, an error a call on it raised, may say so), or
+    None while it is not known to be lost (see :mod:`pycinder.gpu.watch`)."""
+    watch = watch_of(gpu.device)
+    if watch is None:
+        return None
+    if exc is not None:
+        watch.note_error(exc)
+    return watch.probe_lost()
+
+
+def renew_gpu(gpu: Gpu) -> Gpu:
+    """A new device in place of ``gpu``'s lost one: the one :func:`get_gpu` gives from now on.
+    Another detector may have renewed it already (then that device is given); the new
+    :class:`Gpu` keeps ``gpu``'s lock, so that queries from every thread still take turns.
+
+    Raises
+    ------
+    NoAdapterError
+        No adapter answers any more.
+    RuntimeError
+        pycinder shares wgpu's default device (:func:`share_default_device`): it cannot make
+        that device again.
+    """
+    with _renewing:
+        if _get_gpu.cache_info().currsize:
+            current = _get_gpu()
+            if current.device is not gpu.device and device_lost(current) is None:
+                return current
+        if _share_default:
+            raise RuntimeError("wgpu's default device was lost; pycinder shares it "
+                               "(share_default_device) and cannot make it again")
+        global _next_lock
+        _next_lock = gpu.lock
+        try:
+            _get_gpu.cache_clear()
+            return _get_gpu()
+        finally:
+            _next_lock = None
 
 
 @lru_cache(maxsize=None)
