@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ..gpu.device import fit_default_device_to_adapter
 from ..util.optional import require
 
 __all__ = ["Camera", "Snapshotter", "group_camera", "COLOUR_A", "COLOUR_B"]
@@ -144,6 +145,7 @@ class Snapshotter:
         self.surroundings = float(surroundings)
         self.lo = np.array([b.mesh.bounds[0] for b in self.bodies]).reshape(-1, 3)
         self.hi = np.array([b.mesh.bounds[1] for b in self.bodies]).reshape(-1, 3)
+        fit_default_device_to_adapter("pycinder clash snapshots")  # OpenGL adapters too
         self.canvas = RenderCanvas(size=self.size, pixel_ratio=1)
         self.renderer = self.gfx.WgpuRenderer(self.canvas, pixel_scale=2, ppaa="none",
                                               pixel_filter="linear")

@@ -8,12 +8,11 @@ before the first pygfx renderer and the first :class:`~pycinder.Detector` of the
 
 from __future__ import annotations
 
-import os
 from types import ModuleType
 
 import wgpu
 
-from ..gpu.device import get_gpu, share_default_device
+from ..gpu.device import fit_default_device_to_adapter, get_gpu, share_default_device
 
 INSTALL_HINT = ("the demos draw with pygfx and rendercanvas: pip install 'pycinder[demo]' "
                 "(from a clone: pip install '.[demo]')")
@@ -52,17 +51,11 @@ def shared_device() -> wgpu.GPUDevice:
         raise RuntimeError(
             "wgpu's default device was created before the demo could configure it for both "
             f"pycinder and pygfx; start the demo in a fresh process ({exc})") from exc
-    # pygfx asks for 'float32-filterable' (for filtering float textures, which the demos never
-    # sample); OpenGL adapters lack it, so drop the request there rather than fail.
-    adapter = wgpu.gpu.request_adapter_sync(
-        power_preference=os.environ.get("PYCINDER_POWER_PREFERENCE", "high-performance"))
-    if adapter is not None and "float32-filterable" not in adapter.features:
-        wgpu.preconfigure_default_device("pycinder demos",
-                                         required_features={"!float32-filterable"})
+    adapter = fit_default_device_to_adapter("pycinder demos")
     try:
         device = wgpu.get_default_device()
     except Exception as exc:  # wgpu raises different types per backend
-        backend = adapter.info["backend_type"] if adapter is not None else "unknown"
+        backend = adapter.info["backend_type"]
         raise RuntimeError(f"the demos cannot create a device for pygfx on the {backend} "
                            f"backend: {exc}") from exc
     get_gpu()  # pycinder checks the shared device offers what it needs, and says if not

@@ -278,6 +278,30 @@ def share_default_device() -> None:
     _get_gpu.cache_clear()
 
 
+def fit_default_device_to_adapter(caller: str) -> wgpu.GPUAdapter:
+    """Before pygfx makes wgpu's default device: drop pygfx's request for ``float32-filterable``
+    where the adapter lacks it (OpenGL adapters, llvmpipe's among them), since pycinder's pictures
+    never filter float textures. Does nothing once the default device exists.
+
+    Parameters
+    ----------
+    caller : str
+        Who asks, for wgpu's record of the default device's configuration.
+
+    Returns
+    -------
+    wgpu.GPUAdapter
+        The adapter the default device will be made on.
+    """
+    adapter = _request_adapter()
+    if "float32-filterable" not in adapter.features:
+        try:
+            wgpu.preconfigure_default_device(caller, required_features={"!float32-filterable"})
+        except RuntimeError:  # the default device exists already: its configuration stands
+            pass
+    return adapter
+
+
 def get_gpu() -> Gpu:
     """The device pycinder renders with, created on first use (see :func:`share_default_device`).
 
