@@ -47,7 +47,8 @@ from ...scene import Scene
 from ...scene.pack import ShapePack
 from ..broad.prune import sweep_and_prune
 from .distance import ITEM, Distance
-from .pairwork import check_rounding, pair_frames, spread
+from .pairwork import pair_frames, spread
+from .regions import RegionBuffers, meeting_regions, tile_side
 
 if TYPE_CHECKING:
     from .base import ModeHost
@@ -165,6 +166,7 @@ class Clearance:
     def __init__(self, strategy: ModeHost) -> None:
         self.strategy = strategy
         self.distance = Distance(strategy.gpu, timeout=strategy.request.timeout)
+        self.regions = RegionBuffers(strategy.gpu.device, "C1 regions")
         self._boxes: tuple[tuple, tuple[np.ndarray, np.ndarray]] | None = None
 
     def run(self, scene: Scene, stats: Stats, c: float, groups: np.ndarray | None,
@@ -188,11 +190,17 @@ class Clearance:
         pack = self.strategy.pack(scene, stats)
         items, frames, reach = plan(scene, pack, pairs, c, self._cluster_boxes(pack, scene))
         error = ERROR_SCALE * reach
-        check_rounding(scene, pairs, error, "clearance", c, "distance")
+        # Pairs too large (or too far from the origin) for the whole-pair frame are measured in
+        # the regions where they come within c.
+        local = error > c / 16
+        items = items[~local[items["pair"]]]
         t0 = time.perf_counter()
         buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
         measured = self.distance.run(buffers.positions, buffers.faces, items,
                                      frames).astype(np.float64)
+        if local.any():
+            k = np.flatnonzero(local)
+            measured[k], error[k] = self._measure_regions(scene, pairs[k], c)
         stats.add_ms("distance", (time.perf_counter() - t0) * 1e3)
         found = set(pair_keys(overlap.pairs[:, 0], overlap.pairs[:, 1]).tolist())
         inside = np.isin(pair_keys(pairs[:, 0], pairs[:, 1]), list(found)) if found \
@@ -212,6 +220,34 @@ class Clearance:
         stats.candidates = max(stats.candidates, len(pairs))
         return _with_figures(overlap, kept[order].astype(np.int64), distances[keep][order],
                              errors[keep][order])
+
+    def _measure_regions(self, scene: Scene, pairs: np.ndarray, c: float
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """Pairs measured in the regions where they come within ``c`` (:mod:`~.regions`): tiles
+        of the box where their world boxes meet grown by ``c``, each grown by ``c`` and small
+        enough that its rounding is at most ``c / 32``, with the faces cut to it in float64.
+        Two points closer than ``c`` lie in one grown tile, so the least over the regions is
+        the pair's distance wherever that is below ``c``.
+
+        Returns
+        -------
+        distance : (K,) float64
+            The least over the pair's regions (+inf where none holds faces of both).
+        error : (K,) float64
+            The largest rounding bound of the pair's regions.
+        """
+        geometry, owner = meeting_regions(scene, pairs, c, tile_side(c, c), solids=False,
+                                          orient=False, option="clearance", value=c)
+        positions, faces, items, frames, reach = geometry.packed()
+        distance = np.full(len(pairs), np.inf)
+        error = np.zeros(len(pairs))
+        if len(frames):
+            self.regions.write(positions, faces)
+            measured = self.distance.run(self.regions.positions, self.regions.faces, items,
+                                         frames).astype(np.float64)
+            np.minimum.at(distance, owner, measured)
+            np.maximum.at(error, owner, ERROR_SCALE * reach)
+        return distance, error
 
     def _cluster_boxes(self, pack: ShapePack, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
         # A shape object is made for new vertex content: the shapes' identities are the key.

@@ -61,7 +61,8 @@ from ...scene.pack import ShapePack
 from ..broad.prune import sweep_and_prune
 from .clearance import ERROR_SCALE
 from .depth import ITEM_FLIPPED, ITEM_WHOLE, LINES, WHOLE_FACES, WHOLE_WORK, Depth, lines
-from .pairwork import ITEM, check_rounding, pair_frames, spread
+from .pairwork import ITEM, pair_frames, spread
+from .regions import RegionBuffers, meeting_regions, tile_side
 
 if TYPE_CHECKING:
     from .base import ModeHost
@@ -144,6 +145,7 @@ class HardClash:
     def __init__(self, strategy: ModeHost) -> None:
         self.strategy = strategy
         self.depth = Depth(strategy.gpu, timeout=strategy.request.timeout)
+        self.regions = RegionBuffers(strategy.gpu.device, "H1 regions")
 
     def run(self, scene: Scene, stats: Stats, d: float, groups: np.ndarray | None,
             within: np.ndarray | None) -> CollisionResult:
@@ -192,12 +194,16 @@ class HardClash:
         buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
         error = np.zeros(len(pairs))
         figures = np.zeros((len(pairs), LINES, 2))
+        local = np.zeros(len(pairs), bool)
         for start in range(0, max(len(pairs), 1), CHUNK_PAIRS):
             part = slice(start, start + CHUNK_PAIRS)
             items, frames, reach = plan(scene, pack, pairs[part])
             error[part] = ERROR_SCALE * reach
             if d is not None:
-                check_rounding(scene, pairs[part], error[part], "min_depth", d, "depth")
+                # Pairs too large (or too far from the origin) for the whole-pair frame are
+                # measured in the regions where they meet.
+                local[part] = error[part] > d / 16
+                items = items[~local[part][items["pair"]]]
             t2 = time.perf_counter()
             stats.add_ms("upload", (t2 - t1) * 1e3)
             figures[part] = self.depth.run(buffers.positions, buffers.faces, items, frames)
@@ -206,11 +212,60 @@ class HardClash:
             stats.add_ms("depth", (t1 - t2) * 1e3)
         flat = np.maximum(figures.reshape(len(pairs), 2 * LINES), 0.0)
         best = np.argmin(flat, axis=1)
+        depth = flat[np.arange(len(pairs)), best]
+        if local.any():
+            assert d is not None
+            k = np.flatnonzero(local)
+            depth[k], best[k], error[k] = self._measure_regions(scene, stats, pairs[k], d)
         direction = lines(scene.transforms[pairs[:, 0]], scene.transforms[pairs[:, 1]])
         along = direction[np.arange(len(pairs)), best // 2]
         # Moving a along +n clears the pair (word 2 i): b lies behind a, along -n.
         normal = np.where((best % 2 == 0)[:, None], -along, along)
-        return flat[np.arange(len(pairs)), best], normal, error
+        return depth, normal, error
+
+    def _measure_regions(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Pairs measured in the regions where they meet (:mod:`~.regions`): tiles of the box
+        where their world boxes meet, grown by ``d``, each small enough that its rounding is at
+        most ``d / 32``, with the bodies cut to it in float64.
+
+        Returns
+        -------
+        depth : (K,) float64
+            The deepest region's figure.
+        best : (K,) int64
+            Its word (``2 * line + way``).
+        error : (K,) float64
+            The largest rounding bound of the pair's regions.
+        """
+        t0 = time.perf_counter()
+        geometry, owner = meeting_regions(scene, pairs, d, tile_side(d, d), solids=True,
+                                          orient=True, option="min_depth", value=d)
+        positions, faces, items, frames, reach = geometry.packed(WHOLE_FACES)
+        stats.add_ms("regions", (time.perf_counter() - t0) * 1e3)
+        t1 = time.perf_counter()
+        figures = np.zeros((0, LINES, 2))
+        if len(frames):
+            self.regions.write(positions, faces)
+            figures = self.depth.run(self.regions.positions, self.regions.faces, items, frames)
+        stats.bytes_read += figures.size * 4
+        stats.add_ms("depth", (time.perf_counter() - t1) * 1e3)
+        flat = np.maximum(figures.reshape(len(frames), 2 * LINES), 0.0)
+        word = np.argmin(flat, axis=1) if len(frames) else np.zeros(0, np.int64)
+        region_depth = flat[np.arange(len(frames)), word]
+        region_error = ERROR_SCALE * reach
+        depth = np.zeros(len(pairs))
+        best = np.zeros(len(pairs), np.int64)
+        error = np.zeros(len(pairs))
+        np.maximum.at(error, owner, region_error)
+        # The deepest region of each pair, figure less rounding (the test that reports it).
+        order = np.lexsort((region_depth - region_error, owner))
+        last = np.flatnonzero(np.r_[owner[order][1:] != owner[order][:-1], True]) \
+            if len(order) else np.zeros(0, np.int64)
+        top = order[last]
+        depth[owner[top]] = region_depth[top]
+        best[owner[top]] = word[top]
+        return depth, best, error
 
 
 def _with_figures(result: CollisionResult, depths: np.ndarray, errors: np.ndarray
