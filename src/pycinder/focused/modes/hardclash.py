@@ -32,11 +32,18 @@ elsewhere (two turned boxes meeting edge to edge) the figure is up to that facto
 ``result.depth_errors``. Open bodies have no inside: their surfaces' points are the rays' extremes,
 so two surfaces crossing deeper than ``d`` are a clash.
 
-Precision. Each pair is measured in a frame of its own, centred where its world boxes meet;
-single precision bounds a figure's rounding by :data:`ERROR_SCALE` times ``L``, the farthest
-the pair's bodies reach from that centre. A pair is reported when its figure exceeds ``d`` less
-that bound, which keeps promise 2 while the bound is at most ``d / 16``: a smaller ``d`` for
-bodies that large raises a ``ValueError`` naming the pair.
+Precision. A pair is measured in a frame of its own, centred where its world boxes meet;
+single precision bounds a figure's rounding by :data:`ERROR_SCALE` times ``L``, the farthest the
+vertices it is computed from lie from that centre. A pair is reported when its figure exceeds
+``d`` less that bound, which keeps promise 2 while the bound is at most ``d / 16``. A pair whose
+whole bodies would break that (an 84 m slab, a model in map coordinates) is measured instead in
+regions (:mod:`~pycinder.focused.modes.regions`): boxes covering where its world boxes meet,
+grown by :data:`PRECISION_GROW` ``d``, small enough that their rounding is at most ``d / 32``,
+with both bodies cut to each in float64 (solids closed by the box's walls) before they are
+rounded. A translation that separates the bodies separates their parts in a region, so a
+region's figure is never more than the whole pair's (promises 2 and 3 hold as before); the pair's
+figure is its deepest region's. A pair that would need more than
+:data:`~pycinder.focused.modes.regions.MAX_REGIONS` regions raises a ``ValueError`` naming it.
 
 Cost. No pixels, tolerance or records: every candidate pair (world boxes that meet) is measured
 face pair by face pair, 19 lines each, so the cost of a pair grows with the product of its two
@@ -60,7 +67,15 @@ from ...scene import Scene
 from ...scene.pack import ShapePack
 from ..broad.prune import sweep_and_prune
 from .clearance import ERROR_SCALE
-from .depth import ITEM_FLIPPED, ITEM_WHOLE, LINES, WHOLE_FACES, WHOLE_WORK, Depth, lines
+from .depth import (
+    ITEM_FLIPPED,
+    ITEM_WHOLE,
+    LINES,
+    WHOLE_FACES,
+    WHOLE_WORK,
+    Depth,
+    lines,
+)
 from .pairwork import ITEM, pair_frames, spread
 from .regions import RegionBuffers, meeting_regions, tile_side
 
@@ -73,6 +88,9 @@ PASSES = (Depth,)
 CHUNK_PAIRS = 2**16
 """Most pairs measured by one dispatch of pass H1 (their figures, 152 bytes a pair, are read
 back per chunk)."""
+
+PRECISION_GROW = 1.0
+"""Regions of a pair too large for one frame are grown by this many ``d`` on every side."""
 
 DIRECTION_COS = 0.886
 """Every direction is within this cosine of one of the 26 directions through a cube's centre and
@@ -213,34 +231,48 @@ class HardClash:
         flat = np.maximum(figures.reshape(len(pairs), 2 * LINES), 0.0)
         best = np.argmin(flat, axis=1)
         depth = flat[np.arange(len(pairs)), best]
-        if local.any():
-            assert d is not None
-            k = np.flatnonzero(local)
-            depth[k], best[k], error[k] = self._measure_regions(scene, stats, pairs[k], d)
+        if d is not None:
+            self._local(scene, stats, pairs, d, local, depth, best, error)
         direction = lines(scene.transforms[pairs[:, 0]], scene.transforms[pairs[:, 1]])
         along = direction[np.arange(len(pairs)), best // 2]
         # Moving a along +n clears the pair (word 2 i): b lies behind a, along -n.
         normal = np.where((best % 2 == 0)[:, None], -along, along)
         return depth, normal, error
 
-    def _measure_regions(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float
-                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Pairs measured in the regions where they meet (:mod:`~.regions`): tiles of the box
-        where their world boxes meet, grown by ``d``, each small enough that its rounding is at
-        most ``d / 32``, with the bodies cut to it in float64.
+    def _local(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float, local: np.ndarray,
+               depth: np.ndarray, best: np.ndarray, error: np.ndarray) -> None:
+        """Measure in regions (in place) the pairs ``local`` flags, too large for a whole-pair
+        frame: in tiles small enough for single precision, grown by :data:`PRECISION_GROW`
+        ``d``; each pair's figure is its deepest region's."""
+        if local.any():
+            k = np.flatnonzero(local)
+            figure, word, rounding, owner, _ = self._regions(
+                scene, stats, pairs[k], d, tile_side(d, PRECISION_GROW * d), PRECISION_GROW * d)
+            depth[k], best[k], error[k] = _deepest(owner, len(k), figure, word, rounding)
+
+    def _regions(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float, side: float,
+                 grow: float, search: tuple[np.ndarray, np.ndarray] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                            tuple[np.ndarray, np.ndarray]]:
+        """Pass H1 over the regions where pairs meet (:func:`~.regions.meeting_regions`: tiles
+        of at most ``side``, grown by ``grow``, with the bodies cut to each in float64).
 
         Returns
         -------
-        depth : (K,) float64
-            The deepest region's figure.
-        best : (K,) int64
-            Its word (``2 * line + way``).
-        error : (K,) float64
-            The largest rounding bound of the pair's regions.
+        figure : (R,) float64
+            Each region's directional depth.
+        word : (R,) int64
+            The word it is measured along (``2 * line + way``).
+        rounding : (R,) float64
+            Its rounding bound.
+        owner : (R,) int64
+            The row of ``pairs`` it belongs to.
+        boxes : (R, 3) float64, (R, 3) float64
+            Its world box.
         """
         t0 = time.perf_counter()
-        geometry, owner = meeting_regions(scene, pairs, d, tile_side(d, d), solids=True,
-                                          orient=True, option="min_depth", value=d)
+        geometry, owner = meeting_regions(scene, pairs, grow, side, solids=True, orient=True,
+                                          option="min_depth", value=d, search=search)
         positions, faces, items, frames, reach = geometry.packed(WHOLE_FACES)
         stats.add_ms("regions", (time.perf_counter() - t0) * 1e3)
         t1 = time.perf_counter()
@@ -252,20 +284,26 @@ class HardClash:
         stats.add_ms("depth", (time.perf_counter() - t1) * 1e3)
         flat = np.maximum(figures.reshape(len(frames), 2 * LINES), 0.0)
         word = np.argmin(flat, axis=1) if len(frames) else np.zeros(0, np.int64)
-        region_depth = flat[np.arange(len(frames)), word]
-        region_error = ERROR_SCALE * reach
-        depth = np.zeros(len(pairs))
-        best = np.zeros(len(pairs), np.int64)
-        error = np.zeros(len(pairs))
-        np.maximum.at(error, owner, region_error)
-        # The deepest region of each pair, figure less rounding (the test that reports it).
-        order = np.lexsort((region_depth - region_error, owner))
-        last = np.flatnonzero(np.r_[owner[order][1:] != owner[order][:-1], True]) \
-            if len(order) else np.zeros(0, np.int64)
-        top = order[last]
-        depth[owner[top]] = region_depth[top]
-        best[owner[top]] = word[top]
-        return depth, best, error
+        boxes = (np.array([box[0] for box in geometry.boxes]).reshape(-1, 3),
+                 np.array([box[1] for box in geometry.boxes]).reshape(-1, 3))
+        return flat[np.arange(len(frames)), word], word, ERROR_SCALE * reach, owner, boxes
+
+
+def _deepest(owner: np.ndarray, n: int, figure: np.ndarray, word: np.ndarray,
+             rounding: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per pair (``owner`` (R,) of ``n``), its deepest region's figure and word (the one whose
+    figure less rounding is largest, what the report tests), and its regions' largest rounding
+    bound (0 and word 0 for a pair without regions)."""
+    depth = np.zeros(n)
+    best = np.zeros(n, np.int64)
+    error = np.zeros(n)
+    np.maximum.at(error, owner, rounding)
+    if len(owner):
+        order = np.lexsort((figure - rounding, owner))
+        last = order[np.flatnonzero(np.r_[owner[order][1:] != owner[order][:-1], True])]
+        depth[owner[last]] = figure[last]
+        best[owner[last]] = word[last]
+    return depth, best, error
 
 
 def _with_figures(result: CollisionResult, depths: np.ndarray, errors: np.ndarray

@@ -4,7 +4,8 @@ A figure measured in single precision is rounded in proportion to how far the ve
 computed from lie from the frame's origin. Measured over two whole bodies, that is the bodies'
 extent (an 84 m slab) and, for models in map coordinates, their distance from the origin. Here a
 pair is measured instead in regions: boxes of at most :func:`tile_side` per side covering the box
-where the pair's world boxes meet (grown by a margin), each with its own frame at its centre, and
+where the pair's world boxes meet (grown by a margin) wherever a face of one body is near the
+other (:func:`meeting_tiles`), each with its own frame at its centre, and
 each body's faces cut to the region in float64 on the host before they are rounded to single
 precision. Rounding then scales with the region, whatever the bodies' length or their distance
 from the origin.
@@ -55,37 +56,109 @@ def tile_side(value: float, grow: float, fraction: float = 1 / 32) -> float:
     return max(fraction * value / (ROUNDING * 0.5 * np.sqrt(3.0)) - 2.0 * grow, grow)
 
 
-def tiles(lo: np.ndarray, hi: np.ndarray, side: float) -> tuple[np.ndarray, np.ndarray,
-                                                                  np.ndarray]:
-    """Cover each box with a grid of boxes of equal size, at most ``side`` per side.
+def triangles_meet_box(tris: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Which triangles meet boxes (the separating-axis test over the box's three axes, the
+    triangle's normal and the nine crossings of their edges; touching counts as meeting, and a
+    slack of 1e-9 of the sizes involved keeps the test on the side of meeting).
 
     Parameters
     ----------
-    lo, hi : (K, 3) float64
-        The boxes (``hi >= lo``).
-    side : float
+    tris : (T, 3, 3) float64
+    lo, hi : (3,) or (T, 3) float64
+        One box, or one per triangle.
 
     Returns
     -------
-    owner : (T,) int64
-        The box each tile covers part of.
-    tile_lo, tile_hi : (T, 3) float64
+    (T,) bool
     """
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
-    size = hi - lo
-    n = np.maximum(np.ceil(size / side), 1).astype(np.int64)  # (K, 3) tiles per axis
-    total = n.prod(axis=1)
-    owner = np.repeat(np.arange(len(lo)), total)
-    within = np.arange(len(owner)) - np.repeat(np.cumsum(total) - total, total)
-    nk = n[owner]
-    ix = within % nk[:, 0]
-    iy = (within // nk[:, 0]) % nk[:, 1]
-    iz = within // (nk[:, 0] * nk[:, 1])
-    index = np.stack([ix, iy, iz], axis=1)
-    step = size[owner] / nk
-    tile_lo = lo[owner] + index * step
-    tile_hi = np.where(index + 1 == nk, hi[owner], lo[owner] + (index + 1) * step)
-    return owner, tile_lo, tile_hi
+    centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    half = np.broadcast_to(half, (len(tris), 3))
+    v = tris - np.broadcast_to(centre, (len(tris), 3))[:, None, :]
+    scale = half.max(axis=1) + np.abs(v).max(axis=(1, 2)) if len(tris) else np.zeros(0)
+    slack = 1e-9 * scale
+    meet = np.all((v.min(axis=1) <= half + slack[:, None]) &
+                  (v.max(axis=1) >= -half - slack[:, None]), axis=1)
+    edges = np.roll(v, -1, axis=1) - v  # (T, 3, 3): edge i from corner i
+    axes = [np.cross(edges[:, 0], edges[:, 1])]
+    for i in range(3):
+        for j in range(3):
+            unit = np.zeros(3)
+            unit[j] = 1.0
+            axes.append(np.cross(unit, edges[:, i]))
+    for axis in axes:
+        p = np.einsum("tkc,tc->tk", v, axis)
+        r = (np.abs(axis) * half).sum(axis=1) + slack * np.abs(axis).sum(axis=1)
+        meet &= (p.min(axis=1) <= r) & (p.max(axis=1) >= -r)
+    return meet
+
+
+def meeting_tiles(lo: np.ndarray, hi: np.ndarray, side: float, grow: float,
+                  tris: list[np.ndarray], solid: list[bool],
+                  most: int = MAX_REGIONS) -> tuple[np.ndarray, np.ndarray]:
+    """Tiles of at most ``side`` per side where two bodies may meet: the box ``lo``, ``hi``
+    halved along its longest side until small enough, keeping a part only where, grown by
+    ``grow``, it meets a face of one body and, of the other, a face or (a solid) possibly its
+    inside. Level by level, each part tested against the faces that met its parent.
+
+    Parameters
+    ----------
+    lo, hi : (3,) float64
+    side, grow : float
+    tris : [(Ta, 3, 3), (Tb, 3, 3)] float64
+        The bodies' faces.
+    solid : [bool, bool]
+        Whether each body has an inside (a tile without its faces may lie within it).
+    most : int
+        Stop once more tiles than this are found, or more than four times as many parts are
+        still to halve (the caller refuses the pair: more than ``most`` are returned).
+
+    Returns
+    -------
+    tile_lo, tile_hi : (T, 3) float64
+    """
+    b_lo = np.asarray(lo, np.float64)[None]
+    b_hi = np.asarray(hi, np.float64)[None]
+    # Per body, (part, face) rows still to test.
+    rows = [(np.zeros(len(t), np.int64), np.arange(len(t))) for t in tris]
+    found_lo, found_hi = [], []
+    found = 0
+    while len(b_lo) and found <= most:
+        if found + len(b_lo) > 4 * most:  # parts still to halve: at least this many tiles
+            found += len(b_lo)
+            found_lo.append(b_lo)
+            found_hi.append(b_hi)
+            break
+        has = []
+        for k in range(2):
+            part, face = rows[k]
+            meet = triangles_meet_box(tris[k][face], b_lo[part] - grow, b_hi[part] + grow)
+            rows[k] = (part[meet], face[meet])
+            has.append(np.bincount(rows[k][0], minlength=len(b_lo)) > 0)
+        keep = (has[0] | has[1]) & (has[0] | solid[0]) & (has[1] | solid[1])
+        size = b_hi - b_lo
+        small = size.max(axis=1) <= side
+        done = keep & small
+        found_lo.append(b_lo[done])
+        found_hi.append(b_hi[done])
+        found += int(done.sum())
+        split = np.flatnonzero(keep & ~small)
+        # Part i of the split ones becomes parts 2 i and 2 i + 1 of the next level.
+        index = np.full(len(b_lo), -1)
+        index[split] = np.arange(len(split))
+        axis = np.argmax(size[split], axis=1)
+        mid = 0.5 * (b_lo[split, axis] + b_hi[split, axis])
+        lower_hi, upper_lo = b_hi[split].copy(), b_lo[split].copy()
+        lower_hi[np.arange(len(split)), axis] = mid
+        upper_lo[np.arange(len(split)), axis] = mid
+        b_lo = np.stack([b_lo[split], upper_lo], axis=1).reshape(-1, 3)
+        b_hi = np.stack([lower_hi, b_hi[split]], axis=1).reshape(-1, 3)
+        for k in range(2):
+            part, face = rows[k]
+            alive = index[part] >= 0
+            part, face = 2 * index[part[alive]], face[alive]
+            rows[k] = (np.concatenate([part, part + 1]), np.concatenate([face, face]))
+    return np.concatenate(found_lo), np.concatenate(found_hi)
 
 
 def clip_triangles(tris: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -149,6 +222,25 @@ def clip_triangles(tris: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarr
     edge1, edge2 = parts[:, 1] - parts[:, 0], parts[:, 2] - parts[:, 0]
     area = np.linalg.norm(np.cross(edge1, edge2), axis=1)
     return parts[area > 0]
+
+
+def contains(tris: np.ndarray, point: np.ndarray) -> bool:
+    """Whether a closed surface's triangles (T, 3, 3) float64 hold ``point`` (3,) inside: the
+    parity of their crossings by a ray from it (in a direction no building axis is near, so that
+    the ray misses edges and vertices but for sets of measure zero)."""
+    direction = np.array([0.5773502691896258, 0.5163977794943222, 0.6324555320336759])
+    v0, e1, e2 = tris[:, 0] - point, tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    h = np.cross(direction, e2)
+    det = np.einsum("tc,tc->t", e1, h)
+    ok = np.abs(det) > 1e-300
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = -v0
+    u = np.einsum("tc,tc->t", s, h) * inv
+    q = np.cross(s, e1)
+    v = (q @ direction) * inv
+    t = np.einsum("tc,tc->t", e2, q) * inv
+    hits = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+    return bool(hits.sum() % 2)
 
 
 def _manifold3d() -> Any:
@@ -223,82 +315,104 @@ def linear_map(scene: Scene, body: int) -> np.ndarray:
 
 
 def meeting_regions(scene: Scene, pairs: np.ndarray, grow: float, side: float, solids: bool,
-                    orient: bool, option: str = "min_depth", value: float = 0.0
+                    orient: bool, option: str = "min_depth", value: float = 0.0,
+                    search: tuple[np.ndarray, np.ndarray] | None = None
                     ) -> tuple[RegionGeometry, np.ndarray]:
     """Every candidate pair's regions: tiles of at most ``side`` covering the box where the
-    pair's world boxes meet grown by ``grow``, each tile grown by ``grow``, with both bodies'
-    parts within it (solids closed by the tile's walls when ``solids``, else surfaces).
+    pair's world boxes meet grown by ``grow`` (or the box ``search`` gives), where a face of
+    one body is near the other (:func:`meeting_tiles`), each tile grown by ``grow``, with both
+    bodies' parts within it (solids closed by the tile's walls when ``solids``, else surfaces).
 
     Parameters
     ----------
     scene : Scene
     pairs : (K, 2) int
+        The pairs (a pair may come more than once, with different ``search`` boxes).
     grow, side : float
     solids : bool
         Cut closed bodies as solids (pass H1) rather than as surfaces (pass C1).
     orient : bool
         Keep each body's own axes in the frames (pass H1's lines).
+    option, value : str, float
+        The query's option and figure, for the messages.
+    search : (K, 3) float64, (K, 3) float64, optional
+        World boxes to cover instead of where the pairs' world boxes meet.
 
     Returns
     -------
     geometry : RegionGeometry
     owner : (R,) int64
-        The pair of each region.
+        The row of ``pairs`` of each region.
 
     Raises
     ------
     ValueError
         A closed body manifold3d cannot take as a solid, or a pair that meets over more than
-        :data:`MAX_REGIONS` regions, naming the pair (``option`` and ``value``: the query's
-        figure, for the message).
+        :data:`MAX_REGIONS` regions, naming the pair.
     """
     lo, hi = scene.world_boxes()
     open_body = scene.open
     geometry = RegionGeometry()
     owner: list[int] = []
+    bodies: dict[tuple[int, int], tuple] = {}
     for k, (a, b) in enumerate(np.asarray(pairs, np.int64)):
         meet_lo = np.maximum(lo[a], lo[b]) - grow
         meet_hi = np.minimum(hi[a], hi[b]) + grow
-        origin = 0.5 * (meet_lo + meet_hi)
-        counts = np.maximum(np.ceil((meet_hi - meet_lo) / side), 1)
-        if counts.prod() > MAX_REGIONS:
+        if (a, b) not in bodies:
+            bodies = {(a, b): _pair_bodies(scene, int(a), int(b), meet_lo, meet_hi, solids,
+                                           orient, open_body, option)}
+        origin, tris, solid, parts, map_a, map_b = bodies[(a, b)]
+        if search is not None:
+            meet_lo, meet_hi = search[0][k], search[1][k]
+        t_lo, t_hi = meeting_tiles(meet_lo - origin, meet_hi - origin, side, grow, tris, solid)
+        if len(t_lo) > MAX_REGIONS:
             # Regions scale with the figure along each axis the pair meets over more than one.
-            axes = max(int((counts > 1).sum()), 1)
-            coarser = value * (counts.prod() / MAX_REGIONS) ** (1.0 / axes)
+            size = t_hi.max(axis=0) - t_lo.min(axis=0)
+            axes = max(int((size > side).sum()), 1)
+            coarser = value * (len(t_lo) / MAX_REGIONS) ** (1.0 / axes)
             raise ValueError(
                 f"{option} {value:g} is too small for {scene.label(int(a))} and "
                 f"{scene.label(int(b))}: they meet over a box of "
-                f"{' x '.join(f'{x:.3g}' for x in meet_hi - meet_lo)}, which would be measured "
-                f"in {int(counts.prod())} regions (at most {MAX_REGIONS}, each small enough for "
-                f"single precision); use a {option} of at least {coarser:.3g}, or query those "
-                f"bodies at their own scale")
-        _, t_lo, t_hi = tiles((meet_lo - origin)[None], (meet_hi - origin)[None], side)
-        parts = []
-        for body in (a, b):
-            if solids and not open_body[body]:
-                cutter = SolidCutter(*body_vertices(scene, body, origin))
-                if not cutter.ok:
-                    raise ValueError(
-                        f"{scene.label(int(body))} is closed but not a two-manifold solid "
-                        f"manifold3d can cut, so its pair with "
-                        f"{scene.label(int(b if body == a else a))} cannot be measured in the "
-                        f"regions where they meet; use a coarser min_depth for it")
-                parts.append(cutter.within)
-            else:
-                tris = world_triangles(scene, body, origin)
-                parts.append(lambda l, h, tris=tris: clip_triangles(tris, l, h))
-        map_a = linear_map(scene, a) if orient else np.eye(3)
-        map_b = linear_map(scene, b) if orient else np.eye(3)
-        for l, h in zip(t_lo - grow, t_hi + grow):
-            part_a = parts[0](l, h)
+                f"{' x '.join(f'{x:.3g}' for x in meet_hi - meet_lo)} and would be measured in "
+                f"more than {MAX_REGIONS} regions (each small enough for single precision, and "
+                f"for a non-convex pair small enough to be local); use a {option} of at least "
+                f"{coarser:.3g}, or query those bodies at their own scale")
+        for tile_lo, tile_hi in zip(t_lo - grow, t_hi + grow):
+            part_a = parts[0](tile_lo, tile_hi)
             if len(part_a) == 0:
                 continue
-            part_b = parts[1](l, h)
+            part_b = parts[1](tile_lo, tile_hi)
             if len(part_b) == 0:
                 continue
-            geometry.add(part_a, part_b, 0.5 * (l + h), map_a, map_b)
+            geometry.add(part_a, part_b, 0.5 * (tile_lo + tile_hi), map_a, map_b)
+            geometry.boxes.append((tile_lo + origin, tile_hi + origin))
             owner.append(k)
     return geometry, np.array(owner, np.int64)
+
+
+def _pair_bodies(scene: Scene, a: int, b: int, meet_lo: np.ndarray, meet_hi: np.ndarray,
+                 solids: bool, orient: bool, open_body: np.ndarray, option: str) -> tuple:
+    """What :func:`meeting_regions` needs of a pair's two bodies: the origin it cuts them
+    around (where their boxes meet), their faces, whether each is cut as a solid, a function
+    cutting each to a box, and their linear maps."""
+    origin = 0.5 * (meet_lo + meet_hi)
+    tris = [world_triangles(scene, body, origin) for body in (a, b)]
+    solid = [solids and not open_body[body] for body in (a, b)]
+    parts = []
+    for k, body in enumerate((a, b)):
+        if solid[k]:
+            cutter = SolidCutter(*body_vertices(scene, body, origin))
+            if not cutter.ok:
+                raise ValueError(
+                    f"{scene.label(body)} is closed but not a two-manifold solid manifold3d can "
+                    f"cut, so its pair with {scene.label(b if body == a else a)} cannot be "
+                    f"measured in the regions where they meet; use a coarser {option} for it")
+            parts.append(cutter.within)
+        else:
+            parts.append(lambda lo, hi, t=tris[k]: clip_triangles(t, lo, hi))
+    map_a = linear_map(scene, a) if orient else np.eye(3)
+    map_b = linear_map(scene, b) if orient else np.eye(3)
+    return origin, tris, solid, parts, map_a, map_b
 
 
 class RegionGeometry:
@@ -318,6 +432,8 @@ class RegionGeometry:
         self.faces_b: list[tuple[int, int]] = []
         self.frames: list[np.ndarray] = []
         self.reach: list[float] = []
+        self.boxes: list[tuple[np.ndarray, np.ndarray]] = []
+        """Each region's world box (set by :func:`meeting_regions`)."""
         self._faces = 0
 
     def add(self, part_a: np.ndarray, part_b: np.ndarray, centre: np.ndarray,
@@ -400,5 +516,6 @@ class RegionBuffers:
                 buffer.write(data)
 
 
-__all__ = ["ROUNDING", "RegionBuffers", "RegionGeometry", "SolidCutter", "body_vertices", "clip_triangles",
-           "linear_map", "meeting_regions", "tile_side", "tiles", "world_triangles"]
+__all__ = ["MAX_REGIONS", "ROUNDING", "RegionBuffers", "RegionGeometry", "SolidCutter",
+           "body_vertices", "clip_triangles", "contains", "linear_map", "meeting_regions", "meeting_tiles",
+           "tile_side", "triangles_meet_box", "world_triangles"]
