@@ -86,9 +86,9 @@ def run(elements: int = 3000, depths: Sequence[float] = DEPTHS,
 def markdown(r: dict[str, Any]) -> list[str]:
     """The results as a Markdown table."""
     lines = [f"Adapter: {r['adapter']}.", "",
-             "| elements | min_depth (mm) | offset (km) | must | found | touching | grazes | "
-             "false | reported | depths checked | depths outside bound | worst depth error "
-             "(mm) | clash s |",
+             ("| elements | min_depth (mm) | offset (km) | must | found | touching | grazes | "
+              "false | reported | depths checked | depths outside bound | worst depth error "
+              "(mm) | clash s |"),
              "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for row in r["rows"]:
         lines.append(

@@ -41,8 +41,11 @@ regions (:mod:`~pycinder.focused.modes.regions`): boxes covering where its world
 grown by :data:`PRECISION_GROW` ``d``, small enough that their rounding is at most ``d / 32``,
 with both bodies cut to each in float64 (solids closed by the box's walls) before they are
 rounded. A translation that separates the bodies separates their parts in a region, so a
-region's figure is never more than the whole pair's (promises 2 and 3 hold as before); the pair's
-figure is its deepest region's. A pair that would need more than
+region's figure is never more than the whole pair's (promise 2 holds as before); whether the pair
+is reported is decided by its deepest region's figure. Its reported depth is still the whole
+pair's figure, the upper bound of promise 3, and its ``depth_errors`` include the whole pair's
+rounding (a region's parts can be separated by less than the whole bodies, as a pipe inside a
+wall that a region cuts can leave it through the region's wall). A pair that would need more than
 :data:`~pycinder.focused.modes.regions.MAX_REGIONS` regions raises a ``ValueError`` naming it.
 
 Cost. No pixels, tolerance or records: every candidate pair (world boxes that meet) is measured
@@ -178,8 +181,8 @@ class HardClash:
         stats.candidates = len(pairs)
         stats.broad_phase = "numpy"
         stats.add_ms("broad phase", (time.perf_counter() - t0) * 1e3)
-        depth, _, error = self.measure(scene, stats, pairs, d)
-        keep = depth > d - error
+        depth, _, error, figure, rounding = self.measure_figures(scene, stats, pairs, d)
+        keep = figure > d - rounding
         result = CollisionResult(pairs[keep], empty_records(), stats, scene=scene,
                                  records_kept="none")
         depths = depth[keep]
@@ -187,6 +190,13 @@ class HardClash:
 
     def measure(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float | None = None
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each pair's directional depth, the direction it is measured along, and the bound on
+        its rounding (the first three of :meth:`measure_figures`)."""
+        return self.measure_figures(scene, stats, pairs, d)[:3]
+
+    def measure_figures(self, scene: Scene, stats: Stats, pairs: np.ndarray,
+                        d: float | None = None
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Each pair's directional depth, the direction it is measured along, and the bound on
         its rounding (pass H1 on the shapes as the strategy uploads them).
 
@@ -206,6 +216,11 @@ class HardClash:
             Unit direction from body a into body b: moving a by ``-depth * normal`` clears the
             pair (any direction where ``depth`` is 0 and no ray meets both bodies).
         error : (K,) float64
+        figure, rounding : (K,) float64
+            What decides whether a pair is deeper than ``d`` (reported where ``figure > d -
+            rounding``): the directional depth and its rounding bound, or for a pair measured
+            in regions, its deepest region's figure and rounding bound (without ``d``, the
+            first and third).
         """
         t1 = time.perf_counter()
         pack = self.strategy.pack(scene, stats)
@@ -221,7 +236,6 @@ class HardClash:
                 # Pairs too large (or too far from the origin) for the whole-pair frame are
                 # measured in the regions where they meet.
                 local[part] = error[part] > d / 16
-                items = items[~local[part][items["pair"]]]
             t2 = time.perf_counter()
             stats.add_ms("upload", (t2 - t1) * 1e3)
             figures[part] = self.depth.run(buffers.positions, buffers.faces, items, frames)
@@ -231,24 +245,25 @@ class HardClash:
         flat = np.maximum(figures.reshape(len(pairs), 2 * LINES), 0.0)
         best = np.argmin(flat, axis=1)
         depth = flat[np.arange(len(pairs)), best]
+        figure, rounding = depth.copy(), error.copy()
         if d is not None:
-            self._local(scene, stats, pairs, d, local, depth, best, error)
+            self._local(scene, stats, pairs, d, local, figure, rounding)
         direction = lines(scene.transforms[pairs[:, 0]], scene.transforms[pairs[:, 1]])
         along = direction[np.arange(len(pairs)), best // 2]
         # Moving a along +n clears the pair (word 2 i): b lies behind a, along -n.
         normal = np.where((best % 2 == 0)[:, None], -along, along)
-        return depth, normal, error
+        return depth, normal, error, figure, rounding
 
     def _local(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float, local: np.ndarray,
-               depth: np.ndarray, best: np.ndarray, error: np.ndarray) -> None:
+               figure: np.ndarray, rounding: np.ndarray) -> None:
         """Measure in regions (in place) the pairs ``local`` flags, too large for a whole-pair
         frame: in tiles small enough for single precision, grown by :data:`PRECISION_GROW`
         ``d``; each pair's figure is its deepest region's."""
         if local.any():
             k = np.flatnonzero(local)
-            figure, word, rounding, owner, _ = self._regions(
+            region, word, bound, owner, _ = self._regions(
                 scene, stats, pairs[k], d, tile_side(d, PRECISION_GROW * d), PRECISION_GROW * d)
-            depth[k], best[k], error[k] = _deepest(owner, len(k), figure, word, rounding)
+            figure[k], _, rounding[k] = _deepest(owner, len(k), region, word, bound)
 
     def _regions(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float, side: float,
                  grow: float, search: tuple[np.ndarray, np.ndarray] | None = None
