@@ -23,10 +23,16 @@ its figure's bound covers both.
 
 Precision. Each pair is measured in a frame of its own, centred where its bodies can be within
 ``c``; single precision then bounds the error of a distance by :data:`ERROR_SCALE` times ``L``,
-the farthest the pair's bodies reach from that centre (``result.distance_errors``). A pair is
+the farthest the measured vertices lie from that centre (``result.distance_errors``). A pair is
 reported when its measured distance is below ``c`` plus that bound (promise 1), which keeps
-promise 2 while the bound is at most ``c / 16``: a smaller ``c`` for bodies that large raises a
-``ValueError`` naming the pair.
+promise 2 while the bound is at most ``c / 16``. A pair whose whole bodies would break that is
+measured in regions (:mod:`~pycinder.focused.modes.regions`): boxes where its world boxes meet,
+grown by ``c`` and small enough for a bound of ``c / 32``, with the faces clipped to each in
+float64; two points closer than ``c`` lie in one region, so the least distance over the regions
+is the pair's. Its bodies are tested by the interference test only as finely as single precision
+resolves them, and a body inside the other is found by a ray-parity test of one of its vertices
+in float64. A pair that would need more than
+:data:`~pycinder.focused.modes.regions.MAX_REGIONS` regions raises a ``ValueError`` naming it.
 
 Cost. The distance pass runs over cluster pairs (64 x 64 triangle pairs each) near the pair's
 closest approach, so its cost grows with the area of the surfaces within ``c`` of each other;
@@ -45,9 +51,18 @@ from ...records import pair_keys
 from ...result import CollisionResult, Stats
 from ...scene import Scene
 from ...scene.pack import ShapePack
+from ...tolerance import resolvable_tolerance
 from ..broad.prune import sweep_and_prune
 from .distance import ITEM, Distance
-from .pairwork import check_rounding, pair_frames, spread
+from .pairwork import pair_frames, spread
+from .regions import (
+    RegionBuffers,
+    body_vertices,
+    contains,
+    meeting_regions,
+    tile_side,
+    world_triangles,
+)
 
 if TYPE_CHECKING:
     from .base import ModeHost
@@ -165,6 +180,7 @@ class Clearance:
     def __init__(self, strategy: ModeHost) -> None:
         self.strategy = strategy
         self.distance = Distance(strategy.gpu, timeout=strategy.request.timeout)
+        self.regions = RegionBuffers(strategy.gpu.device, "C1 regions")
         self._boxes: tuple[tuple, tuple[np.ndarray, np.ndarray]] | None = None
 
     def run(self, scene: Scene, stats: Stats, c: float, groups: np.ndarray | None,
@@ -176,6 +192,18 @@ class Clearance:
         if self.strategy.request.tolerance is not None:
             given = np.where(np.isnan(given), self.strategy.request.tolerance, given)
         fine = np.where(np.isnan(given), c / 4, np.minimum(given, c / 4))
+        if n >= 2:
+            # Bodies too large (or too far from the origin) for c / 4 are tested as finely as
+            # single precision resolves them; their pairs are measured in regions, and which
+            # of them is inside the other is found there (below), not from this test.
+            lo, hi = scene.world_boxes()
+            near_pairs = sweep_and_prune(lo - c, hi + c, within, groups)
+            floor = np.zeros(n)
+            if len(near_pairs):
+                resolved = resolvable_tolerance(scene, near_pairs)
+                np.maximum.at(floor, near_pairs[:, 0], resolved)
+                np.maximum.at(floor, near_pairs[:, 1], resolved)
+            fine = np.maximum(fine, floor * (1 + 2**-20))
         overlap = self.strategy.submit_interference(scene, stats, groups, records, within,
                                                     fine).result()
         overlap.pairs = np.asarray(overlap.pairs, np.int64).reshape(-1, 2)
@@ -188,11 +216,17 @@ class Clearance:
         pack = self.strategy.pack(scene, stats)
         items, frames, reach = plan(scene, pack, pairs, c, self._cluster_boxes(pack, scene))
         error = ERROR_SCALE * reach
-        check_rounding(scene, pairs, error, "clearance", c, "distance")
+        # Pairs too large (or too far from the origin) for the whole-pair frame are measured in
+        # the regions where they come within c.
+        local = error > c / 16
+        items = items[~local[items["pair"]]]
         t0 = time.perf_counter()
         buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
         measured = self.distance.run(buffers.positions, buffers.faces, items,
                                      frames).astype(np.float64)
+        if local.any():
+            k = np.flatnonzero(local)
+            measured[k], error[k] = self._measure_regions(scene, pairs[k], c)
         stats.add_ms("distance", (time.perf_counter() - t0) * 1e3)
         found = set(pair_keys(overlap.pairs[:, 0], overlap.pairs[:, 1]).tolist())
         inside = np.isin(pair_keys(pairs[:, 0], pairs[:, 1]), list(found)) if found \
@@ -201,6 +235,11 @@ class Clearance:
         # Found by the interference test although its surfaces are at least 2 t apart: a body
         # inside the other (promise 1 of the tolerance contract rules out a pair t apart).
         contained = inside & (measured >= 2 * tol)
+        # Pairs measured in regions: overlapping where their surfaces cross (measured 0), and
+        # one inside the other where a vertex of one lies within the other (closed) one.
+        for k in np.flatnonzero(local):
+            inside[k] = contained[k] = measured[k] >= c + error[k] and \
+                _nested(scene, int(pairs[k, 0]), int(pairs[k, 1]))
         near = measured < c + error
         keep = near | inside
         distances = np.where(contained, 0.0, np.minimum(measured, np.finfo(np.float64).max))
@@ -213,12 +252,54 @@ class Clearance:
         return _with_figures(overlap, kept[order].astype(np.int64), distances[keep][order],
                              errors[keep][order])
 
+    def _measure_regions(self, scene: Scene, pairs: np.ndarray, c: float
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """Pairs measured in the regions where they come within ``c`` (:mod:`~.regions`): tiles
+        of the box where their world boxes meet grown by ``c``, each grown by ``c`` and small
+        enough that its rounding is at most ``c / 32``, with the faces cut to it in float64.
+        Two points closer than ``c`` lie in one grown tile, so the least over the regions is
+        the pair's distance wherever that is below ``c``.
+
+        Returns
+        -------
+        distance : (K,) float64
+            The least over the pair's regions (+inf where none holds faces of both).
+        error : (K,) float64
+            The largest rounding bound of the pair's regions.
+        """
+        geometry, owner = meeting_regions(scene, pairs, c, tile_side(c, c), solids=False,
+                                          orient=False, option="clearance", value=c)
+        positions, faces, items, frames, reach = geometry.packed()
+        distance = np.full(len(pairs), np.inf)
+        error = np.zeros(len(pairs))
+        if len(frames):
+            self.regions.write(positions, faces)
+            measured = self.distance.run(self.regions.positions, self.regions.faces, items,
+                                         frames).astype(np.float64)
+            np.minimum.at(distance, owner, measured)
+            np.maximum.at(error, owner, ERROR_SCALE * reach)
+        return distance, error
+
     def _cluster_boxes(self, pack: ShapePack, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
         # A shape object is made for new vertex content: the shapes' identities are the key.
         key = (id(pack), tuple(id(s) for s in scene.shapes))
         if self._boxes is None or self._boxes[0] != key:
             self._boxes = (key, cluster_boxes(pack, scene.shapes))
         return self._boxes[1]
+
+
+def _nested(scene: Scene, a: int, b: int) -> bool:
+    """Whether either body of a pair whose surfaces do not meet lies inside the other (closed)
+    one: then any vertex of it does (float64, :func:`~.regions.contains`)."""
+    lo, hi = scene.world_boxes()
+    origin = 0.5 * (np.maximum(lo[a], lo[b]) + np.minimum(hi[a], hi[b]))
+    for inner, outer in ((a, b), (b, a)):
+        if scene.open[outer] or np.any(lo[inner] < lo[outer]) or np.any(hi[inner] > hi[outer]):
+            continue
+        point = body_vertices(scene, inner, origin)[0][0]
+        if contains(world_triangles(scene, outer, origin), point):
+            return True
+    return False
 
 
 def _with_figures(overlap: CollisionResult, pairs: np.ndarray, distances: np.ndarray,

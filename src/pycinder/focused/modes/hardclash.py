@@ -32,11 +32,21 @@ elsewhere (two turned boxes meeting edge to edge) the figure is up to that facto
 ``result.depth_errors``. Open bodies have no inside: their surfaces' points are the rays' extremes,
 so two surfaces crossing deeper than ``d`` are a clash.
 
-Precision. Each pair is measured in a frame of its own, centred where its world boxes meet;
-single precision bounds a figure's rounding by :data:`ERROR_SCALE` times ``L``, the farthest
-the pair's bodies reach from that centre. A pair is reported when its figure exceeds ``d`` less
-that bound, which keeps promise 2 while the bound is at most ``d / 16``: a smaller ``d`` for
-bodies that large raises a ``ValueError`` naming the pair.
+Precision. A pair is measured in a frame of its own, centred where its world boxes meet;
+single precision bounds a figure's rounding by :data:`ERROR_SCALE` times ``L``, the farthest the
+vertices it is computed from lie from that centre. A pair is reported when its figure exceeds
+``d`` less that bound, which keeps promise 2 while the bound is at most ``d / 16``. A pair whose
+whole bodies would break that (an 84 m slab, a model in map coordinates) is measured instead in
+regions (:mod:`~pycinder.focused.modes.regions`): boxes covering where its world boxes meet,
+grown by :data:`PRECISION_GROW` ``d``, small enough that their rounding is at most ``d / 32``,
+with both bodies cut to each in float64 (solids closed by the box's walls) before they are
+rounded. A translation that separates the bodies separates their parts in a region, so a
+region's figure is never more than the whole pair's (promise 2 holds as before); whether the pair
+is reported is decided by its deepest region's figure. Its reported depth is still the whole
+pair's figure, the upper bound of promise 3, and its ``depth_errors`` include the whole pair's
+rounding (a region's parts can be separated by less than the whole bodies, as a pipe inside a
+wall that a region cuts can leave it through the region's wall). A pair that would need more than
+:data:`~pycinder.focused.modes.regions.MAX_REGIONS` regions raises a ``ValueError`` naming it.
 
 Cost. No pixels, tolerance or records: every candidate pair (world boxes that meet) is measured
 face pair by face pair, 19 lines each, so the cost of a pair grows with the product of its two
@@ -60,8 +70,17 @@ from ...scene import Scene
 from ...scene.pack import ShapePack
 from ..broad.prune import sweep_and_prune
 from .clearance import ERROR_SCALE
-from .depth import ITEM_FLIPPED, ITEM_WHOLE, LINES, WHOLE_FACES, WHOLE_WORK, Depth, lines
-from .pairwork import ITEM, check_rounding, pair_frames, spread
+from .depth import (
+    ITEM_FLIPPED,
+    ITEM_WHOLE,
+    LINES,
+    WHOLE_FACES,
+    WHOLE_WORK,
+    Depth,
+    lines,
+)
+from .pairwork import ITEM, pair_frames, spread
+from .regions import RegionBuffers, meeting_regions, tile_side
 
 if TYPE_CHECKING:
     from .base import ModeHost
@@ -72,6 +91,9 @@ PASSES = (Depth,)
 CHUNK_PAIRS = 2**16
 """Most pairs measured by one dispatch of pass H1 (their figures, 152 bytes a pair, are read
 back per chunk)."""
+
+PRECISION_GROW = 1.0
+"""Regions of a pair too large for one frame are grown by this many ``d`` on every side."""
 
 DIRECTION_COS = 0.886
 """Every direction is within this cosine of one of the 26 directions through a cube's centre and
@@ -144,6 +166,7 @@ class HardClash:
     def __init__(self, strategy: ModeHost) -> None:
         self.strategy = strategy
         self.depth = Depth(strategy.gpu, timeout=strategy.request.timeout)
+        self.regions = RegionBuffers(strategy.gpu.device, "H1 regions")
 
     def run(self, scene: Scene, stats: Stats, d: float, groups: np.ndarray | None,
             within: np.ndarray | None) -> CollisionResult:
@@ -158,8 +181,8 @@ class HardClash:
         stats.candidates = len(pairs)
         stats.broad_phase = "numpy"
         stats.add_ms("broad phase", (time.perf_counter() - t0) * 1e3)
-        depth, _, error = self.measure(scene, stats, pairs, d)
-        keep = depth > d - error
+        depth, _, error, figure, rounding = self.measure_figures(scene, stats, pairs, d)
+        keep = figure > d - rounding
         result = CollisionResult(pairs[keep], empty_records(), stats, scene=scene,
                                  records_kept="none")
         depths = depth[keep]
@@ -167,6 +190,13 @@ class HardClash:
 
     def measure(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float | None = None
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each pair's directional depth, the direction it is measured along, and the bound on
+        its rounding (the first three of :meth:`measure_figures`)."""
+        return self.measure_figures(scene, stats, pairs, d)[:3]
+
+    def measure_figures(self, scene: Scene, stats: Stats, pairs: np.ndarray,
+                        d: float | None = None
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Each pair's directional depth, the direction it is measured along, and the bound on
         its rounding (pass H1 on the shapes as the strategy uploads them).
 
@@ -186,18 +216,26 @@ class HardClash:
             Unit direction from body a into body b: moving a by ``-depth * normal`` clears the
             pair (any direction where ``depth`` is 0 and no ray meets both bodies).
         error : (K,) float64
+        figure, rounding : (K,) float64
+            What decides whether a pair is deeper than ``d`` (reported where ``figure > d -
+            rounding``): the directional depth and its rounding bound, or for a pair measured
+            in regions, its deepest region's figure and rounding bound (without ``d``, the
+            first and third).
         """
         t1 = time.perf_counter()
         pack = self.strategy.pack(scene, stats)
         buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
         error = np.zeros(len(pairs))
         figures = np.zeros((len(pairs), LINES, 2))
+        local = np.zeros(len(pairs), bool)
         for start in range(0, max(len(pairs), 1), CHUNK_PAIRS):
             part = slice(start, start + CHUNK_PAIRS)
             items, frames, reach = plan(scene, pack, pairs[part])
             error[part] = ERROR_SCALE * reach
             if d is not None:
-                check_rounding(scene, pairs[part], error[part], "min_depth", d, "depth")
+                # Pairs too large (or too far from the origin) for the whole-pair frame are
+                # measured in the regions where they meet.
+                local[part] = error[part] > d / 16
             t2 = time.perf_counter()
             stats.add_ms("upload", (t2 - t1) * 1e3)
             figures[part] = self.depth.run(buffers.positions, buffers.faces, items, frames)
@@ -206,11 +244,81 @@ class HardClash:
             stats.add_ms("depth", (t1 - t2) * 1e3)
         flat = np.maximum(figures.reshape(len(pairs), 2 * LINES), 0.0)
         best = np.argmin(flat, axis=1)
+        depth = flat[np.arange(len(pairs)), best]
+        figure, rounding = depth.copy(), error.copy()
+        if d is not None:
+            self._local(scene, stats, pairs, d, local, figure, rounding)
         direction = lines(scene.transforms[pairs[:, 0]], scene.transforms[pairs[:, 1]])
         along = direction[np.arange(len(pairs)), best // 2]
         # Moving a along +n clears the pair (word 2 i): b lies behind a, along -n.
         normal = np.where((best % 2 == 0)[:, None], -along, along)
-        return flat[np.arange(len(pairs)), best], normal, error
+        return depth, normal, error, figure, rounding
+
+    def _local(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float, local: np.ndarray,
+               figure: np.ndarray, rounding: np.ndarray) -> None:
+        """Measure in regions (in place) the pairs ``local`` flags, too large for a whole-pair
+        frame: in tiles small enough for single precision, grown by :data:`PRECISION_GROW`
+        ``d``; each pair's figure is its deepest region's."""
+        if local.any():
+            k = np.flatnonzero(local)
+            region, word, bound, owner, _ = self._regions(
+                scene, stats, pairs[k], d, tile_side(d, PRECISION_GROW * d), PRECISION_GROW * d)
+            figure[k], _, rounding[k] = _deepest(owner, len(k), region, word, bound)
+
+    def _regions(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float, side: float,
+                 grow: float, search: tuple[np.ndarray, np.ndarray] | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                            tuple[np.ndarray, np.ndarray]]:
+        """Pass H1 over the regions where pairs meet (:func:`~.regions.meeting_regions`: tiles
+        of at most ``side``, grown by ``grow``, with the bodies cut to each in float64).
+
+        Returns
+        -------
+        figure : (R,) float64
+            Each region's directional depth.
+        word : (R,) int64
+            The word it is measured along (``2 * line + way``).
+        rounding : (R,) float64
+            Its rounding bound.
+        owner : (R,) int64
+            The row of ``pairs`` it belongs to.
+        boxes : (R, 3) float64, (R, 3) float64
+            Its world box.
+        """
+        t0 = time.perf_counter()
+        geometry, owner = meeting_regions(scene, pairs, grow, side, solids=True, orient=True,
+                                          option="min_depth", value=d, search=search)
+        positions, faces, items, frames, reach = geometry.packed(WHOLE_FACES)
+        stats.add_ms("regions", (time.perf_counter() - t0) * 1e3)
+        t1 = time.perf_counter()
+        figures = np.zeros((0, LINES, 2))
+        if len(frames):
+            self.regions.write(positions, faces)
+            figures = self.depth.run(self.regions.positions, self.regions.faces, items, frames)
+        stats.bytes_read += figures.size * 4
+        stats.add_ms("depth", (time.perf_counter() - t1) * 1e3)
+        flat = np.maximum(figures.reshape(len(frames), 2 * LINES), 0.0)
+        word = np.argmin(flat, axis=1) if len(frames) else np.zeros(0, np.int64)
+        boxes = (np.array([box[0] for box in geometry.boxes]).reshape(-1, 3),
+                 np.array([box[1] for box in geometry.boxes]).reshape(-1, 3))
+        return flat[np.arange(len(frames)), word], word, ERROR_SCALE * reach, owner, boxes
+
+
+def _deepest(owner: np.ndarray, n: int, figure: np.ndarray, word: np.ndarray,
+             rounding: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per pair (``owner`` (R,) of ``n``), its deepest region's figure and word (the one whose
+    figure less rounding is largest, what the report tests), and its regions' largest rounding
+    bound (0 and word 0 for a pair without regions)."""
+    depth = np.zeros(n)
+    best = np.zeros(n, np.int64)
+    error = np.zeros(n)
+    np.maximum.at(error, owner, rounding)
+    if len(owner):
+        order = np.lexsort((figure - rounding, owner))
+        last = order[np.flatnonzero(np.r_[owner[order][1:] != owner[order][:-1], True])]
+        depth[owner[last]] = figure[last]
+        best[owner[last]] = word[last]
+    return depth, best, error
 
 
 def _with_figures(result: CollisionResult, depths: np.ndarray, errors: np.ndarray

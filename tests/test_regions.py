@@ -1,0 +1,135 @@
+"""Hard clashes and clearance at 1 mm on bodies 500 m long, up to 10,000 km from the origin,
+against exact geometry.
+
+Pairs too large (or too far from the origin) for one frame are measured in regions where they
+meet, cut to each region in float64 (:mod:`pycinder.focused.modes.regions`), so rounding scales
+with the region. The truth: a 500 m beam (a box, or a 32-sided cylinder lying on one of its
+edges) pressed into, touching or held above a 500 m slab by a stated amount; both are convex and
+the slab is wider than the beam, so the penetration depth is the amount pressed (the slab's top
+face's normal separates them, and no shorter translation does), and the distance the gap. The
+whole arrangement is moved far from the origin and, in half the cases, turned about a point
+there (a rigid motion leaves depths and distances unchanged).
+"""
+
+import numpy as np
+import pytest
+import trimesh
+
+import pycinder
+from pycinder.focused.modes.regions import clip_triangles, triangles_meet_box
+from pycinder.testing import random_rotation
+
+pytest.importorskip("manifold3d", reason="solids are cut to the regions with manifold3d")
+
+D = 1e-3
+"""min_depth and clearance of every query here."""
+SLAB = trimesh.creation.box((500.0, 2.0, 0.3))
+BEAM = trimesh.creation.box((500.0, 0.3, 0.3))
+# A cylinder lying along x on one of its edges (its lowest vertices at z = -0.1).
+PIPE = trimesh.creation.cylinder(radius=0.1, height=500.0, sections=32)
+PIPE.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (0, 1, 0)))
+OFFSETS = [(0.0, 0.0, 0.0), (5e5, 0.0, 0.0), (6e6, -7e6, 2e6)]
+"""At the origin, 500 km out, and 9.4e6 m out (within 10,000 km)."""
+PRESSED = {"touching": 0.0, "grazing 0.5 mm": 5e-4, "overlapping 5 mm": 5e-3,
+           "0.5 mm apart": -5e-4, "1.2 mm apart": -1.2e-3}
+"""How far each beam is pressed into its slab (negative: the gap)."""
+
+
+def _scene(beam: trimesh.Trimesh, turned: bool):
+    """A slab and a beam on it per offset of OFFSETS and case of PRESSED (10 m apart), each
+    offset's arrangement moved there and turned about it; returns meshes, transforms and the
+    depth (positive) or gap (negative) of each pair (2 k, 2 k + 1)."""
+    meshes, transforms, pressed = [], [], []
+    bottom = float(beam.vertices[:, 2].min())
+    for offset in OFFSETS:
+        motion = np.eye(4)
+        if turned:
+            motion[:3, :3] = random_rotation(np.random.default_rng(37))[:3, :3]
+        motion[:3, 3] = offset
+        for k, amount in enumerate(PRESSED.values()):
+            slab, on = np.eye(4), np.eye(4)
+            slab[:3, 3] = (0.0, 10.0 * k, 0.0)
+            on[:3, 3] = (0.0, 10.0 * k + 0.2, 0.15 - bottom - amount)
+            meshes += [SLAB, beam]
+            transforms += [motion @ slab, motion @ on]
+            pressed.append(amount)
+    return meshes, transforms, np.array(pressed)
+
+
+def _case(k: int) -> str:
+    return f"{list(PRESSED)[k % len(PRESSED)]} at {OFFSETS[k // len(PRESSED)]}"
+
+
+@pytest.mark.parametrize("turned", [False, pytest.param(True, marks=pytest.mark.slow)],
+                         ids=["aligned", "turned"])
+@pytest.mark.parametrize("beam", [BEAM, PIPE], ids=["box", "cylinder"])
+def test_hard_clashes_of_500m_bodies_anywhere_within_10000km(beam, turned):
+    meshes, transforms, pressed = _scene(beam, turned)
+    result = pycinder.Detector(min_depth=D).find_collisions(meshes, transforms)
+    found = {tuple(p): k for k, p in enumerate(result.pairs.tolist())}
+    assert set(found) <= {(2 * k, 2 * k + 1) for k in range(len(pressed))}
+    for k, amount in enumerate(pressed):
+        pair = (2 * k, 2 * k + 1)
+        if amount > D:
+            assert pair in found, f"{_case(k)}: a pair {amount} deep is not reported"
+            i = found[pair]
+            depth, error = result.depths[i], result.depth_errors[i]
+            # The figure bounds the depth from above up to rounding, and from below within its
+            # error (convex bodies); its error includes the whole pair's rounding.
+            assert depth - error <= amount <= depth + error, (_case(k), depth, error)
+        elif amount <= D / 2:
+            assert pair not in found, f"{_case(k)} is reported"
+
+
+@pytest.mark.parametrize("turned", [False, pytest.param(True, marks=pytest.mark.slow)],
+                         ids=["aligned", "turned"])
+@pytest.mark.parametrize("beam", [BEAM, PIPE], ids=["box", "cylinder"])
+def test_clearance_of_500m_bodies_anywhere_within_10000km(beam, turned):
+    meshes, transforms, pressed = _scene(beam, turned)
+    result = pycinder.Detector(clearance=D).find_collisions(meshes, transforms)
+    found = {tuple(p): k for k, p in enumerate(result.pairs.tolist())}
+    assert set(found) <= {(2 * k, 2 * k + 1) for k in range(len(pressed))}
+    for k, amount in enumerate(pressed):
+        pair = (2 * k, 2 * k + 1)
+        gap = max(-amount, 0.0)
+        if gap < D:
+            assert pair in found, f"{_case(k)} is not reported"
+            i = found[pair]
+            assert abs(result.distances[i] - gap) <= result.distance_errors[i], \
+                (_case(k), result.distances[i], result.distance_errors[i])
+            assert result.distance_errors[i] <= D / 16
+        elif gap > D + D / 8:
+            assert pair not in found, f"{_case(k)} is reported"
+
+
+def test_a_pair_meeting_over_too_many_regions_is_refused_with_what_would_do():
+    big = trimesh.creation.box((1e4, 1e4, 1e4))
+    shift = np.eye(4)
+    shift[0, 3] = 1e4 - 0.5
+    with pytest.raises(ValueError, match=r"(?s)min_depth 0.001 is too small for .*'wall'.*"
+                                         r"'slab'.*use a min_depth of at least"):
+        pycinder.Detector(min_depth=1e-3).find_collisions([big, big], [np.eye(4), shift],
+                                                          names=["wall", "slab"])
+
+
+def test_triangles_cut_to_a_box_keep_exactly_the_area_within_it():
+    # A 2 m cube's surface cut to a box holding one corner: three quarter faces of 1 m2 each.
+    cube = trimesh.creation.box((2.0, 2.0, 2.0))
+    tris = cube.vertices[cube.faces]
+    for lo, hi, area in (((0, 0, 0), (2, 2, 2), 3.0), ((-0.5, -2, -2), (0.5, 2, 2), 8 * 1.0),
+                         ((-2, -2, -2), (2, 2, 2), 24.0), ((1.5, 1.5, 1.5), (3, 3, 3), 0.0)):
+        lo, hi = np.array(lo, float), np.array(hi, float)
+        parts = clip_triangles(tris, lo, hi)
+        got = 0.5 * np.linalg.norm(np.cross(parts[:, 1] - parts[:, 0],
+                                            parts[:, 2] - parts[:, 0]), axis=1).sum()
+        assert got == pytest.approx(area, abs=1e-12)
+        assert np.all(parts >= lo - 1e-12) and np.all(parts <= hi + 1e-12)
+
+
+def test_triangles_meeting_a_box():
+    tri = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
+    # Its box meets the unit box at (0.6, 0.6) but the triangle (x + y <= 1) does not.
+    assert not triangles_meet_box(tri, np.array([0.6, 0.6, -1.0]), np.array([1.0, 1.0, 1.0]))[0]
+    assert triangles_meet_box(tri, np.array([0.4, 0.4, -1.0]), np.array([1.0, 1.0, 1.0]))[0]
+    assert triangles_meet_box(tri, np.array([0.5, 0.5, 0.0]), np.array([1.0, 1.0, 1.0]))[0]
+    assert not triangles_meet_box(tri, np.array([0.0, 0.0, 0.1]), np.array([1.0, 1.0, 1.0]))[0]
