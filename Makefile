@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 export PYTHONUNBUFFERED := 1
 
-.PHONY: demo test pytest docs wheel check-wheel venv lint bench clean
+.PHONY: demo test test-slow pytest docs wheel check-wheel venv lint bench clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -25,8 +25,13 @@ demo: $(VENV)/.deps-demo
 # fresh virtual environment of its own (not editable, no source tree on the path).
 test: pytest docs check-wheel
 
+# The tests marked slow (turned 500 m pairs in map coordinates: minutes on a CPU adapter) run
+# apart: `make test-slow`.
 pytest: $(VENV)/.deps-test
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -m "not slow"
+
+test-slow: $(VENV)/.deps-test
+	$(PY) -m pytest -q -m slow
 
 docs: $(VENV)/.deps-test
 	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html

@@ -245,7 +245,7 @@ def contains(tris: np.ndarray, point: np.ndarray) -> bool:
 
 def _manifold3d() -> Any:
     return require("manifold3d", "min_depth finer than single precision allows over whole "
-                   "bodies (solids cut to the regions where they meet)", "test")
+                   "bodies (solids cut to the regions where they meet)", "bim")
 
 
 class SolidCutter:
