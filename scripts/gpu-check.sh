@@ -41,13 +41,13 @@ if [[ $quick == 1 ]]; then
     repro_s=${REPRO_S:-120}; test_s=${TEST_S:-120}
     tests=(tests/test_api.py tests/test_device_loss.py tests/test_answers.py)
     bench_args=(--repeat 1)
-    repro_args=(--frames 1 --bodies 300 --stairs 60 --deadline 30)
+    repro_args=(--frames 1 --bodies 300 --stairs 60 --deadline 30 --dump-after 100)
 else
     suite_s=${SUITE_S:-240}; processes_s=${PROCESSES_S:-60}; bench_s=${BENCH_S:-90}
     repro_s=${REPRO_S:-60}; test_s=${TEST_S:-120}
     tests=(tests)
     bench_args=(--repeat 3)
-    repro_args=(--deadline 20)
+    repro_args=(--deadline 20 --dump-after 45)  # the stacks before the step's 60 s run out
 fi
 for budget in "$suite_s" "$processes_s" "$bench_s" "$repro_s" "$test_s"; do
     [[ $budget =~ ^[1-9][0-9]*$ ]] || { echo "gpu-check: budgets are whole seconds, got '$budget'" >&2; exit 2; }
@@ -99,7 +99,7 @@ print(f"pycinder {pycinder.__version__} chose: {gpu.description}; driver "
       f"{gpu.adapter.info.get('description', '')}")
 PYEOF
 if command -v nvidia-smi > /dev/null; then
-    nvidia-smi >> "$out/adapter.txt" 2>&1
+    timeout 60 nvidia-smi >> "$out/adapter.txt" 2>&1
 else
     echo "nvidia-smi: not present" >> "$out/adapter.txt"
 fi
@@ -120,7 +120,9 @@ suite_rc=$?
 grep -E "(FAILED|ERROR|Timeout)" "$out/suite.log" | grep -v "^=" | sort -u > "$out/failures.txt"
 if [[ $suite_rc == 124 || $suite_rc == 137 ]]; then
     # the test that was running: its line has no verdict yet
-    running=$(grep -E '^tests/.*::' "$out/suite.log" | grep -vE ' (PASSED|FAILED|SKIPPED|ERROR|XFAIL|XPASS)' | tail -1)
+    # (under xdist, lines start with "[gwN] ")
+    running=$(grep -E '^(\[gw[0-9]+\] )?tests/.*::' "$out/suite.log" \
+        | grep -vE ' (PASSED|FAILED|SKIPPED|ERROR|XFAIL|XPASS)' | tail -1)
     note "suite: stopped while running ${running:-(no test named)}"
     echo "STOPPED while running: ${running:-(no test named)}" >> "$out/failures.txt"
 fi
@@ -129,7 +131,7 @@ note "suite: $(grep -cE ' PASSED' "$out/suite.log") passed, $(grep -cE ' SKIPPED
 step processes "$processes_s" "$out/processes.log" "$py" -m pytest -v -p no:cacheprovider \
     -p no:randomly "${timeouts[@]}" tests/test_processes.py || true
 
-cuda=$("$py" -c "
+cuda=$(timeout 120 "$py" -c "
 import warp as wp
 wp.config.quiet = True
 wp.init()

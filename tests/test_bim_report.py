@@ -62,6 +62,38 @@ def test_groups_by_element_and_by_distance_by_hand():
         group_clashes(clashes, -1.0)
 
 
+def test_a_picture_that_cannot_be_rendered_leaves_the_bcf_file_without_pictures(monkeypatch,
+                                                                               tmp_path):
+    """Pictures for the BCF file are a bonus: when rendering fails, the topics are written
+    without them and a warning says why; pictures asked for with --snapshots fail the run."""
+    from pycinder.bim import bcf, report
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("no adapter for pygfx")
+
+    written = {}
+    monkeypatch.setattr(report, "_pictures", broken)
+    monkeypatch.setattr(bcf, "write_bcf", lambda clashes, path, **kw: written.update(kw))
+    clashes = [_fake("A", "B", (0, 0, 0))]
+    model = types.SimpleNamespace(bodies=[])
+    with pytest.warns(UserWarning, match="could not be rendered.*no adapter for pygfx"):
+        report.clash_report(model, clashes, bcf=tmp_path / "out.bcf")
+    assert written["snapshots"] == {} and len(written["groups"]) == 1
+    with pytest.raises(RuntimeError, match="no adapter"):
+        report.clash_report(model, clashes, snapshots=tmp_path / "pictures")
+
+
+def test_the_same_globalids_clashing_twice_get_topics_of_their_own():
+    """A model checked against its revised copy: one GlobalId pair clashes in two places, 100 m
+    apart. Each group's topic has its own GUID, and the first keeps the unsalted one."""
+    twice = [_fake("A", "B", (0, 0, 0)), _fake("A", "B", (100, 0, 0))]
+    for b in (twice[1].a, twice[1].b):
+        b.file = "copy.ifc"
+    groups = group_clashes(twice, 1.0)
+    assert len(groups) == 2 and groups[0].guid == topic_guid(("A", "B"))
+    assert len({g.guid for g in groups}) == 2
+
+
 def test_track_by_hand():
     """A previous run's topics: {AB, BC} and {FG}; now AB (with a new HI beside it) and DE."""
     ab, bc, fg = ("A", "B"), ("B", "C"), ("F", "G")

@@ -89,7 +89,8 @@ def lost_while_waiting() -> None:
     assert det.find_collisions(*_scene()).pairs.tolist() == [[0, 1]]
 
     def lost(promise: object, timeout: float) -> bool:
-        logging.getLogger("wgpu").error("DEVICE LOST!")  # what wgpu-native's callback logs
+        old.destroy()  # the device is lost while the map waits ...
+        logging.getLogger("wgpu").error("DEVICE LOST!")  # ... and wgpu-native's callback logs it
         return _never(promise, timeout)
 
     real, gpu_buffers.wait_for = gpu_buffers.wait_for, lost

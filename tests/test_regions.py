@@ -108,6 +108,19 @@ def test_clearance_of_500m_bodies_anywhere_within_10000km(beam, turned):
             assert pair not in found, f"{_case(k)} is reported"
 
 
+@pytest.mark.parametrize("offset", OFFSETS[:2], ids=["origin", "500 km"])
+def test_a_body_inside_a_large_one_near_its_face_is_at_distance_zero(offset):
+    """A box inside the 500 m slab, its top face 0.5 mm below the slab's (closer than c, so
+    measured in regions): the pair is at distance 0, one body inside the other, not 0.5 mm."""
+    inner = trimesh.creation.box((1.0, 1.0, 0.1))
+    slab, box = np.eye(4), np.eye(4)
+    slab[:3, 3] = offset
+    box[:3, 3] = np.add(offset, (0.0, 0.0, 0.15 - 0.05 - 5e-4))
+    result = pycinder.Detector(clearance=D).find_collisions([SLAB, inner], [slab, box])
+    assert result.pairs.tolist() == [[0, 1]]
+    assert result.distances[0] == 0.0, (result.distances, result.distance_errors)
+
+
 def test_a_pair_meeting_over_too_many_regions_is_refused_with_what_would_do():
     big = trimesh.creation.box((1e4, 1e4, 1e4))
     shift = np.eye(4)

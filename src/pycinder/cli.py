@@ -327,13 +327,14 @@ def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
                 raise ValueError("IFC files are checked with --strategy focused")
             mode, extra = _mode(args)
             a, b = _groups(args)
+            options = report_options(args)  # reads --against now: a bad file is said at once
             det = make_detector(strict=args.strict, tolerance=args.tolerance, **extra)
             with _progress(args.progress, "reading IFC") as update:
                 model = read_ifc(args.files, cache=False if args.no_cache else args.cache_dir,
                                  progress=update, limits=_limits(args))
                 update(0, 0, f"checking {plural(len(model.bodies), 'element')}")  # pulses
                 clashes = find_clashes(model, a, b, detector=det)
-                report = clash_report(model, clashes, **report_options(args), bcf=args.bcf,
+                report = clash_report(model, clashes, **options, bcf=args.bcf,
                                       project=", ".join(model.files), progress=update)
         except _ERRORS as exc:
             return _fail(args, _messages(exc), caught)

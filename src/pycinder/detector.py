@@ -111,10 +111,12 @@ class Detector:
             self.strategy = self._make_strategy()
         except Exception as again:  # the device itself is gone
             return with_message(exc, f"{exc}; the GPU device could not be used again "
-                                     f"({again}): recreate the Detector in a new process")
+                                     f"({again}): recreate the Detector in a new process",
+                                lost=lost is not None)
         return with_message(exc, f"{exc} (the device was lost: the detector made a new device "
                                  "and can be used again)" if lost is not None else
-                            f"{exc} (the detector was reset and can be used again)")
+                            f"{exc} (the detector was reset and can be used again)",
+                            lost=lost is not None)
 
     def prepare(self, bodies: Sequence[Any], names: Sequence[str | None] | None = None
                 ) -> PreparedBodies:

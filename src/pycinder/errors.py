@@ -83,16 +83,19 @@ class GpuDeviceLostError(GpuError):
     the detector that raised it has made a new device and can be used again."""
 
 
-def with_message(exc: BaseException, message: str) -> GpuError:
+def with_message(exc: BaseException, message: str, lost: bool = False) -> GpuError:
     """``exc`` as a :class:`GpuError` of its own type (or :class:`GpuError` for another
-    exception, :class:`GpuDeviceLostError` for one that says the device is lost) with
-    ``message``, keeping a :class:`GpuTimeoutError`'s attributes."""
+    exception) with ``message``, keeping a :class:`GpuTimeoutError`'s attributes; a
+    :class:`GpuDeviceLostError` where the device was ``lost`` (as the caller found) or ``exc``
+    says so, unless it is a timeout (which says it in its ``device_lost``)."""
     if isinstance(exc, GpuTimeoutError):
-        return GpuTimeoutError(message, device_lost=exc.device_lost, progress=exc.progress)
+        return GpuTimeoutError(message, device_lost=exc.device_lost or lost,
+                               progress=exc.progress)
+    text = str(exc).lower()
+    if lost or "device is lost" in text or "device was lost" in text:
+        return GpuDeviceLostError(message)
     if isinstance(exc, GpuError):
         return type(exc)(message)
-    if "device is lost" in str(exc).lower() or "device was lost" in str(exc).lower():
-        return GpuDeviceLostError(message)
     return GpuError(message)
 
 

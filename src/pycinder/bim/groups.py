@@ -192,8 +192,13 @@ def group_clashes(clashes: Sequence[Any], distance: float | None = DEFAULT_GROUP
     for k, r in enumerate(roots.tolist()):
         members.setdefault(r, []).append(k)
     out = []
+    seen: dict[tuple[str, str], int] = {}
     for index, ks in enumerate(sorted(members.values(), key=lambda m: m[0]), start=1):
         chosen = [clashes[k] for k in ks]
         key = min(pair_key(c.a.global_id, c.b.global_id) for c in chosen)
-        out.append(ClashGroup(index, chosen, key, topic_guid(key)))
+        # The same GlobalIds may clash twice (one pair in two files, a model against its
+        # revised copy): the later groups' GUIDs are salted, so that every topic has its own.
+        seen[key] = seen.get(key, 0) + 1
+        salt = f"#{seen[key] - 1}" if seen[key] > 1 else ""
+        out.append(ClashGroup(index, chosen, key, topic_guid(key, salt)))
     return out

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -143,10 +144,13 @@ def add_arguments(group: Any) -> None:
 
 
 def report_options(args: argparse.Namespace) -> dict[str, Any]:
-    """:func:`clash_report`'s options from the command line's (see :func:`add_arguments`)."""
+    """:func:`clash_report`'s options from the command line's (see :func:`add_arguments`). The
+    previous run (``--against``) is read here, before the model is read and checked, so that a
+    bad file is said at once."""
     return {"group_distance": None if args.no_groups else args.group_distance,
             "against": args.against, "snapshots": args.snapshots,
-            "pictures": not args.no_snapshots}
+            "pictures": not args.no_snapshots,
+            "previous": read_previous(args.against) if args.against is not None else None}
 
 
 def clash_report(model: Any, clashes: Sequence[Any], *,
@@ -155,7 +159,7 @@ def clash_report(model: Any, clashes: Sequence[Any], *,
                  snapshots: str | os.PathLike[str] | None = None, pictures: bool = True,
                  bcf: str | os.PathLike[str] | None = None, project: str = "pycinder clashes",
                  picture_size: tuple[int, int] = (640, 480),
-                 progress: Progress | None = None) -> ClashReport:
+                 progress: Progress | None = None, previous: Any = None) -> ClashReport:
     """Group, track, picture and write a run's clashes.
 
     Parameters
@@ -180,6 +184,8 @@ def clash_report(model: Any, clashes: Sequence[Any], *,
         The pictures' width and height in pixels.
     progress : callable, optional
         Called as ``progress(done, total, text)`` while pictures are rendered.
+    previous : optional
+        ``against`` as :func:`~pycinder.bim.tracking.read_previous` read it already.
 
     Returns
     -------
@@ -192,7 +198,8 @@ def clash_report(model: Any, clashes: Sequence[Any], *,
         a snapshot folder that is a file.
     """
     distance = check_group_distance(group_distance)
-    previous = read_previous(against) if against is not None else None
+    if previous is None and against is not None:
+        previous = read_previous(against)
     if snapshots is not None and Path(snapshots).exists() and not Path(snapshots).is_dir():
         raise ValueError(f"{os.fspath(snapshots)}: the snapshot folder is a file")
     clashes = list(clashes)
@@ -202,23 +209,41 @@ def clash_report(model: Any, clashes: Sequence[Any], *,
     report = ClashReport(clashes, groups, tracking, group_distance=distance)
     shots: dict[int, Any] = {}
     if (snapshots is not None or (bcf is not None and pictures)) and groups:
-        from .snapshot import Snapshotter
-
-        shooter = Snapshotter(model.bodies, picture_size)
-        folder = Path(snapshots) if snapshots is not None else None
-        if folder is not None:
-            folder.mkdir(parents=True, exist_ok=True)
-        for k, g in enumerate(groups):
-            if progress:
-                progress(k, len(groups), f"picturing group {g.index} of {len(groups)}")
-            shots[g.index] = shooter.group(g)
-            if folder is not None:
-                out = folder / f"group-{g.index}.png"
-                out.write_bytes(shots[g.index][0])
-                report.snapshots[g.index] = str(out)
+        try:
+            shots = _pictures(model, groups, report, snapshots, picture_size, progress)
+        except Exception as exc:  # pygfx, rendercanvas and the adapter fail in their own ways
+            if snapshots is not None:  # asked for: an error
+                raise
+            # the BCF file's pictures are a bonus: its topics are written without them
+            warnings.warn(f"clash pictures could not be rendered, so the BCF topics have none "
+                          f"({type(exc).__name__}: {exc}); --no-snapshots skips them",
+                          stacklevel=2)
+            shots = {}
     if bcf is not None:
         from .bcf import write_bcf
 
         write_bcf(clashes, bcf, groups=groups, tracking=tracking, snapshots=shots,
                   project=project)
     return report
+
+
+def _pictures(model: Any, groups: Sequence[ClashGroup], report: ClashReport,
+              snapshots: str | os.PathLike[str] | None, size: tuple[int, int],
+              progress: Progress | None) -> dict[int, Any]:
+    """Each group's picture and camera, by group index; written to ``snapshots`` too."""
+    from .snapshot import Snapshotter
+
+    shooter = Snapshotter(model.bodies, size)
+    folder = Path(snapshots) if snapshots is not None else None
+    if folder is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+    shots: dict[int, Any] = {}
+    for k, g in enumerate(groups):
+        if progress:
+            progress(k, len(groups), f"picturing group {g.index} of {len(groups)}")
+        shots[g.index] = shooter.group(g)
+        if folder is not None:
+            out = folder / f"group-{g.index}.png"
+            out.write_bytes(shots[g.index][0])
+            report.snapshots[g.index] = str(out)
+    return shots

@@ -8,8 +8,8 @@ to every signal wgpu-py 0.32 gives of a device's trouble:
   WGPU device was lost" on the ``wgpu`` logger; ``device.lost`` is not implemented), and a call
   on a lost device raises "Parent device is lost". The watch notes both (a logging handler on
   the ``wgpu`` logger, whose records name no device: a loss logged after a device was made is
-  taken as possibly its own), and :meth:`DeviceWatch.probe_lost` asks the device itself by
-  making a 4-byte buffer.
+  a hint, taken as the device's own only when the device itself fails), and
+  :meth:`DeviceWatch.probe_lost` asks the device by making a 4-byte buffer.
 * **uncaptured errors**: wgpu-py logs the errors no call raised on the same logger
   (``device.onuncapturederror`` is not implemented): the last few are kept.
 * **progress**: every submission on the device gets one more command buffer, last, that copies
@@ -68,7 +68,10 @@ class DeviceWatch:
         self.device = device
         self.made = time.time()
         self.lost: str | None = None
-        """Why the device was lost, once a signal said so."""
+        """Why the device was lost, once a call on it said so (or the probe failed)."""
+        self.lost_hint: str | None = None
+        """A loss wgpu logged since this device was made. The log does not say which device, so
+        it is confirmed by :meth:`probe_lost` before the device is taken as lost."""
         self.errors: deque[str] = deque(maxlen=KEPT_ERRORS)
         self.submissions = 0
         self.last: Submission | None = None
@@ -144,7 +147,7 @@ class DeviceWatch:
         message = record.getMessage()
         if _LOST.search(message):
             at = time.strftime("%H:%M:%S", time.localtime(record.created))
-            self.lost = self.lost or f"wgpu logged at {at}: {message.splitlines()[0]}"
+            self.lost_hint = f"wgpu logged at {at}: {message.splitlines()[0]}"
         elif record.levelno >= logging.ERROR:
             self.errors.append(message.splitlines()[0] if message else "")
 
@@ -154,14 +157,17 @@ class DeviceWatch:
             self.lost = self.lost or f"a call raised: {' '.join(str(exc).split())}"
 
     def probe_lost(self) -> str | None:
-        """Why the device was lost, asking it (a 4-byte buffer) when no signal has said so;
-        None while it is not known to be lost."""
+        """Why the device was lost, asking it (a 4-byte buffer) when no call on it has said so;
+        None while it is not known to be lost. A loss wgpu logged (:attr:`lost_hint`, which
+        names no device) is taken as this device's only when the probe fails too."""
         if self.lost is None:
             try:
                 self.device.create_buffer(label="lost probe", size=4,
                                           usage=wgpu.BufferUsage.COPY_DST)
             except Exception as exc:  # wgpu raises its own types per error kind
                 self.note_error(exc)
+                if self.lost is not None and self.lost_hint is not None:
+                    self.lost = f"{self.lost_hint}; {self.lost}"
         return self.lost
 
     def progress(self, deadline: float = PROGRESS_DEADLINE) -> str:
@@ -181,7 +187,7 @@ class DeviceWatch:
                 return "progress unknown (more work was submitted meanwhile)"
             before = self._markers[(last.number - 1) % 2]
             own = self._markers[last.number % 2]
-            started = last.number == 1 or self._read(before, deadline) is not None
+            started = last.number == 1 or self._read(before, deadline) == last.number - 1
             finished = self._read(own, deadline) == last.number
             if not (started and finished):
                 self._markers = self._new_markers()

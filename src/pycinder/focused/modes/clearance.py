@@ -236,9 +236,10 @@ class Clearance:
         # inside the other (promise 1 of the tolerance contract rules out a pair t apart).
         contained = inside & (measured >= 2 * tol)
         # Pairs measured in regions: overlapping where their surfaces cross (measured 0), and
-        # one inside the other where a vertex of one lies within the other (closed) one.
+        # one inside the other where a vertex of one lies within the other (closed) one,
+        # however near their surfaces are (a pipe inside a slab, 0.5 c from its face: 0).
         for k in np.flatnonzero(local):
-            inside[k] = contained[k] = measured[k] >= c + error[k] and \
+            inside[k] = contained[k] = measured[k] > 0 and \
                 _nested(scene, int(pairs[k, 0]), int(pairs[k, 1]))
         near = measured < c + error
         keep = near | inside
