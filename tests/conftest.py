@@ -1,13 +1,17 @@
+import math
 import os
 import re
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 
 os.environ.setdefault("XDG_RUNTIME_DIR", "/tmp")
 
 import numpy as np
 import pytest
+import trimesh
 
 import pycinder
+from pycinder import testing as exact
 
 OPTIONAL = {
     "manifold3d": "manifold3d (test, bench)", "fcl": "python-fcl (test, distance, bench)",
@@ -98,3 +102,60 @@ def pytest_terminal_summary(terminalreporter) -> None:
         terminalreporter.write_sep("-", "stored answers")
         for line in lines:
             terminalreporter.write_line(line)
+
+
+SURFACE_SAMPLES = 1500
+"""Surface points of an open body tested for lying inside a solid (besides its vertices)."""
+
+
+def _depth_inside(solid: trimesh.Trimesh, other: trimesh.Trimesh) -> float:
+    """How deep the deepest of ``other``'s surface points (its vertices and evenly sampled
+    points) lies inside the closed ``solid`` (negative: none inside)."""
+    points = np.vstack([other.vertices, trimesh.sample.sample_surface_even(
+        other, SURFACE_SAMPLES, seed=0)[0]])
+    return float(np.max(trimesh.proximity.signed_distance(solid, points)))
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """The bodies of one answer's query, to judge by exact geometry a pair on which two answers
+    differ: where the tolerance contract (``docs/tolerance.md``) lets it go either way.
+
+    meshes : the query's bodies (trimesh meshes or (vertices, faces) pairs)
+    transforms : their (4, 4) world-from-body transforms
+    tolerance : the query's tolerance; None: the documented default of each pair
+    """
+
+    meshes: Sequence
+    transforms: Sequence | np.ndarray
+    tolerance: float | None = None
+
+    def verdict(self, i: int, j: int) -> str:
+        """``"apart"`` (at least ``t`` apart: never to be reported), ``"deep"`` (at least
+        ``2 t`` deep: always to be reported) or ``"band"`` (in between: either answer keeps the
+        contract) for bodies ``i`` and ``j`` at their pair's tolerance ``t``.
+
+        Two solids are judged as the benchmarks score (:func:`pycinder.testing.ground_truth`:
+        manifold3d's volume and distance, and a surface point ``2 t`` inside, which proves the
+        depth; a depth it cannot prove is left in the band). With an open body, by the
+        surfaces' exact distance (python-fcl), an edge crossing the other's surface with both
+        ends ``2 t`` from it, and, for a solid, how deep the other's surface lies inside it."""
+        t = float(exact.pair_tolerances(self.meshes, self.transforms, np.array([[i, j]]),
+                                  self.tolerance)[0])
+        a = exact.world_mesh(self.meshes[i], self.transforms[i])
+        b = exact.world_mesh(self.meshes[j], self.transforms[j])
+        if a.is_volume and b.is_volume:
+            truth = exact.ground_truth([a, b], None, tolerance=t)
+            return "deep" if len(truth.overlap) else "apart" if len(truth.separate) else "band"
+        inside = max((_depth_inside(s, o) for s, o in ((a, b), (b, a)) if s.is_volume),
+                     default=-math.inf)
+        distance = exact.surface_distance(a, b)
+        if distance >= t and inside <= 0.0:
+            return "apart"
+        if inside >= 2 * t or (distance <= 0.0 and exact.crosses_deeply(a, b, 2 * t)):
+            return "deep"
+        return "band"
+
+    def verdicts(self, pairs: np.ndarray) -> list[str]:
+        """:meth:`verdict` of each pair of ``pairs`` (K, 2)."""
+        return [self.verdict(i, j) for i, j in np.asarray(pairs, np.int64).tolist()]

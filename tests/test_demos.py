@@ -64,6 +64,22 @@ def test_demo_writes_frames_that_are_not_blank(tmp_path, name, out):
     assert summary["sim"].detector.gpu.device is wgpu.get_default_device()
 
 
+def test_an_mp4_without_imageio_ffmpeg_is_refused_naming_the_package(tmp_path, monkeypatch):
+    """Without imageio-ffmpeg, an MP4 is refused at once, saying how to install it (imageio
+    would otherwise write it with another plugin, which fails on the first frame), and the
+    suite's skip for missing packages names it."""
+    import imageio  # noqa: F401  (without imageio itself, the skip names imageio)
+    from conftest import missing_optional
+
+    from pycinder.demos.output import FrameWriter
+
+    monkeypatch.setitem(sys.modules, "imageio_ffmpeg", None)  # imports as if not installed
+    with pytest.raises(ImportError, match=r"pip install imageio-ffmpeg.*pycinder\[demo\]") as info:
+        FrameWriter(tmp_path / "stairs.mp4", fps=30)
+    assert missing_optional(info.value) == "imageio-ffmpeg (test, demo)"
+    assert not (tmp_path / "stairs.mp4").exists()
+
+
 def test_same_seed_same_run():
     a = run("stairs", frames=30, seed=3, quiet=True)
     b = run("stairs", frames=30, seed=3, quiet=True)

@@ -805,29 +805,40 @@ def test_a_deforming_body_is_measured_as_it_is_now():
 def test_contacts_of_pairs_whose_records_were_all_dropped_are_measured(monkeypatch):
     """Records beyond one buffer of the device are dropped: the pairs left with none still get
     a contact, measured whole by pass H1 (depth, and the direction that clears the pair),
-    batches included."""
+    batches included.
+
+    Which records a full buffer keeps depends on the order the device's threads append them.
+    A buffer of one record keeps at most one pair's, on any device, so that at least two of
+    the three pairs are left with none."""
     from pycinder.focused.frame.atlas import AtlasBuffers, Caps
 
     monkeypatch.setattr(AtlasBuffers, "limits", property(lambda self: Caps(
-        tris=self.tris.limit // 48, records=64, edges=self.edge_list.limit // 16)))
+        tris=self.tris.limit // 48, records=1, edges=self.edge_list.limit // 16)))
     det = pycinder.Detector(contacts=True, tolerance=0.01)
     # Three pairs, each overlapping 0.3 along x: thousands of records each.
     meshes = [BOX] * 6
     transforms = [move(3 * k + dx) for k in range(3) for dx in (0.0, 0.7)]
     with pytest.warns(pycinder.LossWarning, match="measured per pair"):
         result = det.find_collisions(meshes, transforms)
-    assert result.pairs.tolist() == [[0, 1], [2, 3], [4, 5]]
-    assert result.stats.dropped_records > 0
-    contacts = result.contacts()
-    assert set(map(tuple, contacts.pair.tolist())) == {(0, 1), (2, 3), (4, 5)}
+    pairs = {(0, 1), (2, 3), (4, 5)}
+    assert result.pairs.tolist() == sorted(map(list, pairs))
+    assert result.stats.dropped_records > 0 and len(result.records) <= 1
+    kept = {tuple(sorted(p)) for p in zip(result.records["penetrating"].tolist(),
+                                           result.records["penetrated"].tolist())}
     measured = result.measured_contacts
-    assert measured is not None and len(measured) >= 1
+    assert measured is not None
+    # exactly the pairs left with no record are measured, each once
+    assert sorted(map(tuple, measured.pair.tolist())) == sorted(pairs - kept)
+    assert len(pairs - kept) >= 2
     for k in range(len(measured)):
         assert measured.depth[k] == pytest.approx(0.3, abs=1e-5)
         assert measured.normal[k] == pytest.approx([1.0, 0.0, 0.0], abs=1e-6)  # from a into b
+    contacts = result.contacts()
+    assert set(map(tuple, contacts.pair.tolist())) == pairs
     # Batches give each scene its own measured contacts, in its own indices.
-    with pytest.warns(pycinder.LossWarning):
+    with pytest.warns(pycinder.LossWarning, match="measured per pair"):
         results = det.find_collisions_batch([([BOX, BOX], [move(), move(0.7)])] * 3)
+    assert sum(one.measured_contacts is not None for one in results) >= 2
     for one in results:
         assert set(map(tuple, one.contacts().pair.tolist())) == {(0, 1)}
 

@@ -28,10 +28,18 @@ MOST_TOP_MODULES = 15
 """Most modules directly in ``src/pycinder/`` (the rest live in subpackages)."""
 
 
+def path_first(*first: Path) -> dict[str, str]:
+    """This process's environment with ``first`` ahead of its own ``PYTHONPATH`` entries: a
+    package found there wins, and what this process imports from its ``PYTHONPATH`` (such as
+    import-linter, where it was installed there) is still found."""
+    kept = [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([*map(str, first), *kept])}
+
+
 def lint_imports(cwd: Path, pythonpath: Path | None = None) -> subprocess.CompletedProcess:
     """``lint-imports`` with the contracts of ``cwd``'s pyproject.toml, on the package found
     first on ``pythonpath`` (default: the installed one)."""
-    env = None if pythonpath is None else {**os.environ, "PYTHONPATH": str(pythonpath)}
+    env = None if pythonpath is None else path_first(pythonpath)
     return subprocess.run(
         [sys.executable, "-c", "from importlinter.cli import lint_imports_command as c; c()",
          "--config", "pyproject.toml", "--no-cache"],
@@ -87,7 +95,7 @@ def test_the_checks_fail_when_a_circle_is_added(circled: Path) -> None:
     assert "BROKEN" in out and "pycinder.util.text -> pycinder.detector" in out, out
     found = subprocess.run(
         [sys.executable, "-c", "import test_layers; print(test_layers.circles())"],
-        cwd=Path(__file__).parent, env={"PYTHONPATH": f"{circled}:{Path(__file__).parent}"},
+        cwd=Path(__file__).parent, env=path_first(circled, Path(__file__).parent),
         capture_output=True, text=True, timeout=300)
     assert found.returncode == 0, found.stderr
     assert "pycinder.util.text" in found.stdout and "pycinder.detector" in found.stdout

@@ -8,6 +8,7 @@ when it has no suffix, ends in a path separator or is a folder already; any othe
 
 from __future__ import annotations
 
+import importlib
 import os
 import sys
 from pathlib import Path
@@ -41,6 +42,35 @@ def output_kind(out: str | os.PathLike[str]) -> str:
                      "ending in /) for PNG frames")
 
 
+MP4_HINT = "pip install imageio-ffmpeg, or pip install 'pycinder[demo]', which brings it"
+"""How to install what writes MP4 videos."""
+
+
+def mp4_writer(out: Path, fps: int) -> Any:
+    """An imageio writer of H.264 MP4 video at ``out``, through its ffmpeg plugin only.
+
+    Without imageio-ffmpeg, imageio would pick another plugin for ``.mp4`` (its TIFF writer),
+    which fails on the first frame with an error that names neither ffmpeg nor a fix.
+
+    Raises
+    ------
+    ImportError
+        imageio or imageio-ffmpeg is not installed: the message says how to install them (and
+        the error it is raised from names the missing module).
+    """
+    for module, package in (("imageio", "imageio"), ("imageio_ffmpeg", "imageio-ffmpeg")):
+        try:
+            importlib.import_module(module)
+        except ImportError as exc:
+            raise ImportError(f"{out.name}: writing MP4 videos needs {package} (imageio's ffmpeg "
+                              f"plugin), which is not installed: {MP4_HINT}; or write a .gif or "
+                              "a folder of PNG frames instead") from exc
+    import imageio.v2 as imageio
+
+    return imageio.get_writer(out, format="FFMPEG", mode="I", fps=fps, codec="libx264",
+                              quality=7, macro_block_size=8)
+
+
 class FrameWriter:
     """Writes frames to an MP4 (imageio-ffmpeg), a GIF, or a folder of PNGs.
 
@@ -56,6 +86,8 @@ class FrameWriter:
     ------
     ValueError
         For an output path with a suffix that is not a video written here.
+    ImportError
+        For an MP4 where imageio-ffmpeg is not installed (see :func:`mp4_writer`).
     """
 
     def __init__(self, out: str | Path | None, fps: int = 30) -> None:
@@ -69,10 +101,7 @@ class FrameWriter:
         else:
             self.out.parent.mkdir(parents=True, exist_ok=True)
         if self.kind == ".mp4":
-            import imageio.v2 as imageio
-
-            self._writer = imageio.get_writer(self.out, fps=fps, codec="libx264", quality=7,
-                                              macro_block_size=8)
+            self._writer = mp4_writer(self.out, fps)
 
     def add(self, image: np.ndarray) -> None:
         """Append one (H, W, 3) uint8 frame."""

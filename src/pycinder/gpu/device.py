@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import threading
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
@@ -29,8 +30,9 @@ class NoAdapterError(RuntimeError):
 
 class ForkedProcessError(RuntimeError):
     """The GPU cannot be used in this process: it was forked (``os.fork``, or ``multiprocessing``
-    with the "fork" start method) after its parent used the GPU, and the driver does not work
-    there, or a :class:`~pycinder.Detector` made before the fork was used after it."""
+    with the "fork" start method) after its parent used the GPU, and the driver is not known to
+    work there (or did not answer), or a :class:`~pycinder.Detector` made before the fork was
+    used after it."""
 
 
 FORK_HINT = (
@@ -41,8 +43,14 @@ FORK_HINT = (
 
 FORK_PROBE_SECONDS = 10.0
 """How long a forked child's first device may take to answer a round trip before pycinder
-decides that the driver does not work after a fork (lavapipe answers in well under a second;
-llvmpipe's OpenGL never does)."""
+decides that the driver does not work after a fork (lavapipe answers in well under a second)."""
+
+FORK_SAFE_DRIVERS = (("vulkan", "llvmpipe"),)
+"""The drivers known to work in a process forked after its parent used them, as (backend,
+start of the adapter's device name), lower case: Mesa's lavapipe (its Vulkan driver on the CPU).
+A forked child whose parent used any other driver is refused before it calls the driver at all:
+NVIDIA's Vulkan driver aborts the child's process as soon as it asks for an adapter, and
+llvmpipe's OpenGL never finishes a draw there."""
 
 
 @dataclass(frozen=True)
@@ -85,6 +93,9 @@ class _Fork:
     generation = 0
     probe_pending = False
     failure: str | None = None
+    adapter: dict | None = None
+    """The info of the last adapter this process asked wgpu for (a forked child reads its
+    parent's: copied memory, no call to the driver)."""
     inherited: list[object] = []
     """The parent's device, instance and detectors (and a device that failed the probe), kept
     from the garbage collector: releasing them in the child would ask the parent's driver state,
@@ -97,37 +108,78 @@ def fork_generation() -> int:
     return _Fork.generation
 
 
+def survives_fork(info: Mapping[str, object]) -> bool:
+    """Whether the driver of an adapter whose ``info`` this is (``adapter.info``) is known to
+    work in a process forked after its parent used it (:data:`FORK_SAFE_DRIVERS`)."""
+    backend = str(info.get("backend_type", "")).lower()
+    name = str(info.get("device", "")).lower()
+    return any(backend == b and name.startswith(d) for b, d in FORK_SAFE_DRIVERS)
+
+
 def _after_fork_in_child() -> None:
-    """Forget the parent's device and wgpu instance: the child makes its own at its first query
-    (its first round trip is run under a deadline, see :func:`get_gpu`)."""
-    if _get_gpu.cache_info().currsize:
+    """Forget the parent's device and wgpu instance. Where the parent used the GPU through a
+    driver known to work after a fork (:func:`survives_fork`), the child makes a device of its
+    own at its first query (its first round trip under a deadline, see :func:`get_gpu`); where
+    it used any other, every later call that would reach the driver raises
+    :class:`ForkedProcessError` before it does. Only Python objects are read here."""
+    inherited = _Fork.failure, _Fork.probe_pending  # from this process's own parent
+    used = bool(_get_gpu.cache_info().currsize)
+    if used:
         keep_from_parent(_get_gpu())
-        _Fork.probe_pending = True
     _get_gpu.cache_clear()
     _Fork.generation += 1
     _Fork.failure = None
+    _Fork.probe_pending = False
     try:  # wgpu-py keeps one native instance per process; the child needs one of its own
         from wgpu.backends.wgpu_native import _helpers
 
         if getattr(_helpers, "_the_instance", None) is not None:
+            used = True
             keep_from_parent(_helpers._the_instance)
             _helpers._the_instance = None
     except ImportError:  # pragma: no cover - another wgpu backend
         pass
-    _forget_default_device()
+    default = _forget_default_device()
+    if default is not None:
+        used = True
+        _Fork.adapter = _Fork.adapter or dict(getattr(default.adapter, "info", None) or {})
+    if not used:
+        # The parent never reached the driver itself; what it inherited from its own parent (a
+        # driver's state in its memory) holds here too, and a fork of a fresh process is fresh.
+        _Fork.failure, _Fork.probe_pending = inherited
+        return
+    if _Fork.adapter is not None and survives_fork(_Fork.adapter):
+        _Fork.probe_pending = True
+        return
+    driver = "an unknown driver" if not _Fork.adapter else (
+        f"{_Fork.adapter.get('device', '?')} ({_Fork.adapter.get('backend_type', '?')})")
+    _Fork.failure = (
+        f"this process was forked after its parent used the GPU ({driver}), and that driver is "
+        "not known to work in a forked child (NVIDIA's Vulkan driver aborts the process there): "
+        f"pycinder does not call it here; {FORK_HINT}")
 
 
-def _forget_default_device() -> None:
+def _refuse_if_forked() -> None:
+    """Raise :class:`ForkedProcessError` where this process may not call the GPU driver (see
+    :func:`_after_fork_in_child`): before any call that reaches it."""
+    if _Fork.failure is not None:
+        raise ForkedProcessError(_Fork.failure)
+
+
+def _forget_default_device() -> wgpu.GPUDevice | None:
     """After a fork: wgpu's default device (shared with pygfx, see
-    :func:`share_default_device`) is the parent's too. The child drops it, and pycinder makes a
-    device of its own there (the default device's configuration was used up by the parent)."""
+    :func:`share_default_device`) is the parent's too. The child drops it (returned, None where
+    there was none), and pycinder makes a device of its own there (the default device's
+    configuration was used up by the parent)."""
     global _share_default
     helper = getattr(getattr(wgpu, "utils", None), "device", None)
     helper = getattr(helper, "helper", None)
-    if getattr(helper, "_the_device", None) is not None:
-        keep_from_parent(helper._the_device)
+    device = getattr(helper, "_the_device", None)
+    if device is not None:
+        keep_from_parent(device)
         helper._the_device = None
     _share_default = False
+    return device
 
 
 os.register_at_fork(after_in_child=_after_fork_in_child)
@@ -224,6 +276,16 @@ def check_not_forked(generation: int, what: str) -> None:
 
 
 def _request_adapter() -> wgpu.GPUAdapter:
+    """The adapter pycinder renders on (its info noted for a forked child, see
+    :func:`_after_fork_in_child`).
+
+    Raises
+    ------
+    ForkedProcessError
+        In a forked child that may not call its parent's driver: before the call.
+    NoAdapterError
+    """
+    _refuse_if_forked()
     preparse()  # the first GPU call: wgpu-py's C types in one parse, not one by one
     power = os.environ.get("PYCINDER_POWER_PREFERENCE", "high-performance")
     try:
@@ -232,6 +294,7 @@ def _request_adapter() -> wgpu.GPUAdapter:
         raise NoAdapterError(f"no WebGPU adapter found ({exc}). {INSTALL_HINT}") from exc
     if adapter is None:
         raise NoAdapterError(f"no WebGPU adapter found. {INSTALL_HINT}")
+    _Fork.adapter = dict(adapter.info)
     return adapter
 
 
@@ -307,19 +370,20 @@ def get_gpu() -> Gpu:
 
     Set ``WGPU_BACKEND_TYPE`` (Vulkan, Metal, D3D12, OpenGL) to choose a backend.
 
-    In a process forked after its parent used the GPU, the first device is new, and must answer
-    a round trip within :data:`FORK_PROBE_SECONDS`.
+    In a process forked after its parent used the GPU, the first device is new: where the
+    parent's driver is known to work after a fork (:func:`survives_fork`) it must answer a round
+    trip within :data:`FORK_PROBE_SECONDS`; with any other driver no device is made.
 
     Raises
     ------
     NoAdapterError
         No adapter, or one without what pycinder needs.
     ForkedProcessError
-        This process was forked after its parent used the GPU, and its driver does not work
-        after a fork (llvmpipe's OpenGL, for one).
+        This process was forked after its parent used the GPU, and its driver is not known to
+        work after a fork (:func:`survives_fork`: raised before the driver is called), or it did
+        not answer the round trip.
     """
-    if _Fork.failure is not None:
-        raise ForkedProcessError(_Fork.failure)
+    _refuse_if_forked()
     gpu = _get_gpu()
     if _Fork.probe_pending:
         _Fork.probe_pending = False
@@ -333,8 +397,10 @@ def get_gpu() -> Gpu:
 
 @lru_cache(maxsize=1)
 def _get_gpu() -> Gpu:
+    _refuse_if_forked()
     if _share_default:
         device = wgpu.get_default_device()
+        _Fork.adapter = dict(device.adapter.info)
         limits = _limits(device.adapter)
         if not _suits(device, limits):
             raise RuntimeError(
