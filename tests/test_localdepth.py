@@ -204,14 +204,18 @@ def test_interlocking_pairs_are_measured_where_they_overlap(overlap):
 
 
 def test_turned_and_in_map_coordinates():
-    """The same pairs turned and moved 707 km from the origin: grazes and overlaps alike."""
+    """The same pairs turned (and mirrored: a transform that mirrors a solid turns its faces
+    inside out for the cuts) and moved 707 km from the origin: grazes and overlaps alike."""
     rng = np.random.default_rng(5)
     q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
     rotation = q * np.sign(np.linalg.det(q))
+    mirror = rotation @ np.diag([1.0, 1.0, -1.0])
     pairs = cases(GRAZE)[:3] + cases(OVERLAP)[:3]
+    turns = [rotation, mirror] * 3
     far = np.array([5e5, 5e5, 0.0])
-    chosen = [c.placed(rotation, far + k * np.array([3.0, 0, 0])) for k, c in enumerate(pairs)]
-    truth = [c.placed(rotation, np.zeros(3)) for c in pairs]
+    chosen = [c.placed(m, far + k * np.array([3.0, 0, 0]))
+              for k, (c, m) in enumerate(zip(pairs, turns))]
+    truth = [c.placed(m, np.zeros(3)) for c, m in zip(pairs, turns)]
     meshes, transforms = [], []
     for case in chosen:
         meshes += case.meshes
