@@ -76,6 +76,47 @@ def decode(words: np.ndarray) -> np.ndarray:
     return np.where(words == 0, -np.inf, out)
 
 
+def hull_lower_bound(figures: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """A lower bound of convex pairs' penetration depths from their measured figures.
+
+    Moving body a by ``U w`` (``w`` one of the 2 :data:`LINES` signed directions, ``U`` its
+    figure) just clears body b, so for convex bodies each point ``U w`` lies on the boundary of
+    the convex set of translations that do not separate them (``B - A``), and so does their
+    convex hull's inside. The penetration depth, the distance from the origin to that set's
+    boundary, is therefore at least the distance from the origin to the hull's boundary: the
+    least offset of the hull's facets. Where the best direction was measured, a facet lies in
+    the boundary's plane there and the bound meets the figure.
+
+    Parameters
+    ----------
+    figures : (K, 2 LINES) float64
+        Per pair, the figure of each word (``2 line + way``; way 0 along the line's direction,
+        way 1 against it), at least 0.
+    directions : (K, LINES, 3) float64
+        The lines' unit directions (:func:`lines`).
+
+    Returns
+    -------
+    (K,) float64
+        The bound (0 where a figure is 0 or the hull is flat: the origin is not inside it);
+        needs scipy (qhull), else 0 for every pair.
+    """
+    out = np.zeros(len(figures))
+    try:
+        from scipy.spatial import ConvexHull, QhullError
+    except ImportError:  # the bound falls back to the directions' cosine (see hardclash)
+        return out
+    signed = np.concatenate([directions, -directions], axis=2).reshape(len(figures), 2 * LINES, 3)
+    for k in np.flatnonzero(np.all(figures > 0, axis=1)):
+        points = figures[k, :, None] * signed[k]
+        try:
+            hull = ConvexHull(points)
+        except QhullError:
+            continue
+        out[k] = max(float(-hull.equations[:, 3].max()), 0.0)
+    return out
+
+
 class Depth(ClusterPairPass):
     """H1: one workgroup per item (the pair's bodies whole, or a cluster of each); per pair and
     line, the largest ``depth_b - depth_a`` and ``depth_a - depth_b`` over the rays that meet
@@ -105,4 +146,5 @@ class Depth(ClusterPairPass):
 
 
 __all__ = ["FRAME", "ITEM", "ITEM_FLIPPED", "ITEM_WHOLE", "LINES", "PARAMS", "SLACK",
-           "WHOLE_FACES", "WHOLE_WORK", "WORLD_LINES", "Depth", "decode", "lines"]
+           "WHOLE_FACES", "WHOLE_WORK", "WORLD_LINES", "Depth", "decode", "hull_lower_bound",
+           "lines"]

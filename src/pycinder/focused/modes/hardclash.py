@@ -1,20 +1,31 @@
 """Hard clashes: every pair of bodies that penetrate deeper than a depth ``d``, with its depth.
 
 ``Detector(min_depth=d)`` (or ``min_depth=d`` on any entry point) answers "does A penetrate B by
-more than d?", Navisworks' hard clash with a tolerance and IfcClash's intersection mode. A pair's
-penetration depth is the length of the shortest translation that separates it (FCL's and coal's
-definition for convex bodies); a body inside another is as deep as the translation that takes it
-out. Its contract:
+more than d?", Navisworks' hard clash with a tolerance and IfcClash's intersection mode. How deep
+a pair is:
+
+* both bodies convex, or one open: its penetration depth, the length of the shortest
+  translation that separates it (FCL's and coal's definition); a body inside another is as deep
+  as the translation that takes it out;
+* a closed body non-convex: its local depth (:mod:`~pycinder.focused.modes.local`), its deepest
+  overlapping part's directional depth (below), with both bodies cut to that part's box grown by
+  ``d``: how deep they overlap where they overlap, not how far one must travel to leave a ring
+  or an opening.
+
+Its contract:
 
 1. A pair deeper than ``d`` is always reported, whatever its shapes: closed or open, convex or
    not, one inside the other.
 2. A pair of convex bodies at most ``d / 2`` deep is never reported: touching pairs (face on
-   face, end on face, edge on face, butt joints) and pairs apart included. A non-convex pair is
-   reported only when its directional depth (below) exceeds ``d``; where the bodies interlock
-   that can exceed its penetration depth.
-3. Each reported pair carries its depth (``result.depths``), an upper bound of its penetration
-   depth (up to rounding); for convex bodies the penetration depth is within
-   ``result.depth_errors`` below it.
+   face, end on face, edge on face, butt joints) and pairs apart included; nor is a pair with a
+   non-convex body whose overlapping parts, cut to their boxes, are convex and at most ``d / 2``
+   deep (a pipe grazing its sleeve).
+3. Each reported pair carries its depth (``result.depths``). For convex bodies it is an upper
+   bound of the penetration depth (up to rounding), which lies within ``result.depth_errors``
+   below it: the distance from the origin to the hull of the measured translations ``U(n) n``
+   (each on the boundary of the set of translations that keep convex bodies overlapping, so the
+   hull lies inside it) bounds the penetration depth from below, and so does ``DIRECTION_COS``
+   times the figure. For a pair measured locally it is the local depth, within its rounding.
 
 How. Along a direction ``n``, moving body a by ``s n`` leaves all of body b behind it on every ray
 parallel to ``n`` once ``s`` exceeds the largest ``(farthest point of b) - (nearest point of a)``
@@ -47,6 +58,10 @@ pair's figure, the upper bound of promise 3, and its ``depth_errors`` include th
 rounding (a region's parts can be separated by less than the whole bodies, as a pipe inside a
 wall that a region cuts can leave it through the region's wall). A pair that would need more than
 :data:`~pycinder.focused.modes.regions.MAX_REGIONS` regions raises a ``ValueError`` naming it.
+A pair measured locally (a non-convex body, figure over ``d`` less its bound, or too large for a
+frame of its own) is measured in the same way, in regions covering its overlapping parts' boxes
+instead, grown by :data:`~pycinder.focused.modes.local.LOCAL_GROW` ``d``, and reports its deepest
+region's figure as its depth, with that region's rounding.
 
 Cost. No pixels, tolerance or records: every candidate pair (world boxes that meet) is measured
 face pair by face pair, 19 lines each, so the cost of a pair grows with the product of its two
@@ -60,7 +75,7 @@ default query (pairs by the tolerance contract) or a clearance query rather.
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -77,8 +92,10 @@ from .depth import (
     WHOLE_FACES,
     WHOLE_WORK,
     Depth,
+    hull_lower_bound,
     lines,
 )
+from .local import LOCAL_GROW, overlap_parts, pair_kinds
 from .pairwork import ITEM, pair_frames, spread
 from .regions import RegionBuffers, meeting_regions, tile_side
 
@@ -98,6 +115,27 @@ PRECISION_GROW = 1.0
 DIRECTION_COS = 0.886
 """Every direction is within this cosine of one of the 26 directions through a cube's centre and
 its faces, edges and corners (the least over all directions is 0.88645)."""
+
+
+class Figures(NamedTuple):
+    """What pass H1 tells of each candidate pair (all (K,) float64 but ``normal``)."""
+
+    depth: np.ndarray
+    """The depth reported: the directional depth, or for a pair measured locally its local
+    depth."""
+    normal: np.ndarray
+    """(K, 3): unit direction from body a into body b; moving a by ``-depth * normal`` clears
+    the pair (or, measured locally, its deepest part)."""
+    rounding: np.ndarray
+    """Bound of ``depth``'s rounding."""
+    figure: np.ndarray
+    """What decides whether a pair is deeper than ``d`` (reported where ``figure > d -
+    figure_rounding``): ``depth``, or for a pair measured in regions, its deepest region's."""
+    figure_rounding: np.ndarray
+    """Bound of ``figure``'s rounding."""
+    error: np.ndarray
+    """``depth_errors``: for convex pairs, how far below ``depth`` the penetration depth may
+    lie; for a pair measured locally, ``depth``'s rounding."""
 
 
 def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray
@@ -181,24 +219,25 @@ class HardClash:
         stats.candidates = len(pairs)
         stats.broad_phase = "numpy"
         stats.add_ms("broad phase", (time.perf_counter() - t0) * 1e3)
-        depth, _, error, figure, rounding = self.measure_figures(scene, stats, pairs, d)
-        keep = figure > d - rounding
+        f = self.measure_figures(scene, stats, pairs, d)
+        keep = f.figure > d - f.figure_rounding
         result = CollisionResult(pairs[keep], empty_records(), stats, scene=scene,
                                  records_kept="none")
-        depths = depth[keep]
-        return _with_figures(result, depths, depths * (1 - DIRECTION_COS) + error[keep])
+        return _with_figures(result, f.depth[keep], f.error[keep])
 
     def measure(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float | None = None
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each pair's directional depth, the direction it is measured along, and the bound on
-        its rounding (the first three of :meth:`measure_figures`)."""
-        return self.measure_figures(scene, stats, pairs, d)[:3]
+        its rounding (of :meth:`measure_figures`)."""
+        f = self.measure_figures(scene, stats, pairs, d)
+        return f.depth, f.normal, f.rounding
 
     def measure_figures(self, scene: Scene, stats: Stats, pairs: np.ndarray,
-                        d: float | None = None
-                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Each pair's directional depth, the direction it is measured along, and the bound on
-        its rounding (pass H1 on the shapes as the strategy uploads them).
+                        d: float | None = None) -> Figures:
+        """Each pair's depth, the direction it is measured along, and its bounds (pass H1 on
+        the shapes as the strategy uploads them; with ``d``, pairs with a non-convex body that
+        may be deeper than ``d`` measured locally, :mod:`~pycinder.focused.modes.local`, and
+        pairs too large for one frame in regions).
 
         Parameters
         ----------
@@ -206,28 +245,18 @@ class HardClash:
         stats : Stats
         pairs : (K, 2) int
         d : float, optional
-            The query's depth: a ValueError names the pair whose rounding bound is over
-            ``d / 16``.
+            The query's depth.
 
         Returns
         -------
-        depth : (K,) float64
-        normal : (K, 3) float64
-            Unit direction from body a into body b: moving a by ``-depth * normal`` clears the
-            pair (any direction where ``depth`` is 0 and no ray meets both bodies).
-        error : (K,) float64
-        figure, rounding : (K,) float64
-            What decides whether a pair is deeper than ``d`` (reported where ``figure > d -
-            rounding``): the directional depth and its rounding bound, or for a pair measured
-            in regions, its deepest region's figure and rounding bound (without ``d``, the
-            first and third).
+        Figures
         """
         t1 = time.perf_counter()
         pack = self.strategy.pack(scene, stats)
         buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
         error = np.zeros(len(pairs))
         figures = np.zeros((len(pairs), LINES, 2))
-        local = np.zeros(len(pairs), bool)
+        large = np.zeros(len(pairs), bool)
         for start in range(0, max(len(pairs), 1), CHUNK_PAIRS):
             part = slice(start, start + CHUNK_PAIRS)
             items, frames, reach = plan(scene, pack, pairs[part])
@@ -235,7 +264,7 @@ class HardClash:
             if d is not None:
                 # Pairs too large (or too far from the origin) for the whole-pair frame are
                 # measured in the regions where they meet.
-                local[part] = error[part] > d / 16
+                large[part] = error[part] > d / 16
             t2 = time.perf_counter()
             stats.add_ms("upload", (t2 - t1) * 1e3)
             figures[part] = self.depth.run(buffers.positions, buffers.faces, items, frames)
@@ -245,22 +274,49 @@ class HardClash:
         flat = np.maximum(figures.reshape(len(pairs), 2 * LINES), 0.0)
         best = np.argmin(flat, axis=1)
         depth = flat[np.arange(len(pairs)), best]
+        direction = lines(scene.transforms[pairs[:, 0]], scene.transforms[pairs[:, 1]])
+        # Convex pairs: the penetration depth lies between the hull of the measured points
+        # and the figure, and within the directions' cosine of it.
+        lower = np.maximum(DIRECTION_COS * depth, hull_lower_bound(flat, direction))
+        bound = depth - lower + error
         figure, rounding = depth.copy(), error.copy()
         if d is not None:
-            self._local(scene, stats, pairs, d, local, figure, rounding)
-        direction = lines(scene.transforms[pairs[:, 0]], scene.transforms[pairs[:, 1]])
+            near = figure > d - rounding
+            local = np.zeros(len(pairs), bool)
+            if (near | large).any():
+                k = np.flatnonzero(near | large)
+                local[k] = pair_kinds(scene, pairs[k])
+            if local.any():
+                k = np.flatnonzero(local)
+                figure[k], best[k], rounding[k] = self._local_depth(scene, stats, pairs[k], d)
+                depth[k], error[k] = figure[k], rounding[k]
+                bound[k] = rounding[k]  # the local depth is the figure itself
+            self._large(scene, stats, pairs, d, large & ~local, figure, rounding)
         along = direction[np.arange(len(pairs)), best // 2]
         # Moving a along +n clears the pair (word 2 i): b lies behind a, along -n.
         normal = np.where((best % 2 == 0)[:, None], -along, along)
-        return depth, normal, error, figure, rounding
+        return Figures(depth, normal, error, figure, rounding, bound)
 
-    def _local(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float, local: np.ndarray,
+    def _local_depth(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each pair's local depth (:mod:`~pycinder.focused.modes.local`): its deepest
+        overlapping part's figure, the word it is measured along and its rounding bound (0, word
+        0 and 0 for a pair that does not overlap in volume)."""
+        t0 = time.perf_counter()
+        owner, lo, hi = overlap_parts(scene, pairs)
+        stats.add_ms("overlap", (time.perf_counter() - t0) * 1e3)
+        grow = LOCAL_GROW * d
+        region, word, bound, part, _ = self._regions(
+            scene, stats, pairs[owner], d, tile_side(d, grow), grow, search=(lo, hi))
+        return _deepest(owner[part], len(pairs), region, word, bound)
+
+    def _large(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float, large: np.ndarray,
                figure: np.ndarray, rounding: np.ndarray) -> None:
-        """Measure in regions (in place) the pairs ``local`` flags, too large for a whole-pair
+        """Measure in regions (in place) the pairs ``large`` flags, too large for a whole-pair
         frame: in tiles small enough for single precision, grown by :data:`PRECISION_GROW`
         ``d``; each pair's figure is its deepest region's."""
-        if local.any():
-            k = np.flatnonzero(local)
+        if large.any():
+            k = np.flatnonzero(large)
             region, word, bound, owner, _ = self._regions(
                 scene, stats, pairs[k], d, tile_side(d, PRECISION_GROW * d), PRECISION_GROW * d)
             figure[k], _, rounding[k] = _deepest(owner, len(k), region, word, bound)
@@ -328,4 +384,4 @@ def _with_figures(result: CollisionResult, depths: np.ndarray, errors: np.ndarra
     return result
 
 
-__all__ = ["DIRECTION_COS", "ERROR_SCALE", "PASSES", "HardClash", "plan"]
+__all__ = ["DIRECTION_COS", "ERROR_SCALE", "PASSES", "Figures", "HardClash", "plan"]

@@ -292,7 +292,9 @@ def world_triangles(scene: Scene, body: int, origin: np.ndarray) -> np.ndarray:
 
 
 def body_vertices(scene: Scene, body: int, origin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A body's world vertices relative to ``origin`` (3,) in float64, and its faces as tested.
+    """A body's world vertices relative to ``origin`` (3,) in float64, and its faces as tested,
+    turned the other way round where the body's transform mirrors it (so that a closed body's
+    faces still face out: manifold3d takes them as a solid).
 
     Returns
     -------
@@ -302,7 +304,8 @@ def body_vertices(scene: Scene, body: int, origin: np.ndarray) -> tuple[np.ndarr
     shape = scene.shapes[int(scene.body_shape[body])]
     t = np.asarray(scene.transforms[body], np.float64)
     v = np.asarray(shape.vertices, np.float64) @ t[:3, :3].T + (t[:3, 3] - origin)
-    return v, np.asarray(shape.topology.faces, np.int64)
+    faces = np.asarray(shape.topology.faces, np.int64)
+    return v, (faces[:, ::-1] if np.linalg.det(t[:3, :3]) < 0 else faces)
 
 
 def linear_map(scene: Scene, body: int) -> np.ndarray:
