@@ -197,8 +197,8 @@ def test_groups_on_a_generated_building(runs, first):
            "reported": len(clashes), "tessellation_s": 0.0, "clash_s": 0.0, **counts}
     text = "\n".join(B.markdown({"depth": B.DEPTH, "clearance": B.CLEARANCE, "rows": [row],
                                  "sizes": []}))
-    assert (f"{len(clashes)} clashes; groups: {len(clashes) - 2} within 3 m, "
-            f"{len(clashes) - 1} by element") in text
+    assert (f"| {len(model.bodies):,} | origin | pycinder | min_depth | 10 | {len(clashes)} | "
+            f"{len(clashes) - 2} | {len(clashes) - 1} | 0.0 |") in text
 
 
 def _topics(path: Path) -> dict[str, tuple]:

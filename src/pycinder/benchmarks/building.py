@@ -1,670 +1,161 @@
-"""A generated IFC building with exact truth, and the ``building`` benchmark against IfcClash.
+"""The ``building`` benchmark: generated IFC buildings with exact truth, pycinder against
+IfcClash, at the origin and in map coordinates.
 
-    cells (a bay each) -> boxes and cylinders placed on purpose -> IFC4 (or IFC2X3) files
-                       -> exact distance and penetration depth of every pair closer than a margin
+    generate (buildingmodel) -> three federated IFC4 files, at the origin and moved
+        -> pycinder (read_ifc, find_clashes) and IfcClash (its tree) in each mode
+        -> each answer scored against the exact truth (buildingscore), grouped, timed
+        -> `pycinder check ... --json` run as a user runs it, compared with find_clashes
 
-Each cell is one bay of a building, 6 m by 6 m and 3 m high: a slab on four columns, two beams
-ending on the columns' faces under the slab, two walls butting the columns, a pipe run of three
-segments butted end to end between the walls, a duct run of two segments ending on the beams'
-faces and flush under the slab, and a pipe lying on the duct's underside along a line. Everything
-in it touches: face on face, end on face, line on face and coplanar butt joints, as real models
-do. Each cell adds one case of its own, in turn (:data:`CASES`): a pipe through a beam (deep),
-a duct 20 mm into a beam (shallow), a duct 1 mm into the slab (grazing), a pipe sleeve inside a
-wall (contained), a duct 10 mm from a column and a pipe 40 mm from a wall (near), a duct through
-a wall (deep) and a pipe's end 20 mm into a wall (shallow). Some walls hold a door opening (an
-IfcOpeningElement, applied by the tessellation), away from every other element.
+Each size is generated once (:func:`~.buildingmodel.generate`) and written twice as three
+federated files (architecture, structure, MEP): at the origin, and in map coordinates, its site
+placed at :data:`MAP_OFFSET` (500 km, 500 km, 0), so that every element's world coordinates move
+by it while its coordinates in the file stay the same (:func:`~.buildingmodel.write_ifc`). Both
+systems read the same files. The runs (:data:`PYCINDER_RUNS`, :data:`IFCCLASH_RUNS`):
 
-Every body is an axis-aligned box or an axis-aligned cylinder, so each pair's exact distance and
-penetration depth (the length of the shortest translation that separates the two, as FCL and
-coal define it) follow in closed form (:func:`relation`): a box and a cylinder, or two parallel
-cylinders, are products of an interval along the axis and a cross-section, whose Minkowski
-difference is the product of the factors' differences. Cells are 2 m apart, so pairs of
-different cells are never within :data:`MARGIN`. The tessellation turns each circle into a
-polygon inscribed in it: a cylinder's figures are exact to :func:`chord_error` (under 1 mm for
-the radii used, computed for :data:`CIRCLE_SEGMENTS` segments per circle).
+* at the origin, the original table: pycinder's default query, ``min_depth`` 10 mm and
+  ``clearance`` 50 mm; IfcClash's intersection (tolerance 10 mm), collision and clearance
+  (50 mm) modes;
+* at the origin and in map coordinates: pycinder's ``min_depth`` 2 mm and 1 mm and
+  ``clearance`` 2 mm; IfcClash's intersection mode at tolerances of 2 mm and 1 mm and its
+  clearance mode at 2 mm.
 
-``python -m pycinder.benchmarks.building --elements 3000`` runs the benchmark and prints its
-Markdown (``pycinder bench building`` runs 3,000 and 20,000 elements and writes its JSON).
+Every answer is scored against the exact truth (:func:`~.buildingscore.score`: every pair deeper
+than ``d`` found, no touching, grazing or apart pair reported), pycinder's depths and distances
+are checked against the true ones within their stated bounds, and the clashes are grouped
+(pycinder's :func:`~pycinder.bim.groups.group_clashes` at 3 m, IfcClash's smart grouping at
+3 m). For the sizes in ``cli_sizes``, ``pycinder check architecture.ifc structure.ifc mep.ifc
+--min-depth 0.002 --json`` runs in a process of its own at both placements, and its pairs are
+compared with those of :func:`~pycinder.bim.ifc.find_clashes`. The report leaves a row for the
+dense-mesh case (:func:`dense_entry`).
+
+``python -m pycinder.benchmarks.building --elements 3000 20000`` runs it and prints its
+Markdown; ``pycinder bench building`` runs the same two sizes and writes JSON and Markdown.
+The names of :mod:`~pycinder.benchmarks.buildingmodel` and
+:mod:`~pycinder.benchmarks.buildingscore` are importable from here too.
 """
 
 from __future__ import annotations
 
 import argparse
-import math
+import json
 import os
-import random
+import subprocess
 import sys
 import tempfile
 import time
-import uuid
 import warnings
-import zlib
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from ..util.optional import require
-
-W, D, H = 6.0, 6.0, 3.0
-"""A cell's width (x), depth (y) and storey height (z), in metres."""
-SLAB = 0.2
-"""Slab thickness: the slab is z in [H - SLAB, H]."""
-PITCH = 8.0
-"""Distance between the origins of neighbouring cells along x and y (cells are 6.6 m across at
-most, so at least 1.4 m apart)."""
-MARGIN = 0.2
-"""Pairs closer than this are in the truth with their exact figures; every other pair is at
-least this far apart."""
-CASES = ("deep: pipe through beam", "shallow: duct into beam", "grazing: duct into slab",
-         "contained: sleeve in wall", "near: duct by column", "near: pipe by wall",
-         "deep: duct through wall", "shallow: pipe end into wall")
-"""The clash case each cell adds, cell ``k`` taking ``CASES[k % 8]``."""
-ELEMENTS_PER_CELL = 16
-CIRCLE_SEGMENTS = 16
-"""Fewest segments per circle assumed for :func:`chord_error` (IfcOpenShell uses at least this
-many for the radii here)."""
-
-GRAZE = 0.005
-"""Deepest a "grazing" pair goes (metres)."""
-SHALLOW = 0.05
-"""Deepest a "shallow" pair goes; deeper ones are "deep"."""
-
-
-@dataclass(frozen=True)
-class Part:
-    """One element: an axis-aligned box or cylinder.
-
-    Attributes
-    ----------
-    ifc_class : str
-        IFC4 class (``IfcWall``, ``IfcSlab``, ``IfcColumn``, ``IfcBeam``, ``IfcPipeSegment``,
-        ``IfcDuctSegment``).
-    name : str
-    global_id : str
-    lo, hi : (3,) float
-        Box corners; for a cylinder, the corners of its bounding box.
-    axis : int or None
-        A cylinder's axis (0, 1 or 2); None for a box.
-    radius : float
-        A cylinder's radius (0 for a box).
-    cell : int
-        The cell the element belongs to.
-    discipline : {"architecture", "structure", "mep"}
-        Which file of a federated model holds it.
-    """
-
-    ifc_class: str
-    name: str
-    global_id: str
-    lo: tuple[float, float, float]
-    hi: tuple[float, float, float]
-    axis: int | None = None
-    radius: float = 0.0
-    cell: int = 0
-    discipline: str = "architecture"
-
-    @property
-    def is_cylinder(self) -> bool:
-        return self.axis is not None
-
-
-@dataclass(frozen=True)
-class Relation:
-    """The exact relation of a pair of parts.
-
-    Attributes
-    ----------
-    distance : float
-        Euclidean distance between the solids (0 when they touch or overlap).
-    depth : float
-        Penetration depth: the length of the shortest translation that separates them (0 when
-        they touch or are apart).
-    contained : bool
-        One lies wholly inside the other.
-    error : float
-        Bound on both figures' error once cylinders are tessellated (0 for two boxes).
-    """
-
-    distance: float
-    depth: float
-    contained: bool = False
-    error: float = 0.0
-
-    @property
-    def kind(self) -> str:
-        """``"touching"``, ``"near"``, ``"grazing"``, ``"shallow"``, ``"deep"`` or
-        ``"contained"``."""
-        if self.contained:
-            return "contained"
-        if self.depth > SHALLOW:
-            return "deep"
-        if self.depth > GRAZE:
-            return "shallow"
-        if self.depth > 0:
-            return "grazing"
-        return "touching" if self.distance == 0 else "near"
-
-
-@dataclass
-class Building:
-    """A generated building: its parts and the exact relation of every pair within
-    :data:`MARGIN`.
-
-    Attributes
-    ----------
-    parts : list of Part
-    truth : dict
-        ``(global_id, global_id)`` (sorted) to :class:`Relation`, for every pair closer than
-        :data:`MARGIN`; every other pair is at least that far apart.
-    openings : list of (str, (3,) float, (3,) float)
-        Door openings: the voided wall's GlobalId and the opening's box corners.
-    """
-
-    parts: list[Part]
-    truth: dict[tuple[str, str], Relation]
-    openings: list[tuple[str, tuple[float, ...], tuple[float, ...]]] = field(default_factory=list)
-
-    def by_id(self) -> dict[str, Part]:
-        return {p.global_id: p for p in self.parts}
-
-    def pairs(self, kind: str) -> set[tuple[str, str]]:
-        """The pairs (sorted GlobalIds) of one :attr:`Relation.kind`."""
-        return {k for k, r in self.truth.items() if r.kind == kind}
-
-    def counts(self) -> dict[str, int]:
-        out: dict[str, int] = {}
-        for r in self.truth.values():
-            out[r.kind] = out.get(r.kind, 0) + 1
-        return out
-
-
-def chord_error(radius: float, segments: int = CIRCLE_SEGMENTS) -> float:
-    """How far a polygon of ``segments`` sides inscribed in a circle of ``radius`` comes inside
-    it, at most: ``radius (1 - cos(pi / segments))``."""
-    return radius * (1.0 - math.cos(math.pi / segments))
-
-
-# -- exact relations ------------------------------------------------------------------------
-
-
-def _interval(a_lo: float, a_hi: float, b_lo: float, b_hi: float) -> tuple[float, float]:
-    """Gap (>= 0) and depth (>= 0: the shortest shift that separates them) of two intervals."""
-    gap = max(b_lo - a_hi, a_lo - b_hi, 0.0)
-    depth = max(min(a_hi - b_lo, b_hi - a_lo), 0.0)
-    return _snap(gap), _snap(depth)
-
-
-EXACT = 1e-9
-"""Figures below this (metres) are rounding of the placements' sums: they are 0."""
-
-
-def _snap(x: float) -> float:
-    return 0.0 if abs(x) < EXACT else float(x)
-
-
-def _section(p: Part, axis: int) -> tuple[np.ndarray, np.ndarray]:
-    other = [k for k in range(3) if k != axis]
-    return np.asarray(p.lo)[other], np.asarray(p.hi)[other]
-
-
-def _disk_rect(c: np.ndarray, r: float, lo: np.ndarray, hi: np.ndarray) -> tuple[float, float]:
-    """Gap and depth of a disk (centre ``c``, radius ``r``) and a rectangle, in 2-D: the depth
-    is the distance from ``c`` to the boundary of the rectangle grown by ``r`` (support
-    functions: ``r`` plus the distance to the nearest side inside, ``r`` less the distance to
-    the rectangle outside)."""
-    outside = np.maximum(np.maximum(lo - c, c - hi), 0.0)
-    d_out = float(np.linalg.norm(outside))
-    if d_out > 0:
-        return _snap(max(d_out - r, 0.0)), _snap(max(r - d_out, 0.0))
-    return 0.0, r + float(np.min(np.minimum(c - lo, hi - c)))
-
-
-def relation(a: Part, b: Part) -> Relation:
-    """The exact :class:`Relation` of two parts.
-
-    Raises
-    ------
-    ValueError
-        For two cylinders whose axes are not parallel (the generator never places them near
-        each other).
-    """
-    if not a.is_cylinder and not b.is_cylinder:
-        gaps, depths = zip(*(_interval(a.lo[k], a.hi[k], b.lo[k], b.hi[k]) for k in range(3)))
-        distance = _snap(float(np.linalg.norm(gaps)))
-        depth = min(depths) if distance == 0 else 0.0
-        inside = all(a.lo[k] >= b.lo[k] and a.hi[k] <= b.hi[k] for k in range(3)) or \
-            all(b.lo[k] >= a.lo[k] and b.hi[k] <= a.hi[k] for k in range(3))
-        return Relation(distance, depth, inside and depth > 0)
-    if a.is_cylinder and b.is_cylinder and a.axis != b.axis:
-        raise ValueError(f"{a.name} and {b.name}: cylinders across each other have no exact "
-                         "relation here")
-    cyl, other = (a, b) if a.is_cylinder else (b, a)
-    k = cyl.axis
-    assert k is not None
-    gap_ax, depth_ax = _interval(cyl.lo[k], cyl.hi[k], other.lo[k], other.hi[k])
-    c_lo, c_hi = _section(cyl, k)
-    centre = (c_lo + c_hi) / 2
-    o_lo, o_hi = _section(other, k)
-    if other.is_cylinder:
-        oc = (o_lo + o_hi) / 2
-        dc = float(np.linalg.norm(centre - oc))
-        gap_2d = _snap(max(dc - cyl.radius - other.radius, 0.0))
-        depth_2d = _snap(max(cyl.radius + other.radius - dc, 0.0))
-        inside_2d = dc + min(cyl.radius, other.radius) <= max(cyl.radius, other.radius)
-        error = chord_error(cyl.radius) + chord_error(other.radius)
-    else:
-        gap_2d, depth_2d = _disk_rect(centre, cyl.radius, o_lo, o_hi)
-        inside_2d = bool(np.all(c_lo >= o_lo) and np.all(c_hi <= o_hi))
-        error = chord_error(cyl.radius)
-    distance = _snap(math.hypot(gap_ax, gap_2d))
-    depth = min(depth_ax, depth_2d) if distance == 0 else 0.0
-    inside_ax = (cyl.lo[k] >= other.lo[k] and cyl.hi[k] <= other.hi[k])
-    contained = inside_ax and inside_2d and depth > 0 and not other.is_cylinder
-    return Relation(distance, depth, contained, error)
-
-
-# -- layout ---------------------------------------------------------------------------------
-
-
-def _cell_parts(k: int, origin: np.ndarray, new_id: Callable[[], str]
-                ) -> tuple[list[Part], list[tuple[str, tuple[float, ...], tuple[float, ...]]]]:
-    """The parts of cell ``k`` at ``origin``, and its door opening (every fourth cell)."""
-    parts: list[Part] = []
-    o = origin
-
-    def box(cls: str, name: str, lo: Sequence[float], hi: Sequence[float], disc: str) -> Part:
-        p = Part(cls, f"{name} {k}", new_id(), tuple(map(float, o + lo)),
-                 tuple(map(float, o + hi)), cell=k, discipline=disc)
-        parts.append(p)
-        return p
-
-    def cyl(cls: str, name: str, axis: int, start: Sequence[float], length: float, r: float,
-            disc: str = "mep") -> Part:
-        c = o + np.asarray(start, float)
-        lo, hi = c - r, c + r
-        lo[axis], hi[axis] = c[axis], c[axis] + length
-        p = Part(cls, f"{name} {k}", new_id(), tuple(map(float, lo)), tuple(map(float, hi)),
-                 axis=axis, radius=r, cell=k, discipline=disc)
-        parts.append(p)
-        return p
-
-    top = H - SLAB  # underside of the slab
-    box("IfcSlab", "Slab", (0, 0, top), (W, D, H), "architecture")
-    for i, (x, y) in enumerate([(0, 0), (W - 0.3, 0), (0, D - 0.3), (W - 0.3, D - 0.3)]):
-        box("IfcColumn", f"Column {i}", (x, y, 0), (x + 0.3, y + 0.3, top), "structure")
-    beam_lo = top - 0.4
-    box("IfcBeam", "Beam south", (0.3, 0, beam_lo), (W - 0.3, 0.3, top), "structure")
-    box("IfcBeam", "Beam north", (0.3, D - 0.3, beam_lo), (W - 0.3, D, top), "structure")
-    box("IfcWall", "Wall west", (0, 0.3, 0), (0.2, D - 0.3, top), "architecture")
-    east = box("IfcWall", "Wall east", (W - 0.2, 0.3, 0), (W, D - 0.3, top), "architecture")
-    run = (W - 0.4) / 3
-    for i in range(3):
-        cyl("IfcPipeSegment", f"Pipe {i}", 0, (0.2 + i * run, D / 2, 2.0), run, 0.05)
-    for i, (y0, y1) in enumerate([(0.3, D / 2), (D / 2, D - 0.3)]):
-        box("IfcDuctSegment", f"Duct {i}", (W / 2 - 0.2, y0, top - 0.3), (W / 2 + 0.2, y1, top),
-            "mep")
-    cyl("IfcPipeSegment", "Pipe under duct", 1, (W / 2, 0.8, top - 0.3 - 0.04), D - 1.6, 0.04)
-    case = k % len(CASES)
-    if case == 0:  # through the south beam's web, 0.25 m deep
-        cyl("IfcPipeSegment", "Pipe through beam", 1, (W / 2 + 1, -0.3, beam_lo + 0.2), 1.3, 0.05)
-    elif case == 1:  # 20 mm up into the south beam
-        box("IfcDuctSegment", "Duct into beam", (1, 0.05, beam_lo - 0.3 + 0.02),
-            (3, 0.25, beam_lo + 0.02), "mep")
-    elif case == 2:  # 1 mm up into the slab
-        box("IfcDuctSegment", "Duct into slab", (0.5, D / 2 + 0.8, top - 0.3 + 0.001),
-            (2.5, D / 2 + 1.2, top + 0.001), "mep")
-    elif case == 3:  # a sleeve inside the west wall
-        cyl("IfcPipeSegment", "Sleeve in wall", 0, (0.05, D / 2 + 1, 1.0), 0.1, 0.03)
-    elif case == 4:  # 10 mm from the south-west column
-        box("IfcDuctSegment", "Duct by column", (0.31, 0, 1.0), (0.71, 0.3, 1.3), "mep")
-    elif case == 5:  # 40 mm from the west wall
-        cyl("IfcPipeSegment", "Pipe by wall", 1, (0.2 + 0.04 + 0.05, 1.0, 1.5), 1.0, 0.05)
-    elif case == 6:  # through the east wall, 0.5 m deep
-        box("IfcDuctSegment", "Duct through wall", (W - 1, D / 2 + 1.5, 1.5),
-            (W + 0.3, D / 2 + 1.9, 1.8), "mep")
-    else:  # a pipe's end 20 mm into the west wall
-        cyl("IfcPipeSegment", "Pipe into wall", 0, (0.2 - 0.02, 2.0, 0.8), 1.3, 0.05)
-    openings = []
-    if k % 4 == 0:  # a door through the east wall, clear of every other element
-        openings.append((east.global_id, tuple(map(float, o + (W - 0.3, 1.0, 0.0))),
-                         tuple(map(float, o + (W + 0.1, 2.0, 2.1)))))
-    return parts, openings
-
-
-def generate(elements: int = 3000, seed: int = 0) -> Building:
-    """A building of about ``elements`` elements (whole cells of :data:`ELEMENTS_PER_CELL`),
-    with the exact relation of every pair within :data:`MARGIN`.
-
-    Parameters
-    ----------
-    elements : int
-        Elements wanted; the building holds ``ceil(elements / 16)`` cells.
-    seed : int
-        Seed of the GlobalIds.
-
-    Returns
-    -------
-    Building
-    """
-    rng = random.Random(seed)
-
-    def new_id() -> str:
-        return _compress_guid(uuid.UUID(int=rng.getrandbits(128), version=4).hex)
-
-    cells = max(1, math.ceil(elements / ELEMENTS_PER_CELL))
-    side = math.ceil(math.sqrt(cells))
-    parts: list[Part] = []
-    openings: list[tuple[str, tuple[float, ...], tuple[float, ...]]] = []
-    truth: dict[tuple[str, str], Relation] = {}
-    for k in range(cells):
-        origin = np.array([(k % side) * PITCH, (k // side) * PITCH, 0.0])
-        cell, doors = _cell_parts(k, origin, new_id)
-        parts += cell
-        openings += doors
-        for i, a in enumerate(cell):
-            for b in cell[i + 1:]:
-                box_gap = np.maximum(np.maximum(np.subtract(a.lo, b.hi), np.subtract(b.lo, a.hi)),
-                                     0.0)
-                if np.linalg.norm(box_gap) >= MARGIN:
-                    continue
-                rel = relation(a, b)
-                if rel.distance < MARGIN:
-                    truth[tuple(sorted((a.global_id, b.global_id)))] = rel  # type: ignore[index]
-    return Building(parts, truth, openings)
-
-
-_GUID_CHARS = "0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_$"
-
-
-def _compress_guid(hex_uuid: str) -> str:
-    """IFC's 22-character GlobalId of a 32-digit hexadecimal UUID (as
-    ``ifcopenshell.guid.compress``)."""
-    n = int(hex_uuid, 16)
-    out = []
-    for _ in range(22):
-        out.append(_GUID_CHARS[n % 64])
-        n //= 64
-    return "".join(reversed(out))
-
-
-# -- IFC ------------------------------------------------------------------------------------
-
-
-_IFC2X3_CLASSES = {"IfcPipeSegment": "IfcFlowSegment", "IfcDuctSegment": "IfcFlowSegment"}
-
-
-def write_ifc(building: Building, path: str | os.PathLike[str], *, schema: str = "IFC4",
-              disciplines: Sequence[str] | None = None) -> Path:
-    """Write the building (or the parts of some disciplines) as an IFC file.
-
-    Boxes are rectangles extruded upwards, cylinders circles extruded along their axis, each
-    with its own local placement, in metres; walls with a door get an IfcOpeningElement that
-    voids them. In IFC2X3, pipe and duct segments are IfcFlowSegment.
-
-    Parameters
-    ----------
-    building : Building
-    path : str or path-like
-    schema : {"IFC4", "IFC2X3"}
-    disciplines : sequence of str, optional
-        Only the parts of these (``"architecture"``, ``"structure"``, ``"mep"``).
-
-    Returns
-    -------
-    Path
-        ``path``.
-    """
-    ifcopenshell = require("ifcopenshell", "writing the generated building as IFC", "bim")
-    f = ifcopenshell.file(schema=schema)
-    rng = random.Random(zlib.crc32(os.fsencode(os.fspath(path))))
-
-    def gid() -> str:
-        return _compress_guid(uuid.UUID(int=rng.getrandbits(128), version=4).hex)
-
-    def point(*xyz: float) -> Any:
-        return f.createIfcCartesianPoint([float(v) for v in xyz])
-
-    def direction(*xyz: float) -> Any:
-        return f.createIfcDirection([float(v) for v in xyz])
-
-    owner = None
-    if schema == "IFC2X3":
-        person = f.createIfcPerson(None, "pycinder", None, None, None, None, None, None)
-        org = f.createIfcOrganization(None, "pycinder", None, None, None)
-        app = f.createIfcApplication(org, "0", "pycinder", "pycinder")
-        owner = f.createIfcOwnerHistory(f.createIfcPersonAndOrganization(person, org, None),
-                                        app, None, "ADDED", None, None, None, 0)
-    metre = f.createIfcSIUnit(None, "LENGTHUNIT", None, "METRE")
-    units = f.createIfcUnitAssignment([metre])
-    origin = f.createIfcAxis2Placement3D(point(0, 0, 0), None, None)
-    context = f.createIfcGeometricRepresentationContext(None, "Model", 3, 1e-5, origin, None)
-    body_context = f.createIfcGeometricRepresentationSubContext(
-        "Body", "Model", None, None, None, None, context, None, "MODEL_VIEW", None)
-    project = f.createIfcProject(gid(), owner, "pycinder building", None, None, None, None,
-                                 [context], units)
-    site_place = f.createIfcLocalPlacement(None, origin)
-    site = f.createIfcSite(gid(), owner, "Site", None, None, site_place, None, None, "ELEMENT",
-                           None, None, None, None, None)
-    building_el = f.createIfcBuilding(gid(), owner, "Building", None, None,
-                                      f.createIfcLocalPlacement(site_place, origin), None, None,
-                                      "ELEMENT", None, None, None)
-    storey = f.createIfcBuildingStorey(gid(), owner, "Level 0", None, None,
-                                       f.createIfcLocalPlacement(site_place, origin), None, None,
-                                       "ELEMENT", 0.0)
-    f.createIfcRelAggregates(gid(), owner, None, None, project, [site])
-    f.createIfcRelAggregates(gid(), owner, None, None, site, [building_el])
-    f.createIfcRelAggregates(gid(), owner, None, None, building_el, [storey])
-    z_up, x_dir = direction(0, 0, 1), direction(1, 0, 0)
-
-    def box_shape(lo: Sequence[float], hi: Sequence[float]) -> tuple[Any, Any]:
-        size = np.subtract(hi, lo)
-        place = f.createIfcLocalPlacement(None, f.createIfcAxis2Placement3D(
-            point((lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]), z_up, x_dir))
-        profile = f.createIfcRectangleProfileDef(
-            "AREA", None, f.createIfcAxis2Placement2D(f.createIfcCartesianPoint([0.0, 0.0]), None),
-            float(size[0]), float(size[1]))
-        solid = f.createIfcExtrudedAreaSolid(profile, f.createIfcAxis2Placement3D(
-            point(0, 0, 0), None, None), z_up, float(size[2]))
-        return place, solid
-
-    def cyl_shape(p: Part) -> tuple[Any, Any]:
-        k = p.axis
-        assert k is not None
-        c = (np.asarray(p.lo) + np.asarray(p.hi)) / 2
-        c[k] = p.lo[k]
-        axis = [0.0, 0.0, 0.0]
-        axis[k] = 1.0
-        ref = [0.0, 0.0, 1.0] if k != 2 else [1.0, 0.0, 0.0]
-        place = f.createIfcLocalPlacement(None, f.createIfcAxis2Placement3D(
-            point(*c), direction(*axis), direction(*ref)))
-        profile = f.createIfcCircleProfileDef(
-            "AREA", None, f.createIfcAxis2Placement2D(f.createIfcCartesianPoint([0.0, 0.0]), None),
-            float(p.radius))
-        solid = f.createIfcExtrudedAreaSolid(profile, f.createIfcAxis2Placement3D(
-            point(0, 0, 0), None, None), z_up, float(p.hi[k] - p.lo[k]))
-        return place, solid
-
-    def shape(solid: Any) -> Any:
-        rep = f.createIfcShapeRepresentation(body_context, "Body", "SweptSolid", [solid])
-        return f.createIfcProductDefinitionShape(None, None, [rep])
-
-    wanted = set(disciplines) if disciplines is not None else None
-    elements = {}
-    contained = []
-    for p in building.parts:
-        if wanted is not None and p.discipline not in wanted:
-            continue
-        place, solid = cyl_shape(p) if p.is_cylinder else box_shape(p.lo, p.hi)
-        cls = _IFC2X3_CLASSES.get(p.ifc_class, p.ifc_class) if schema == "IFC2X3" else p.ifc_class
-        el = f.create_entity(cls, GlobalId=p.global_id, OwnerHistory=owner, Name=p.name,
-                             ObjectPlacement=place, Representation=shape(solid))
-        elements[p.global_id] = el
-        contained.append(el)
-    for wall_id, lo, hi in building.openings:
-        if wall_id not in elements:
-            continue
-        place, solid = box_shape(lo, hi)
-        opening = f.create_entity("IfcOpeningElement", GlobalId=gid(), OwnerHistory=owner,
-                                  Name="Door opening", ObjectPlacement=place,
-                                  Representation=shape(solid))
-        f.createIfcRelVoidsElement(gid(), owner, None, None, elements[wall_id], opening)
-    if contained:
-        f.createIfcRelContainedInSpatialStructure(gid(), owner, None, None, contained, storey)
-    path = Path(path)
-    f.write(str(path))
-    return path
-
-
-DISCIPLINES = ("architecture", "structure", "mep")
-
-
-def write_federated(building: Building, folder: str | os.PathLike[str], *,
-                    schema: str = "IFC4") -> list[Path]:
-    """Write the building as three files, ``architecture.ifc`` (walls, slabs),
-    ``structure.ifc`` (columns, beams) and ``mep.ifc`` (pipe and duct segments), in
-    ``folder``; returns their paths."""
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    return [write_ifc(building, folder / f"{d}.ifc", schema=schema, disciplines=[d])
-            for d in DISCIPLINES]
-
-
-# -- the benchmark --------------------------------------------------------------------------
-
-DEPTH = 0.01
-"""``min_depth`` of the hard-clash runs, and IfcClash's intersection tolerance (metres)."""
-CLEARANCE = 0.05
-"""``clearance`` of the clearance runs (metres)."""
-
-
-def score(building: Building, reported: set[tuple[str, str]], mode: str,
-          depth: float = DEPTH, clearance: float = CLEARANCE) -> dict[str, Any]:
-    """Score reported pairs (sorted GlobalIds) against the truth.
-
-    Parameters
-    ----------
-    building : Building
-    reported : set of (str, str)
-    mode : {"default", "min_depth", "clearance", "intersection", "collision"}
-        What the pairs answer: the hard-clash modes must find every pair deeper than ``depth``
-        and never one at most ``depth / 2`` deep; clearance every pair closer than
-        ``clearance`` and never one farther than ``clearance * 9 / 8``; the default and
-        IfcClash's collision mode every overlap deeper than ``depth``.
-
-    Returns
-    -------
-    dict
-        ``must`` (pairs that must be found), ``found`` (of those), ``recall``, ``touching``
-        (touching pairs reported), ``grazes`` (pairs at most ``depth / 2`` deep, touching
-        excluded, reported), ``near`` (pairs apart but within the margin, reported),
-        ``false`` (pairs that must not be reported, reported: for the hard-clash modes pairs
-        apart, touching or at most ``depth / 2`` deep; for clearance, pairs farther than
-        ``clearance * 9 / 8``; for the default pairs apart), ``reported``.
-    """
-    truth = building.truth
+from .buildingmodel import (CASES, CIRCLE_SEGMENTS, DISCIPLINES, ELEMENTS_PER_CELL, EXACT,
+                            GRAZE, MARGIN, PITCH, SHALLOW, SLAB, Building, D, H, Part,
+                            Relation, W, chord_error, generate, relation, write_federated,
+                            write_ifc)
+from .buildingscore import (CLEARANCE, DEPTH, check_depths, check_distances, group_counts,
+                            must_not_report, must_report, score, smart_group_count,
+                            truth_classes)
+
+__all__ = ["CASES", "CIRCLE_SEGMENTS", "CLEARANCE", "CLI_DEPTH", "DENSE_JSON", "DEPTH",
+           "DISCIPLINES", "ELEMENTS_PER_CELL", "EXACT", "FINE_CLEARANCE", "FINE_DEPTHS",
+           "GRAZE", "IFCCLASH_RUNS", "MAP_OFFSET", "MARGIN", "PITCH", "PLACEMENTS",
+           "PYCINDER_RUNS", "SHALLOW", "SLAB", "Building", "D", "H", "Part", "Relation", "W",
+           "check_depths", "check_distances", "chord_error", "cli_check", "dense_entry",
+           "generate", "group_counts", "main", "markdown", "must_not_report", "must_report",
+           "relation", "run_building", "score", "smart_group_count", "truth_classes",
+           "write_federated", "write_ifc"]
+
+MAP_OFFSET = (500_000.0, 500_000.0, 0.0)
+"""Where the building's site is placed in map coordinates (metres): 707 km from the origin."""
+PLACEMENTS = (("origin", (0.0, 0.0, 0.0)), ("map", MAP_OFFSET))
+"""Each placement's name and its site's offset."""
+FINE_DEPTHS = (0.002, 0.001)
+"""Hard-clash depths ``d`` run at both placements (metres)."""
+FINE_CLEARANCE = 0.002
+"""Clearance ``c`` run at both placements (metres)."""
+_FINE = [("min_depth", d) for d in FINE_DEPTHS] + [("clearance", FINE_CLEARANCE)]
+PYCINDER_RUNS: dict[str, list[tuple[str, float]]] = {
+    "origin": [("default", DEPTH), ("min_depth", DEPTH), ("clearance", CLEARANCE), *_FINE],
+    "map": list(_FINE)}
+"""pycinder's runs at each placement: the mode and its figure (``d``, or ``c`` for clearance;
+the default query is scored against ``d``)."""
+_IFCCLASH_FINE = [("intersection", d) for d in FINE_DEPTHS] + [("clearance", FINE_CLEARANCE)]
+IFCCLASH_RUNS: dict[str, list[tuple[str, float]]] = {
+    "origin": [("intersection", DEPTH), ("collision", DEPTH), ("clearance", CLEARANCE),
+               *_IFCCLASH_FINE],
+    "map": list(_IFCCLASH_FINE)}
+"""IfcClash's runs at each placement: the intersection mode's tolerance, the clearance, or
+(collision, which takes no figure) the ``d`` it is scored against."""
+CLI_DEPTH = 0.002
+"""``--min-depth`` of the command-line runs (metres)."""
+DENSE_JSON = Path("benchmarks") / "results" / "dense.json"
+"""Where the dense-mesh benchmark (:mod:`pycinder.benchmarks.dense`) leaves its figures,
+relative to the working folder: the building report shows them in its dense-mesh row."""
+
+Say = Callable[[str], None]
+
+
+def _key(a: str, b: str) -> tuple[str, str]:
+    return (a, b) if a <= b else (b, a)
+
+
+def _scored(building: Building, reported: set[tuple[str, str]], mode: str,
+            value: float) -> dict[str, Any]:
+    """:func:`score` of a run: ``value`` is ``c`` for clearance, else ``d``."""
     if mode == "clearance":
-        must = {k for k, r in truth.items() if r.distance < clearance - r.error}
-        never = lambda r: r.distance > clearance * 9 / 8 + r.error  # noqa: E731
-    else:
-        must = {k for k, r in truth.items() if r.depth > depth + r.error}
-        if mode in ("min_depth", "intersection"):
-            never = lambda r: r.depth <= depth / 2 - r.error  # noqa: E731
-        else:
-            never = lambda r: r.distance > r.error  # noqa: E731
-    false = 0
-    touching = grazes = near = 0
-    for k in reported:
-        r = truth.get(k)
-        if r is None:  # at least MARGIN apart
-            false += 1
-            continue
-        kind = r.kind
-        touching += kind == "touching"
-        near += kind == "near"
-        grazes += 0 < r.depth <= depth / 2
-        false += bool(never(r))
-    found = len(must & reported)
-    return {"must": len(must), "found": found,
-            "recall": found / len(must) if must else 1.0, "touching": touching,
-            "grazes": grazes, "near": near, "false": false, "reported": len(reported)}
+        return score(building, reported, mode, clearance=value)
+    return score(building, reported, mode, depth=value)
 
 
-def _pycinder_runs(paths: Sequence[Path], building: Building,
-                   say: Callable[[str], None]) -> list[dict[str, Any]]:
+def _classes(building: Building, mode: str, value: float) -> dict[str, int]:
+    """:func:`truth_classes` of a mode and its figure (``c`` for clearance, else ``d``)."""
+    if mode == "clearance":
+        return truth_classes(building, mode, clearance=value)
+    return truth_classes(building, mode, depth=value)
+
+
+def _pycinder_runs(model: Any, building: Building, placement: str,
+                   say: Say) -> tuple[list[dict[str, Any]], dict[float, list[Any]]]:
+    """pycinder's runs of ``placement`` on a read model; the rows, and the clashes of each
+    ``min_depth`` run by its depth (for :func:`cli_check`)."""
     from ..bim import ifc
 
-    rows = []
-    t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory() as cache:
-        model = ifc.read_ifc(paths, cache=cache)
-    tess = time.perf_counter() - t0
-    modes: list[tuple[str, dict[str, float]]] = [
-        ("default", {}), ("min_depth", {"min_depth": DEPTH}),
-        ("clearance", {"clearance": CLEARANCE})]
-    for mode, options in modes:
-        say(f"building: pycinder {mode}, {len(model.bodies):,} elements")
+    rows, hard = [], {}
+    for mode, value in PYCINDER_RUNS[placement]:
+        say(f"building: pycinder {mode} {value * 1e3:g} mm, {placement}, "
+            f"{len(model.bodies):,} elements")
+        options = {} if mode == "default" else {mode: value}
         t0 = time.perf_counter()
         clashes = ifc.find_clashes(model, **options)  # type: ignore[arg-type]
         clash_s = time.perf_counter() - t0
-        reported = {tuple(sorted((c.a.global_id, c.b.global_id))) for c in clashes}
-        row = {"system": "pycinder", "mode": mode, "tessellation_s": tess, "clash_s": clash_s}
-        row.update(score(building, reported, mode))  # type: ignore[arg-type]
+        reported = {_key(c.a.global_id, c.b.global_id) for c in clashes}
+        row: dict[str, Any] = {"system": "pycinder", "mode": mode, "value": value,
+                               "placement": placement, "clash_s": clash_s,
+                               "tessellation_s": model.seconds["tessellation"]}
+        row.update(_scored(building, reported, mode, value))
+        t0 = time.perf_counter()
         row.update(group_counts(clashes))
+        row["grouping_s"] = time.perf_counter() - t0
         if mode == "min_depth":
             row.update(check_depths(building, clashes))
+            hard[value] = clashes
+        elif mode == "clearance":
+            row.update(check_distances(building, clashes))
         rows.append(row)
-    return rows
+    return rows, hard
 
 
-def group_counts(clashes: Sequence[Any]) -> dict[str, int]:
-    """How many groups the clashes form (:func:`pycinder.bim.groups.group_clashes`): ``groups``
-    at the default distance, ``groups_by_element`` by element alone."""
-    from ..bim.groups import group_clashes as group
-
-    return {"groups": len(group(clashes)), "groups_by_element": len(group(clashes, 0))}
-
-
-def check_depths(building: Building, clashes: Sequence[Any]) -> dict[str, Any]:
-    """Each hard clash's depth against the exact truth.
-
-    Parameters
-    ----------
-    building : Building
-    clashes : sequence of Clash
-        From :func:`pycinder.bim.ifc.find_clashes` with ``min_depth``.
-
-    Returns
-    -------
-    dict
-        ``depths_checked`` (clashes whose pair is in the truth), ``depths_outside`` (of those,
-        clashes whose depth is farther from the true depth than the two bounds together: the
-        clash's :attr:`~pycinder.bim.ifc.Clash.depth_error` and the tessellation's
-        :attr:`Relation.error`) and ``depth_worst`` (the largest difference from the true
-        depth, in metres; 0 with nothing checked).
-    """
-    checked = outside = 0
-    worst = 0.0
-    for c in clashes:
-        r = building.truth.get(tuple(sorted((c.a.global_id, c.b.global_id))))
-        if r is None or c.depth is None:
-            continue
-        checked += 1
-        off = abs(c.depth - r.depth)
-        worst = max(worst, off)
-        outside += off > (c.depth_error or 0.0) + r.error
-    return {"depths_checked": checked, "depths_outside": outside, "depth_worst": worst}
-
-
-def _ifcclash_runs(paths: Sequence[Path], building: Building,
-                   say: Callable[[str], None]) -> list[dict[str, Any]]:
-    """IfcClash's own steps (:class:`ifcclash.Clasher`): its iterator fills one tree
-    (tessellation), then each mode clashes the elements against themselves."""
-    ifcopenshell = require("ifcopenshell", "the building benchmark", "bim")
-    import ifcopenshell.geom
+def _ifcclash_runs(paths: Sequence[Path], building: Building, placement: str,
+                   say: Say) -> list[dict[str, Any]]:
+    """IfcClash's runs of ``placement``, with its own steps (:class:`ifcclash.Clasher`): its
+    iterator fills one tree (tessellation), then each mode clashes the elements against
+    themselves (an element's clash with itself left out), and its smart grouping groups the
+    clashes."""
     import logging
+
+    require("ifcopenshell", "the building benchmark", "bim")
+    import ifcopenshell.geom
     try:
         from ifcclash.ifcclash import Clasher, ClashSettings
     except ImportError as exc:
@@ -673,6 +164,7 @@ def _ifcclash_runs(paths: Sequence[Path], building: Building,
     settings = ClashSettings()
     settings.logger = logging.getLogger("ifcclash")
     clasher = Clasher(settings)
+    say(f"building: IfcClash's tree, {placement}")
     t0 = time.perf_counter()
     clasher.tree = ifcopenshell.geom.tree(backend="opencascade.trianglebvh")
     clasher.create_group("a")
@@ -680,102 +172,353 @@ def _ifcclash_runs(paths: Sequence[Path], building: Building,
         clasher.add_collision_objects("a", clasher.load_ifc(str(p)), {"file": str(p)})
     tess = time.perf_counter() - t0
     elements = list(clasher.groups["a"]["elements"].values())
+    tree = clasher.tree
+    calls = {"intersection": lambda v: tree.clash_intersection_many(
+                elements, elements, tolerance=v, check_all=True),
+             "collision": lambda v: tree.clash_collision_many(
+                elements, elements, allow_touching=False),
+             "clearance": lambda v: tree.clash_clearance_many(
+                elements, elements, clearance=v, check_all=True)}
     rows = []
-    runs = [("intersection", lambda: clasher.tree.clash_intersection_many(
-                elements, elements, tolerance=DEPTH, check_all=True)),
-            ("collision", lambda: clasher.tree.clash_collision_many(
-                elements, elements, allow_touching=False)),
-            ("clearance", lambda: clasher.tree.clash_clearance_many(
-                elements, elements, clearance=CLEARANCE, check_all=True))]
-    for mode, call in runs:
-        say(f"building: IfcClash {mode}, {len(elements):,} elements")
+    for mode, value in IFCCLASH_RUNS[placement]:
+        say(f"building: IfcClash {mode} {value * 1e3:g} mm, {placement}, "
+            f"{len(elements):,} elements")
         t0 = time.perf_counter()
-        results = call()
+        results = [r for r in calls[mode](value) if r.a.GlobalId != r.b.GlobalId]
         clash_s = time.perf_counter() - t0
-        reported = {tuple(sorted((r.a.GlobalId, r.b.GlobalId))) for r in results
-                    if r.a.GlobalId != r.b.GlobalId}
-        row = {"system": "IfcClash", "mode": mode, "tessellation_s": tess, "clash_s": clash_s}
-        row.update(score(building, reported, mode))
+        reported = {_key(r.a.GlobalId, r.b.GlobalId) for r in results}
+        row: dict[str, Any] = {"system": "IfcClash", "mode": mode, "value": value,
+                               "placement": placement, "tessellation_s": tess,
+                               "clash_s": clash_s}
+        row.update(_scored(building, reported, mode, value))
+        t0 = time.perf_counter()
+        row["smart_groups"] = smart_group_count(results)
+        row["grouping_s"] = time.perf_counter() - t0
         rows.append(row)
     return rows
 
 
-def run_building(sizes: Sequence[int] = (3000, 20000), *,
-                 progress: Callable[[str], None] | None = None,
-                 peers: bool = True) -> dict[str, Any]:
-    """The building benchmark: each size generated, written as three IFC4 files, read and
-    checked by pycinder in each mode and by IfcClash in each of its modes, in the same run.
+def cli_check(folder: Path, building: Building, api: Sequence[Any], placement: str,
+              min_depth: float = CLI_DEPTH) -> dict[str, Any]:
+    """Run ``pycinder check architecture.ifc structure.ifc mep.ifc --min-depth D --json`` in a
+    process of its own, in ``folder``, as a user runs it (its tessellation cache in an empty
+    temporary folder), and compare its pairs with the API's.
+
+    Parameters
+    ----------
+    folder : Path
+        Holds the three files of :func:`~.buildingmodel.write_federated`.
+    building : Building
+    api : sequence of Clash
+        :func:`~pycinder.bim.ifc.find_clashes` of the same files at ``min_depth``.
+    placement : str
+    min_depth : float
 
     Returns
     -------
     dict
-        ``rows`` (one per size, system and mode: :func:`score`'s figures, ``tessellation_s``
-        and ``clash_s``), ``sizes`` (per size: elements, triangles, truth counts),
-        ``left_out`` (IfcClash's reason, when it could not run), ``depth``, ``clearance``.
+        ``command``, ``placement``, ``elements``, ``exit`` (the exit status), ``wall_s``,
+        ``pairs`` (how many), ``api_pairs``, ``same_pairs`` (the same GlobalId pairs as
+        ``api``), ``depth_diff`` (the largest difference between the two answers' depths of
+        one pair, metres), ``depth_bound`` (the largest ``depth_error`` of either, metres),
+        ``groups`` (how many the JSON lists), and :func:`score`'s figures of its pairs; or,
+        where it printed no JSON, ``same_pairs`` False and ``error``.
     """
-    say = progress or (lambda msg: None)
-    out: dict[str, Any] = {"depth": DEPTH, "clearance": CLEARANCE, "rows": [], "sizes": [],
-                           "left_out": {}}
-    for n in sizes:
-        say(f"building: generating {n:,} elements")
-        building = generate(n)
-        with tempfile.TemporaryDirectory() as folder:
-            paths = write_federated(building, folder)
-            rows = _pycinder_runs(paths, building, say)
-            if peers:
-                try:
-                    rows += _ifcclash_runs(paths, building, say)
-                except ImportError as exc:
-                    out["left_out"]["IfcClash"] = str(exc)
-        for row in rows:
-            row["elements"] = len(building.parts)
-        out["rows"] += rows
-        out["sizes"].append({"elements": len(building.parts), "truth": building.counts()})
-    from ..gpu.device import get_gpu
-
-    out["adapter"] = get_gpu().description
+    names = [f"{d}.ifc" for d in DISCIPLINES]
+    args = ["check", *names, "--min-depth", f"{min_depth:g}", "--json"]
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "PYCINDER_CACHE_DIR": cache}
+        t0 = time.perf_counter()
+        run = subprocess.run([sys.executable, "-m", "pycinder", *args], cwd=folder, env=env,
+                             capture_output=True, text=True, timeout=3600, check=False)
+        wall = time.perf_counter() - t0
+    out: dict[str, Any] = {"command": "pycinder " + " ".join(args), "placement": placement,
+                           "exit": run.returncode, "wall_s": wall,
+                           "elements": len(building.parts), "min_depth": min_depth}
+    try:
+        report = json.loads(run.stdout)
+    except json.JSONDecodeError:
+        out.update(same_pairs=False, error=(run.stderr or run.stdout).strip()[-500:])
+        return out
+    cli = {_key(p["a_global_id"], p["b_global_id"]): p for p in report["pairs"]}
+    mine = {_key(c.a.global_id, c.b.global_id): c for c in api}
+    both = cli.keys() & mine.keys()
+    out.update(pairs=len(cli), api_pairs=len(mine), same_pairs=cli.keys() == mine.keys(),
+               groups=len(report.get("groups", [])),
+               depth_diff=max((abs(cli[k]["depth"] - mine[k].depth) for k in both),
+                              default=0.0),
+               depth_bound=max((max(cli[k]["depth_error"], mine[k].depth_error or 0.0)
+                                for k in both), default=0.0))
+    out.update(score(building, set(cli), "min_depth", depth=min_depth))
     return out
 
 
+def dense_entry(path: str | os.PathLike[str] | None = DENSE_JSON) -> dict[str, Any]:
+    """The dense-mesh case's row of the building report: the figures the dense-mesh benchmark
+    (:mod:`pycinder.benchmarks.dense`, two overlapping meshes of 20,000 faces each) wrote to
+    ``path``, or ``{"status": "not run"}`` where there is no such file.
+
+    Returns
+    -------
+    dict
+        ``status`` (``"run"``, ``"not run"`` or ``"unreadable"``, then with ``why``),
+        ``source`` (the path), and where run ``rows``: the file's ``rows`` (or the file's
+        object as one row), each row's plain values (numbers, strings, booleans) only.
+    """
+    if path is None or not Path(path).is_file():
+        return {"status": "not run", "source": None if path is None else os.fspath(path)}
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        return {"status": "unreadable", "source": os.fspath(path), "why": str(exc)}
+    rows = data.get("rows", [data]) if isinstance(data, dict) else data
+    plain = (int, float, str, bool)
+    rows = [{k: v for k, v in row.items() if isinstance(v, plain)}
+            for row in (rows if isinstance(rows, list) else []) if isinstance(row, dict)]
+    return {"status": "run", "source": os.fspath(path), "rows": rows}
+
+
+def _versions() -> dict[str, str]:
+    from importlib import metadata
+
+    out = {}
+    for name in ("pycinder", "ifcopenshell", "ifcclash", "scikit-learn", "wgpu"):
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def run_building(sizes: Sequence[int] = (3000, 20000), *,
+                 progress: Callable[[str], None] | None = None, peers: bool = True,
+                 cli_sizes: Sequence[int] = (3000,),
+                 dense: str | os.PathLike[str] | None = DENSE_JSON) -> dict[str, Any]:
+    """The building benchmark: each size generated, written as three IFC4 files at each
+    placement (:data:`PLACEMENTS`), read and checked by pycinder and by IfcClash in each of
+    their runs (:data:`PYCINDER_RUNS`, :data:`IFCCLASH_RUNS`), in the same process.
+
+    Parameters
+    ----------
+    sizes : sequence of int
+        Elements wanted (:func:`~.buildingmodel.generate`).
+    progress : callable, optional
+        Called with a line of text before each step.
+    peers : bool
+        Run IfcClash too.
+    cli_sizes : sequence of int
+        Sizes (as given in ``sizes``) at which ``pycinder check`` runs too (:func:`cli_check`).
+    dense : path, optional
+        The dense-mesh benchmark's JSON (:func:`dense_entry`).
+
+    Returns
+    -------
+    dict
+        ``rows`` (one per size, placement, system, mode and figure: ``value`` (``d`` or ``c``),
+        :func:`score`'s figures, ``tessellation_s``, ``clash_s``, groups and ``grouping_s``,
+        and pycinder's depth or distance checks), ``sizes`` (per size: ``elements``,
+        ``triangles``, ``truth`` counts and ``classes``: the truth's must, never and either
+        counts of each figure), ``cli`` (:func:`cli_check`'s answers), ``dense``
+        (:func:`dense_entry`), ``left_out`` (IfcClash's reason, when it could not run),
+        ``offset``, ``depth``, ``clearance``, ``adapter``, ``versions``.
+    """
+    from ..bim import ifc
+
+    say = progress or (lambda msg: None)
+    out: dict[str, Any] = {"depth": DEPTH, "clearance": CLEARANCE, "offset": list(MAP_OFFSET),
+                           "rows": [], "sizes": [], "cli": [], "left_out": {}}
+    figures = [("min_depth", v) for v in (DEPTH, *FINE_DEPTHS)] + [
+        ("clearance", v) for v in (CLEARANCE, FINE_CLEARANCE)]
+    for n in sizes:
+        say(f"building: generating {n:,} elements")
+        building = generate(n)
+        size: dict[str, Any] = {
+            "elements": len(building.parts), "truth": building.counts(),
+            "classes": [{"mode": m, "value": v, **_classes(building, m, v)} for m, v in figures]}
+        rows: list[dict[str, Any]] = []
+        with tempfile.TemporaryDirectory() as root:
+            for placement, offset in PLACEMENTS:
+                folder = Path(root) / placement
+                paths = write_federated(building, folder, offset=offset)
+                say(f"building: pycinder reads {len(building.parts):,} elements, {placement}")
+                with tempfile.TemporaryDirectory() as cache:
+                    model = ifc.read_ifc(paths, cache=cache)
+                size.setdefault("triangles", sum(len(b.mesh.faces) for b in model.bodies))
+                got, hard = _pycinder_runs(model, building, placement, say)
+                rows += got
+                del model
+                if n in cli_sizes and CLI_DEPTH in hard:
+                    say(f"building: pycinder check --min-depth {CLI_DEPTH:g} --json, "
+                        f"{placement}")
+                    out["cli"].append(cli_check(folder, building, hard[CLI_DEPTH], placement))
+                if peers and "IfcClash" not in out["left_out"]:
+                    try:
+                        rows += _ifcclash_runs(paths, building, placement, say)
+                    except ImportError as exc:
+                        out["left_out"]["IfcClash"] = str(exc)
+        for row in rows:
+            row["elements"] = len(building.parts)
+        out["rows"] += rows
+        out["sizes"].append(size)
+    from ..gpu.device import get_gpu
+
+    out["adapter"] = get_gpu().description
+    out["versions"] = _versions()
+    out["dense"] = dense_entry(dense)
+    return out
+
+
+# -- the report -----------------------------------------------------------------------------
+
+
+def _mm(value: float) -> str:
+    return f"{value * 1e3:g}"
+
+
+def _figure(row: dict[str, Any]) -> str:
+    """A row's figure in words: ``d = 2 mm`` or ``c = 50 mm``."""
+    return f"{'c' if row['mode'] == 'clearance' else 'd'} = {_mm(row['value'])} mm"
+
+
+def _score_table(rows: Sequence[dict[str, Any]]) -> list[str]:
+    lines = [("| elements | placement | system | mode | d or c (mm) | must find | found | "
+              "recall | touching reported | grazes (<= d/2) reported | near reported | "
+              "either way | false | reported | clash s |"), "|" + "---|" * 15]
+    for row in rows:
+        lines.append(
+            f"| {row['elements']:,} | {row['placement']} | {row['system']} | {row['mode']} | "
+            f"{_mm(row['value'])} | {row['must']:,} | {row['found']:,} | {row['recall']:.1%} | "
+            f"{row['touching']:,} | {row['grazes']:,} | {row['near']:,} | {row['either']:,} | "
+            f"{row['false']:,} | {row['reported']:,} | {row['clash_s']:.1f} |")
+    return lines
+
+
+def _group_table(rows: Sequence[dict[str, Any]]) -> list[str]:
+    lines = [("| elements | placement | system | mode | d or c (mm) | clashes | groups (3 m) | "
+              "groups by element | grouping s |"), "|" + "---|" * 9]
+    for row in rows:
+        groups = row.get("groups", row.get("smart_groups"))
+        if groups is None:
+            continue
+        by_element = row.get("groups_by_element")
+        lines.append(
+            f"| {row['elements']:,} | {row['placement']} | {row['system']} | {row['mode']} | "
+            f"{_mm(row['value'])} | {row['reported']:,} | {groups:,} | "
+            f"{'-' if by_element is None else f'{by_element:,}'} | "
+            f"{row.get('grouping_s', 0.0):.1f} |")
+    return lines
+
+
+def _checks(rows: Sequence[dict[str, Any]]) -> list[str]:
+    lines = []
+    for row in rows:
+        for figure, plural in (("depth", "depths"), ("distance", "distances")):
+            if f"{plural}_checked" in row:
+                lines.append(
+                    f"- pycinder {row['mode']} {_figure(row)}, {row['elements']:,} elements, "
+                    f"{row['placement']}: {row[f'{plural}_checked']:,} {plural} checked against "
+                    f"the truth, {row[f'{plural}_outside']:,} outside their bounds, largest "
+                    f"difference {row[f'{figure}_worst'] * 1e3:.3g} mm.")
+    return lines
+
+
+def _failures(rows: Sequence[dict[str, Any]]) -> list[str]:
+    lines = []
+    for row in rows:
+        for what, key in (("missed", "missed"), ("reported that must not be", "wrong")):
+            if row.get(key):
+                count = (row["must"] - row["found"]) if key == "missed" else row["false"]
+                lines.append(f"- {row['system']} {row['mode']} {_figure(row)}, "
+                             f"{row['elements']:,} elements, {row['placement']}: {count:,} "
+                             f"{what}, among them: " + "; ".join(row[key]) + ".")
+    return lines
+
+
+def _cli_lines(entries: Sequence[dict[str, Any]]) -> list[str]:
+    lines = []
+    for c in entries:
+        head = f"- `{c['command']}`, {c['elements']:,} elements, {c['placement']}: "
+        if "pairs" not in c:
+            lines.append(head + f"exit {c['exit']}, no JSON: {c.get('error', '')}")
+            continue
+        same = "the same pairs as" if c["same_pairs"] else "NOT the same pairs as"
+        lines.append(
+            head + f"exit {c['exit']}, {c['pairs']:,} pairs in {c['groups']:,} groups, {same} "
+            f"`find_clashes(model, min_depth={c['min_depth']:g})` ({c['api_pairs']:,}); their "
+            f"depths differ by at most {c['depth_diff'] * 1e3:.3g} mm (bounds up to "
+            f"{c['depth_bound'] * 1e3:.3g} mm); against the truth: {c['found']:,} of "
+            f"{c['must']:,} found, {c['touching']:,} touching, {c['grazes']:,} grazes, "
+            f"{c['false']:,} false; {c['wall_s']:.1f} s wall, reading the files included.")
+    return lines
+
+
+def _dense_lines(dense: dict[str, Any] | None) -> list[str]:
+    head = "Dense meshes (two overlapping 20,000-face meshes, `pycinder.benchmarks.dense`): "
+    dense = dense or {"status": "not run", "source": None}
+    if dense["status"] != "run":
+        why = dense.get("why") or f"no {dense.get('source')}"
+        return [head + f"{dense['status']} ({why})."]
+    return [head + f"from `{Path(dense['source']).name}`:"] + [
+        "- " + ", ".join(f"{k} {v:,.4g}" if isinstance(v, float) else f"{k} {v}"
+                         for k, v in row.items()) for row in dense["rows"]]
+
+
 def markdown(r: dict[str, Any]) -> list[str]:
-    """The report's section for the building benchmark."""
+    """The report's section for the building benchmark (:func:`run_building`'s answer)."""
+    rows = [{"placement": "origin", "either": 0,
+             "value": r["clearance"] if row["mode"] == "clearance" else r["depth"], **row}
+            for row in r["rows"]]
+    offset = r.get("offset", MAP_OFFSET)
+    far = sum(v * v for v in offset) ** 0.5
     lines = ["## Building: IFC in, clash modes, against IfcClash", "",
-             f"Adapter: {r.get('adapter', '?')}. Hard-clash depth d = {r['depth'] * 1000:g} mm "
-             f"(IfcClash's intersection tolerance), clearance c = {r['clearance'] * 1000:g} mm. "
-             "Generated IFC4 buildings, three federated files, exact truth "
-             "(`pycinder.benchmarks.building`).", ""]
+             (f"Adapter: {r.get('adapter', '?')}. Generated IFC4 buildings, three federated "
+              "files, exact truth (`pycinder.benchmarks.building`), at the origin and in map "
+              "coordinates (placement `map`: the same files with the site placed at "
+              f"({', '.join(f'{v / 1e3:g} km' for v in offset)}), {far / 1e3:.0f} km out). "
+              "d: the hard-clash depth (pycinder's `min_depth`, IfcClash's intersection "
+              "tolerance); c: the clearance.")]
+    if r.get("versions"):
+        lines += ["", "Versions: " + ", ".join(f"{k} {v}" for k, v in r["versions"].items())
+                  + "."]
+    lines.append("")
     for s in r["sizes"]:
         counts = ", ".join(f"{v:,} {k}" for k, v in sorted(s["truth"].items()))
-        lines.append(f"- {s['elements']:,} elements; pairs within 0.2 m: {counts}")
-    lines += ["", "| elements | system | mode | must find | found | recall | touching reported | "
-              "grazes (<= d/2) reported | near reported | false | reported | tessellation s | "
-              "clash s |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for row in r["rows"]:
-        lines.append(
-            f"| {row['elements']:,} | {row['system']} | {row['mode']} | {row['must']:,} | "
-            f"{row['found']:,} | {row['recall']:.1%} | {row['touching']:,} | {row['grazes']:,} | "
-            f"{row['near']:,} | {row['false']:,} | {row['reported']:,} | "
-            f"{row['tessellation_s']:.1f} | {row['clash_s']:.1f} |")
+        tri = f", {s['triangles']:,} triangles" if "triangles" in s else ""
+        lines.append(f"- {s['elements']:,} elements{tri}; pairs within 0.2 m: {counts}")
+        lines += [f"  - {'c' if k['mode'] == 'clearance' else 'd'} = {_mm(k['value'])} mm: "
+                  f"{k['must']:,} must be reported, {k['either']:,} either way, "
+                  f"{k['never']:,} must not" for k in s.get("classes", [])]
+    lines += ["", *_score_table(rows)]
     for name, why in r.get("left_out", {}).items():
         lines += ["", f"{name} was left out: {why}"]
-    lines += [""] + [f"- pycinder {row['mode']}, {row['elements']:,} elements: {row['reported']:,}"
-                     f" clashes; groups: {row['groups']:,} within 3 m, "
-                     f"{row['groups_by_element']:,} by element" for row in r["rows"]
-                     if "groups" in row]
-    for row in r["rows"]:
-        if "depths_checked" in row:
-            lines += ["", f"pycinder min_depth, {row['elements']:,} elements: "
-                          f"{row['depths_checked']:,} depths checked against the truth, "
-                          f"{row['depths_outside']:,} outside their error bounds, largest "
-                          f"difference {row['depth_worst'] * 1000:.3g} mm."]
-    lines += ["", "must find: for default, min_depth and IfcClash's intersection and collision "
-              "modes, the pairs deeper than d; for clearance, the pairs closer than c. false: "
-              "pairs reported that the mode must never report (apart for the default and "
-              "collision; apart, touching or at most d/2 deep for the hard-clash modes; farther "
-              "than 9c/8 for clearance). The default mode promises only its tolerance contract "
-              "(pairs at least t apart never reported, pairs at least 2t deep always, t = 1% of "
-              "the smaller body's size): touching pairs may go either way."]
-    return lines + [""]
+    tess = {(row["elements"], row["placement"], row["system"]): row["tessellation_s"]
+            for row in rows}
+    lines += ["", ("Tessellation (reading the three files: IfcOpenShell's iterator, and "
+                   "pycinder's bodies or IfcClash's tree):"), "",
+              "| elements | placement | system | tessellation s |", "|---|---|---|---|"]
+    lines += [f"| {n:,} | {p} | {s} | {t:.1f} |" for (n, p, s), t in tess.items()]
+    lines += ["", ("Groups: pycinder's `group_clashes` (DBSCAN at 3 m, and clashes sharing an "
+                   "element); IfcClash's smart grouping (`Clasher.smart_group_clashes`, OPTICS "
+                   "at 3 m); by element: pycinder's groups of clashes sharing an element alone."),
+              "", *_group_table(rows), "", *_checks(rows)]
+    lines += ["", "Scoring failures (pairs missed, pairs reported that must not be):",
+              *(_failures(rows) or ["- none."])]
+    if r.get("cli"):
+        lines += ["", ("The command line, run as a user runs it (a process of its own, its "
+                       "tessellation cache empty):"), "", *_cli_lines(r["cli"])]
+    lines += ["", *_dense_lines(r.get("dense"))]
+    lines += ["", ("must find: for default, min_depth and IfcClash's intersection and collision "
+                   "modes, the pairs deeper than d (beyond the tessellation's error); for "
+                   "clearance, the pairs closer than c. false: pairs reported that the mode must "
+                   "never report (apart for the default and collision; apart, touching or at "
+                   "most d/2 deep for the hard-clash modes; farther than 9c/8 for clearance). "
+                   "either way: reported pairs that are neither (for the hard-clash modes, "
+                   "deeper than d/2 and at most d deep: at d = 1 mm, the 1 mm grazes). grazes: "
+                   "pairs more than 0 and at most d/2 deep (d = 10 mm for the clearance rows). "
+                   "The default mode promises only its tolerance contract (pairs at least t "
+                   "apart never reported, pairs at least 2t deep always, t = 1% of the smaller "
+                   "body's size): touching pairs may go either way.")]
+    return [*lines, ""]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -783,16 +526,24 @@ def main(argv: Sequence[str] | None = None) -> int:
                                      description="The building benchmark, as Markdown.")
     parser.add_argument("--elements", type=int, nargs="+", default=[3000])
     parser.add_argument("--no-ifcclash", action="store_true")
+    parser.add_argument("--cli-elements", type=int, nargs="*", default=[3000],
+                        help="sizes at which `pycinder check` runs too (default 3000)")
+    parser.add_argument("--dense", default=str(DENSE_JSON),
+                        help=f"the dense-mesh benchmark's JSON (default {DENSE_JSON})")
     parser.add_argument("--out", default=None, help="write the Markdown here too")
+    parser.add_argument("--json", default=None, help="write the figures here as JSON")
     args = parser.parse_args(argv)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         r = run_building(args.elements, peers=not args.no_ifcclash,
+                         cli_sizes=args.cli_elements, dense=args.dense,
                          progress=lambda m: print(m, file=sys.stderr, flush=True))
     text = "\n".join(markdown(r))
     print(text)
     if args.out:
-        Path(args.out).write_text(text)
+        Path(args.out).write_text(text, encoding="utf-8")
+    if args.json:
+        Path(args.json).write_text(json.dumps(r, indent=1) + "\n", encoding="utf-8")
     return 0
 
 

@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from .building import generate, score, write_federated
+from .buildingmodel import generate, write_federated
+from .buildingscore import score
 
 DEPTHS = (0.002, 0.001)
 """``min_depth`` of the runs (metres)."""
