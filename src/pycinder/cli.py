@@ -738,7 +738,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenes", nargs="*", metavar="SCENE",
                    help="floor, stairs, many, deforming, narrow, sweep-extent, sweep-bodies, "
                         "sweep-triangles, sweep-tolerance, manager, contacts, contract, modes, "
-                        "batch, broadphase, soak, building, building-small "
+                        "batch, broadphase, hostcpu, soak, building, building-small "
                         "(default: all but the building benchmarks, which need "
                         "'pycinder[bim]'; the soak alone takes several minutes)")
     p.add_argument("--repeat", type=int, default=5, help="frames timed per scene")

@@ -112,6 +112,12 @@ def markdown(results: dict[str, Any]) -> str:
     ]
     if results.get("floor"):
         lines += floor_table(results["floor"])
+    if results.get("hostcpu"):
+        from .hostcpu import HOW, markdown_lines, validation_lines
+
+        rows = results["hostcpu"]
+        lines += ["## Host CPU per query", "", HOW, ""] + markdown_lines(rows) + [""]
+        lines += validation_lines(rows) + [""]
     met = targets(results)
     if met:
         lines += ["## Targets", "", "| target | measured | met |", "|---|---|---|"]

@@ -29,7 +29,7 @@ from .system import System
 
 DEFAULT_SCENES = ["floor", "stairs", "many", "deforming", "narrow", "sweep-extent", "sweep-bodies",
                   "sweep-triangles", "sweep-tolerance", "manager", "contacts", "contract", "modes",
-                  "batch", "broadphase", "soak"]
+                  "batch", "broadphase", "hostcpu", "soak"]
 DEFAULT_PEERS = ["python-fcl", "coal", "trimesh", "warp"]
 TOLERANCE_SWEEP = (0.001, 0.0028, 0.005, 0.01)
 """World tolerances of the Stairs tolerance sweep (the spheres are 0.16 across; pycinder's
@@ -432,7 +432,7 @@ def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAUL
         soak_frames: int = 100_000, progress: Progress | None = None) -> dict[str, Any]:
     """Run the named scenes, ``repeat`` frames each."""
     extra = ("floor", "modes", "soak", "manager", "contacts", "batch", "contract", "broadphase",
-             "building", "building-small")
+             "hostcpu", "building", "building-small")
     unknown = [n for n in scenes if n not in SCENES and n not in extra]
     if unknown:
         raise ValueError(f"unknown scene {unknown[0]!r}; choose from "
@@ -469,6 +469,14 @@ def run(scenes: Sequence[str], *, repeat: int = 5, peers: Sequence[str] = DEFAUL
             from .batch import run_batch
 
             results["batch"] = run_batch(progress=say)
+            continue
+        if name == "hostcpu":
+            from .hostcpu import run_fresh
+
+            # Host CPU per query (:mod:`.hostcpu`), in a process of its own: no thread or cache
+            # of the scenes before it.
+            say("hostcpu: host CPU per query, both planners, in a fresh process")
+            results["hostcpu"] = run_fresh(repeats=max(repeat, 3))
             continue
         if name == "broadphase":
             from .broadbench import run_broadphase

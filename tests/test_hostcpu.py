@@ -1,0 +1,82 @@
+"""The host CPU benchmark's instruments (pycinder.benchmarks.hostcpu): per-thread CPU clocks over
+the process's Python threads, wgpu-py calls counted per query, the stages' breakdown, and their
+report. No time is asserted: what the figures are belongs to the benchmark."""
+
+import threading
+
+import numpy as np
+import trimesh
+
+import pycinder
+from pycinder.benchmarks import hostcpu, report
+from pycinder.focused.strategy import FocusedStrategy
+
+
+def test_every_python_thread_is_read_on_its_own_clock():
+    started, release = threading.Event(), threading.Event()
+
+    def work() -> None:
+        sum(i * i for i in range(300_000))                     # CPU on this thread only
+        started.set()
+        release.wait()
+
+    worker = threading.Thread(target=work, name="pycinder-test-worker")
+    before = hostcpu.python_thread_clocks()
+    worker.start()
+    started.wait()
+    after = hostcpu.python_thread_clocks()
+    release.set()
+    worker.join()
+    assert worker.ident in after and worker.ident not in before
+    groups = hostcpu.cpu_by_group(before, after)
+    assert groups["pycinder pool"] > 0                         # a thread started in between
+    assert abs(sum(groups.values()) - hostcpu.cpu_ms(before, after)) < 1e-9
+
+
+def _two_touching():
+    meshes = [trimesh.creation.box((1, 1, 1)), trimesh.creation.icosphere(radius=0.4)]
+    poses = np.tile(np.eye(4), (2, 1, 1))
+    poses[1, 0, 3] = 0.6
+    return meshes, poses
+
+
+def test_wgpu_calls_are_counted_and_the_classes_given_back():
+    det = pycinder.Detector(records="none")
+    meshes, poses = _two_touching()
+    det.find_collisions(meshes, poses)
+    queue = type(det.gpu.device.queue)
+    submit = queue.__dict__["submit"]
+    with hostcpu.count_wgpu_calls(det.gpu.device) as counts:
+        assert det.find_collisions(meshes, poses).pairs.tolist() == [[0, 1]]
+    assert queue.__dict__["submit"] is submit
+    calls = hostcpu.summarise_calls(counts, 1)
+    assert calls["submissions"] >= 1 and calls["maps"] >= 1
+    assert calls["wgpu_calls"] == sum(calls["by_method"].values()) > calls["submissions"]
+    assert calls["native_calls"] > 0
+
+
+def test_a_case_is_measured_with_its_stages_and_reported():
+    pack = FocusedStrategy.__dict__["pack"]
+    rows = hostcpu.measure(hostcpu.CASES["two-small"], ["numpy"], repeats=2, batch=2, warmup=1,
+                           counted=1)
+    assert FocusedStrategy.__dict__["pack"] is pack            # the stages' wrappers are gone
+    (row,) = rows
+    assert row["queries"] == 4 and row["candidates"] == 1 and row["submissions"] >= 1
+    assert row["host_cpu_ms"] > 0 and row["wall_ms"] > 0
+    stages = row["stages_ms"]
+    assert {"validate", "broad phase", "tiles (plan)", "encode and submit"} <= set(stages)
+    assert all(ms >= 0 for ms in stages.values())
+    assert abs(sum(stages.values()) - row["staged_total_ms"]) < 1e-9
+    text = "\n".join(hostcpu.markdown_lines(rows))
+    assert "| two-small | numpy |" in text and "| encode and submit |" in text
+    machine = {"date": "today", "adapter": "test", "cpu": "cpu", "cores": 1, "python": "3",
+               "versions": {}, "command": "pycinder bench hostcpu"}
+    written = report.markdown({"machine": machine, "hostcpu": rows})
+    assert "## Host CPU per query" in written and "| two-small | numpy |" in written
+
+
+def test_a_fresh_process_measures_this_checkout():
+    rows = hostcpu.run_fresh(["two-small-prepared"], ["numpy"], repeats=1, batch=1,
+                             stages=False)
+    assert [(r["scene"], r["planner"]) for r in rows] == [("two-small-prepared", "numpy")]
+    assert "stages_ms" not in rows[0] and rows[0]["wgpu_calls"] > 0
