@@ -217,10 +217,10 @@ class FocusedStrategy:
         request says (see :attr:`~pycinder.request.CollisionRequest.broad_phase`), and which of
         the two found them. The GPU's pairs are exactly NumPy's: those its padded boxes add are
         dropped against ``lo`` and ``hi``. The GPU's wait is added to ``stats.waited_ms``."""
-        body = (scene.local_lo, scene.local_hi, scene.radius, scene.transforms)
-        gpu = self.request.gpu_broad_phase(len(scene)) and (
-            self.request.broad_phase == "gpu" or in_range(*body))
-        if not gpu:
+        if not self.request.gpu_broad_phase(len(scene)):
+            return sweep_and_prune(lo, hi, within, groups), "numpy"
+        body = (scene.local_lo, scene.local_hi, scene.bounding_radii(), scene.transforms)
+        if self.request.broad_phase != "gpu" and not in_range(*body):
             return sweep_and_prune(lo, hi, within, groups), "numpy"
         if self._broad is None:
             self._broad = GpuBroadPhase(self.gpu, timeout=self.request.timeout)

@@ -9,7 +9,10 @@ lookup (trimesh meshes carry their own content hash) or one hash of its vertex b
 comparison with a copy of them (plain arrays, of any dtype, so arrays edited in place are seen;
 see :func:`_vertex_key`), never a new check. The cache keeps the
 shapes of the current and the previous query, whatever their size, and others only within its
-byte bound: a body that deforms every frame replaces its shape instead of piling them up.
+byte bound: a body that deforms every frame replaces its shape instead of piling them up. Such a
+body is not hashed once it has changed (see :meth:`ShapeCache.get_many`): it is checked and
+measured (:mod:`.vertices`) into memory that no shape uses any more, and compared with its last
+shape.
 
 Precision: a shape's vertices are stored in single precision relative to the centre of their
 box (computed in double precision), and that centre is folded into the body's transform, so a
@@ -31,6 +34,8 @@ import xxhash
 from ..util import threads
 from .normals import face_normals, signed_volume, vertex_and_edge_normals
 from .topology import DEFAULT_CACHE_BYTES, Topology, TopologyCache, report_problems
+from .vertices import MAX_EXTENT, VertexMemory, bounding_radius, check_vertices
+from .vertices import measure as _measure
 
 PARALLEL_BYTES = 1 << 20
 """Vertex bytes of a query's large bodies (see :data:`PARALLEL_ITEM_BYTES`) from which they are
@@ -87,11 +92,6 @@ def _array(values: Any, label: str) -> np.ndarray:
         raise ValueError(f"{label}: vertices must be a (V, 3) array of numbers ({exc})") from None
 
 
-MAX_EXTENT = 1e30
-"""Largest body extent and distance from its own origin, in its own units: single precision (the
-GPU's) holds the re-centred vertices with room to spare."""
-
-
 def body_label(index: int, name: str | None) -> str:
     return f"body {index}" + (f" ({name!r})" if name else "")
 
@@ -110,7 +110,8 @@ class Shape:
     lo, hi : (3,) float64
         Bounding box of ``vertices`` (relative to ``offset``).
     radius : float
-        Radius of the bounding sphere about the box's centre.
+        Radius of the bounding sphere about the box's centre (measured when first asked for,
+        when it was not given).
     """
 
     vertices: np.ndarray
@@ -118,13 +119,19 @@ class Shape:
     offset: np.ndarray
     lo: np.ndarray
     hi: np.ndarray
-    radius: float
+    _radius: float | None = field(default=None, repr=False)
     _normals: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
     _face_normals: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def centre(self) -> np.ndarray:
         return 0.5 * (self.lo + self.hi)
+
+    @property
+    def radius(self) -> float:
+        if self._radius is None:
+            self._radius = bounding_radius(self.vertices, self.lo, self.hi)
+        return self._radius
 
     @property
     def nbytes(self) -> int:
@@ -157,169 +164,6 @@ def mesh_arrays(body: Any, label: str) -> tuple[Any, Any]:
     raise TypeError(
         f"{label}: expected a trimesh.Trimesh or a (vertices, faces) pair, got {type(body).__name__}"
     )
-
-
-BLOCK = 256
-"""Vertices per row of the blocked views the vertex checks work on: NumPy is slow along an axis of
-3 (a (V, 3) array's rows) and fast along one of 3 * BLOCK, so a C-contiguous (V, 3) array is
-seen as (V // BLOCK, 3 * BLOCK) rows of whole vertices, and the rest."""
-
-
-def _blocks(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A C-contiguous (V, 3) array as (V // BLOCK, 3 * BLOCK) rows and the (V % BLOCK, 3)
-    vertices left (views)."""
-    m = len(v) - len(v) % BLOCK
-    return v[:m].reshape(-1, 3 * BLOCK), v[m:]
-
-
-def _blocked(v: np.ndarray) -> bool:
-    """Whether ``v`` (V, 3) is worth working on in blocks (and can be)."""
-    return len(v) >= 2 * BLOCK and v.flags.c_contiguous
-
-
-def _columns(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-column minimum and maximum of (V, 3), as float64 (NaN where a column has one).
-
-    Column by column (far faster than ``axis=0``), or over blocks of whole vertices (faster
-    still); a box with a zero side is taken column by column, as it always was: which of 0.0
-    and -0.0 a minimum keeps depends on the order it compares them in."""
-    if _blocked(v):
-        lo = _column_extreme(np.minimum, v).astype(np.float64)
-        hi = _column_extreme(np.maximum, v).astype(np.float64)
-        if (lo != 0).all() and (hi != 0).all():
-            return lo, hi
-    lo = np.array([v[:, k].min() for k in range(3)], dtype=np.float64)
-    hi = np.array([v[:, k].max() for k in range(3)], dtype=np.float64)
-    return lo, hi
-
-
-def _column_extreme(op: np.ufunc, v: np.ndarray) -> np.ndarray:
-    """``op`` (np.minimum or np.maximum) reduced over each column of a blocked (V, 3) array
-    (see :func:`_blocked`): over its rows of whole vertices, the last BLOCK vertices (which
-    overlap them: an extreme is the same taken twice), then down to the 3 columns in two steps
-    (a reduction along an axis of 3 costs per row)."""
-    rows, _ = _blocks(v)
-    last = v[len(v) - BLOCK:].reshape(3 * BLOCK)
-    per = op(op.reduce(rows, axis=0), last)                          # (3 * BLOCK,)
-    per = op.reduce(per.reshape(BLOCK // 16, 48), axis=0)             # 16 vertices a row
-    return op.reduce(per.reshape(16, 3), axis=0)
-
-
-def _recentred(vertices: np.ndarray, offset: np.ndarray) -> np.ndarray:
-    """``(vertices - offset).astype(np.float32)`` in one pass (the same float64 difference,
-    rounded once)."""
-    out = np.empty(vertices.shape, dtype=np.float32)
-    if _blocked(vertices):
-        rows, tail = _blocks(vertices)
-        out_rows, out_tail = _blocks(out)
-        np.subtract(rows, np.tile(offset, BLOCK), out=out_rows, casting="unsafe")
-        np.subtract(tail, offset, out=out_tail, casting="unsafe")
-    else:
-        np.subtract(vertices, offset, out=out, casting="unsafe")
-    return out
-
-
-def _squared_distances(v32: np.ndarray, centre: np.ndarray) -> np.ndarray:
-    """(V,) float64 squared distances of vertices (V, 3) float32 from ``centre``, summed over x,
-    y and z in that order."""
-    sq = (v32.astype(np.float64) - centre) ** 2
-    d2 = sq[:, 0] + sq[:, 1]
-    d2 += sq[:, 2]
-    return d2
-
-
-_ONES32 = np.ones(3, dtype=np.float32)
-
-
-def _farthest(v32: np.ndarray, centre: np.ndarray) -> float:
-    """The largest of :func:`_squared_distances`, computed exactly for the vertices that single
-    precision finds within 1e-4 of it (the farthest is among them: its squared distance is off
-    by a few units of single precision's rounding, 6e-8, the centre being that of the
-    vertices' box), and for all of them where single precision could overflow or underflow."""
-    if not _blocked(v32):
-        return float(_squared_distances(v32, centre).max())
-    c32 = centre.astype(np.float32)
-    d = np.empty_like(v32)
-    rows, tail = _blocks(v32)
-    d_rows, d_tail = _blocks(d)
-    with np.errstate(over="ignore", under="ignore"):  # such extents take the exact way below
-        np.subtract(rows, np.tile(c32, BLOCK), out=d_rows)
-        np.subtract(tail, c32, out=d_tail)
-        np.multiply(d, d, out=d)
-        e = d @ _ONES32  # a few roundings more or less than the sum's: within the margin
-    top = float(e.max())
-    if not 1e-30 < top < 1e30:
-        return float(_squared_distances(v32, centre).max())
-    near = np.flatnonzero(e >= top * (1 - 1e-4))
-    if 2 * len(near) > len(v32):
-        return float(_squared_distances(v32, centre).max())
-    return float(_squared_distances(v32[near], centre).max())
-
-
-def check_vertices(vertices: Any, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Checked, re-centred vertices.
-
-    Parameters
-    ----------
-    vertices : (V, 3) real
-    label : str
-        How errors name the body.
-
-    Returns
-    -------
-    v32 : (V, 3) float32
-        The vertices minus ``offset``.
-    offset : (3,) float64
-        Centre of the vertices' box.
-    lo, hi : (3,) float64
-        Box of ``v32`` (exactly: the float32 values widened).
-
-    Raises
-    ------
-    ValueError
-        Bad shapes or dtypes, NaN or infinite vertices, or an extent or offset beyond
-        :data:`MAX_EXTENT`, naming the body.
-    """
-    vertices = np.asarray(vertices)
-    if vertices.ndim != 2 or vertices.shape[1] != 3:
-        raise ValueError(f"{label}: vertices must have shape (V, 3), got {vertices.shape}")
-    if not np.issubdtype(vertices.dtype, np.number) or np.issubdtype(vertices.dtype, np.complexfloating):
-        raise ValueError(f"{label}: vertices must be real numbers, got dtype {vertices.dtype}")
-    if len(vertices) == 0:
-        raise ValueError(f"{label}: the mesh is empty (0 vertices)")
-    lo, hi = _columns(vertices)  # NaN and infinities carry through min and max
-    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
-        bad = np.flatnonzero(~np.isfinite(vertices).all(axis=1))
-        count = "1 vertex is" if len(bad) == 1 else f"{len(bad)} vertices are"
-        raise ValueError(f"{label}: {count} NaN or infinite (first: vertex {int(bad[0])}, "
-                         "counting from 0)")
-    offset = 0.5 * (lo + hi)
-    extent = float((hi - lo).max())
-    if extent > MAX_EXTENT or float(np.abs(offset).max()) > MAX_EXTENT:
-        raise ValueError(f"{label}: vertices span {extent:.3g} units around {offset.tolist()}; "
-                         f"pycinder supports bodies up to {MAX_EXTENT:g} units across and from "
-                         "their origin: rescale the scene")
-    v32 = _recentred(vertices, offset)
-    # The box of what the GPU sees, rounding included: rounding and subtracting a constant keep
-    # the order of values, so the extremes of v32 are the rounded extremes (but for which zero
-    # a minimum keeps, see _columns).
-    lo32 = (lo - offset).astype(np.float32).astype(np.float64)
-    hi32 = (hi - offset).astype(np.float32).astype(np.float64)
-    if (lo32 != 0).all() and (hi32 != 0).all():
-        return v32, offset, lo32, hi32
-    lo, hi = _columns(v32)
-    return v32, offset, lo, hi
-
-
-def _measure(vertices: Any, label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                                 float]:
-    """:func:`check_vertices`, and the radius of the vertices' bounding sphere about their box's
-    centre."""
-    v32, offset, lo, hi = check_vertices(vertices, label)
-    centre = 0.5 * (lo + hi)
-    # single-precision rounding of the vertices is far below the box's own size; pad by it
-    radius = float(np.sqrt(_farthest(v32, centre))) * (1 + 1e-6)
-    return v32, offset, lo, hi, radius
 
 
 def check_transforms(transforms: Any, n: int, names: Sequence[str | None]) -> np.ndarray:
@@ -428,10 +272,33 @@ a ``bytes`` object."""
 
 
 def _measure_kept(vertices: Any, label: str, bits: np.ndarray | None,
-                  into: np.ndarray | None) -> tuple[tuple, bytes | np.ndarray | None]:
-    """:func:`_measure`, and the copy of ``bits`` (from :func:`_vertex_key`) a new cached shape
-    keeps (see :func:`_kept_copy`), made in ``into`` when given (a spare of the right size)."""
-    return _measure(vertices, label), _kept_copy(bits, into)
+                  into: np.ndarray | None, out: np.ndarray | None = None
+                  ) -> tuple[tuple, bytes | np.ndarray | None]:
+    """:func:`_measure` (its vertices written into ``out`` when given), and the copy of
+    ``bits`` (from :func:`_vertex_key`) a new cached shape keeps (see :func:`_kept_copy`), made
+    in ``into`` when given (a spare of the right size)."""
+    return _measure(vertices, label, out), _kept_copy(bits, into)
+
+
+def _same_geometry(shape: Shape, measure: tuple) -> bool:
+    """Whether measured vertices (from :func:`_measure`) are ``shape``'s, bit for bit: the same
+    single-precision vertices, offset and box (the rest follows from them)."""
+    v32, offset, lo, hi, _ = measure
+    return (v32.shape == shape.vertices.shape and offset.tobytes() == shape.offset.tobytes()
+            and lo.tobytes() == shape.lo.tobytes() and hi.tobytes() == shape.hi.tobytes()
+            and np.array_equal(v32.view(np.uint32), shape.vertices.view(np.uint32)))
+
+
+@dataclass
+class _Slot:
+    """A mesh of the last :meth:`ShapeCache.get_many` call: its topology, the key and shape it
+    got, and whether that shape was another than the one before it at the same place (its
+    vertices changed)."""
+
+    topology: Topology
+    key: tuple
+    shape: Shape
+    changed: bool
 
 
 def _kept_copy(bits: np.ndarray | None, into: np.ndarray | None = None
@@ -466,6 +333,10 @@ class ShapeCache:
         self._kept: dict[tuple, bytes | np.ndarray | None] = {}  # what each shape was made from
         self._spare: dict[int, list[np.ndarray]] = {}  # large copies dropped by the last query
         self._used: dict[tuple, int] = {}
+        self._slots: list[_Slot] = []  # the last call's meshes, in its order
+        self._serial = 0
+        self.memory = VertexMemory()
+        """Where new shapes' vertices are written (see :class:`~.vertices.VertexMemory`)."""
         self.query = 0
         self.nbytes = 0
 
@@ -511,22 +382,46 @@ class ShapeCache:
         """The shapes of meshes ``(vertices, faces, label)``, in order (see :meth:`get`). Their
         vertices are hashed, checked and measured on several threads when they are large; a
         cached shape is reused when the key matches and the vertices' bytes equal the copy kept
-        with it (see :func:`_vertex_key`).
+        with it (see :func:`_vertex_key`). Faces given for several meshes (one array object)
+        are looked up once.
+
+        A mesh at the same place in the list as in the last call, with the same faces, whose
+        vertices changed then (a body that deforms) is taken to change again: it is measured
+        without a hash or a kept copy, and compared with the last call's shape, which it keeps
+        when they are equal (then it is hashed again from the next call on).
+
         ``keep=False``: new vertices, by the caller's word (:meth:`PreparedBodies.update`): they
         are not hashed or looked up (an array given twice makes one shape), and the shapes made
         are not cached (their caller holds them), so a loop that makes them outside of queries
         leaves nothing behind."""
         given, topos = [], []
+        looked: dict[tuple[int, int], Topology] = {}
         for vertices, faces, label in meshes:
             v = vertices if type(vertices).__name__ == "TrackedArray" else _array(vertices, label)
             if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0 or v.dtype.kind not in "iuf":
                 check_vertices(v, label)  # raises with the message for the shape or dtype
             given.append(v)
-            topos.append(self.topologies.get(faces, len(v), label))
+            seen = looked.get((id(faces), len(v)))
+            if seen is None:
+                topos.append(self.topologies.get(faces, len(v), label))
+                looked[(id(faces), len(v))] = topos[-1][0]
+            else:
+                topos.append((seen, False))
         sizes = [v.nbytes for v in given]
-        keyed = _map(_vertex_key, [(v,) for v in given], sizes) if keep else \
-            [(("given", id(v)), None) for v in given]
+        slots = self._slots if keep else []
+        changing = [i < len(slots) and slots[i].topology is topo and slots[i].changed
+                    for i, (topo, _) in enumerate(topos)]
+        keyed: list[tuple[tuple, np.ndarray | None]]
+        if keep:
+            hashed = [i for i in range(len(given)) if not changing[i]]
+            found = iter(_map(_vertex_key, [(given[i],) for i in hashed],
+                              [sizes[i] for i in hashed]))
+            keyed = [(("changing", self._next_serial()), None) if changing[i] else next(found)
+                     for i in range(len(given))]
+        else:
+            keyed = [(("given", id(v)), None) for v in given]
         out: list[Shape | None] = [None] * len(meshes)
+        keys: list[tuple] = [()] * len(meshes)
         missing: dict[tuple, list[int]] = {}  # new content: the meshes that have it
         for i, ((topo, _), (key, bits)) in enumerate(zip(topos, keyed)):
             key = (id(topo), key)
@@ -535,7 +430,7 @@ class ShapeCache:
                     and _same_bytes(self._kept[key], bits):
                 self._entries.move_to_end(key)
                 self._used[key] = self.query
-                out[i] = shape
+                out[i], keys[i] = shape, key
                 continue
             where = missing.get(key)
             first = keyed[where[0]][1] if keep and where is not None else None
@@ -543,22 +438,63 @@ class ShapeCache:
                 key = (*key, ("collision", i))  # equal keys, other bytes: a shape of its own
             missing.setdefault(key, []).append(i)
         first = [where[0] for where in missing.values()]
+        # New shapes' vertices go into memory that dropped shapes no longer use.
+        into = [self.memory.take(len(given[i])) for i in first]
         if keep:
             # The copies new shapes keep are made with their measuring, on its threads.
             measured = _map(_measure_kept, [(given[i], meshes[i][2], keyed[i][1],
-                                             self._spare_copy(keyed[i][1])) for i in first],
+                                             self._spare_copy(keyed[i][1]), o)
+                                            for i, o in zip(first, into)],
                             [sizes[i] for i in first])
         else:
-            measured = [(m, None) for m in _map(_measure, [(given[i], meshes[i][2])
-                                                           for i in first],
+            measured = [(m, None) for m in _map(_measure, [(given[i], meshes[i][2], o)
+                                                           for i, o in zip(first, into)],
                                                 [sizes[i] for i in first])]
+        del into
+        changed = [False] * len(meshes)
         for (key, where), (measure, kept) in zip(missing.items(), measured):
-            topo, built = topos[where[0]]
-            shape = self._made(key, topo, built, measure, meshes[where[0]][2], strict, keep,
-                               kept)
+            i = where[0]
+            topo, built = topos[i]
+            last = slots[i].shape if i < len(slots) and slots[i].topology is topo else None
+            if last is not None and _same_geometry(last, measure):
+                # The same shape as the last call's here (taken to deform, or given another
+                # key: a trimesh mesh after arrays): kept, not uploaded again.
+                if changing[i]:
+                    key = self._rekeyed(slots[i].key, last, given[i])
+                    shape = last
+                else:
+                    shape = self._made(key, topo, built, measure, meshes[i][2], strict, keep,
+                                       kept)
+            else:
+                shape = self._made(key, topo, built, measure, meshes[i][2], strict, keep, kept)
+                changed[i] = last is not None
             for i in where:
-                out[i] = shape
+                out[i], keys[i] = shape, key
+        if keep:
+            self._slots = [_Slot(topo, key, shape, moved) for (topo, _), key, shape, moved
+                           in zip(topos, keys, out, changed)]
         return out  # type: ignore[return-value]
+
+    def _next_serial(self) -> int:
+        self._serial += 1
+        return self._serial
+
+    def _rekeyed(self, old: tuple, shape: Shape, vertices: np.ndarray) -> tuple:
+        """Cache ``shape`` (under ``old`` when it still is) under the key of ``vertices``' content
+        instead, with a copy of them: a body taken to deform that did not (see
+        :meth:`get_many`), hashed again from the next call on. Returns the new key."""
+        if self._entries.get(old) is shape:
+            self._drop(old)
+        content, bits = _vertex_key(vertices)
+        key = (id(shape.topology), content)
+        if key in self._entries:
+            self._drop(key)
+        kept = _kept_copy(bits, self._spare_copy(bits))
+        self._entries[key] = shape
+        self._kept[key] = kept
+        self._used[key] = self.query
+        self.nbytes += shape.nbytes + (len(kept) if kept is not None else 0)
+        return key
 
     def _made(self, key: tuple, topo: Topology, built: bool, measure: tuple, label: str,
               strict: bool, keep: bool = True, kept: bytes | np.ndarray | None = None) -> Shape:
@@ -605,6 +541,7 @@ class Scene:
     body_shape: np.ndarray
     transforms: np.ndarray
     names: list[str | None]
+    _radii: np.ndarray | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return len(self.body_shape)
@@ -644,10 +581,40 @@ class Scene:
         """(N,) radius of every body's body-space bounding sphere about its box's centre."""
         return self._per_shape([s.radius for s in self.shapes])
 
+    def bounding_radii(self) -> np.ndarray:
+        """(N,) a radius about every body's box centre that holds the body, as its world box
+        uses it (see :meth:`world_boxes`)."""
+        if self._radii is None:
+            self.world_boxes()
+        return self._radii  # type: ignore[return-value]
+
     def world_boxes(self) -> tuple[np.ndarray, np.ndarray]:
-        """(N, 3) world box minimum and maximum of every body (see
-        :func:`world_boxes`)."""
-        return world_boxes(self.local_lo, self.local_hi, self.radius, self.transforms)
+        """(N, 3) world box minimum and maximum of every body: :func:`world_boxes` of its box
+        and a radius that holds it (:meth:`bounding_radii`), its bounding sphere's
+        (:attr:`Shape.radius`) where a sphere could tighten the world box, else the half
+        diagonal of its box, which holds the body too and needs no measuring.
+
+        A sphere whose radius is at least the largest half extent of the box is no tighter than
+        the box along any world axis unless the transform turns the body off its axes (not one
+        that only moves, mirrors or scales it along them); the bounding sphere's radius and the
+        half diagonal are at least that, so either gives the box's own world box, bit for bit.
+        """
+        lo, hi = self.local_lo, self.local_hi
+        t3 = self.transforms[:, :3, :3]
+        centre = np.einsum("nij,nj->ni", t3, 0.5 * (lo + hi)) + self.transforms[:, :3, 3]
+        extent = 0.5 * (hi - lo)
+        box = np.einsum("nij,nj->ni", np.abs(t3), extent)
+        rows = np.linalg.norm(t3, axis=2)
+        tighter = np.flatnonzero((extent.max(axis=1)[:, None] * rows < box).any(axis=1))
+        radius = np.sqrt((extent * extent).sum(axis=1))
+        if len(tighter):
+            which = np.zeros(len(self.shapes), dtype=bool)
+            which[self.body_shape[tighter]] = True
+            sphere = np.array([s.radius if w else 0.0 for s, w in zip(self.shapes, which)])
+            radius[tighter] = sphere[self.body_shape[tighter]]
+        self._radii = radius
+        half = np.minimum(box, radius[:, None] * rows)
+        return centre - half, centre + half
 
 
 def _shapes_of(bodies: Sequence[Any], names: list[str | None], cache: ShapeCache, strict: bool
