@@ -13,22 +13,48 @@
 // which is -U(-n), so each line serves both ways.
 //
 // One workgroup per item: the faces of a pair's two bodies whole (when b has at most WHOLE_FACES),
-// or a cluster of each. b's faces are in workgroup memory; the threads share a's faces. An item
-// that is its pair's whole work stops at the first line that clears the pair. Depths are computed as convex
-// combinations of corner depths (barycentric weights clamped at 0), so a rounding error never
-// takes a figure outside the faces' own depth range. Figures are kept as order-preserving bits:
-// word 2 i holds max(depth_b - depth_a) along line i, word 2 i + 1 max(depth_a - depth_b); 0
-// means no ray met both bodies.
+// or a cluster of each, measured in rounds of WORKGROUP faces of a (one per thread) against
+// blocks of WORKGROUP faces of b, both projected into workgroup memory. Each thread first tests
+// the screen box of its face of a against the box of the whole block (a gap to that box is never
+// more than the gap to any face in it, rounding included, so nothing the per-face test would keep
+// is left out), then against each face's box; the face pairs whose boxes meet are then shared
+// among the threads, so that the exact test of the corners below (the costly part) runs once
+// per face pair that can add to the figures, with every thread busy. An item skips the lines its
+// skip bits name (the host found its faces' projections apart along them: they would add
+// nothing) and a line whose view equals an earlier one's (it takes that line's figures). An item
+// that is its pair's whole work stops at the first line that clears the pair. Depths are
+// computed as convex combinations of corner depths (barycentric weights clamped at 0), so a
+// rounding error never takes a figure outside the faces' own depth range. Figures are kept as
+// order-preserving bits: word 2 i holds max(depth_b - depth_a) along line i, word 2 i + 1
+// max(depth_a - depth_b); 0 means no ray met both bodies.
 //!include layout
 //!include pairwork.wgsl
 
 const NONE: f32 = -3.0e38;  // below every figure: no corner found yet
+const NO_BOX = vec4f(3.0e38, 3.0e38, -3.0e38, -3.0e38);  // the box of no face
 
-var<workgroup> tri_b: array<vec3f, 3u * WHOLE_FACES>;    // the corners of b's faces
-var<workgroup> views: array<mat3x3f, LINES>;             // rows: screen x, screen y, n
-var<workgroup> kept: array<atomic<u32>, 2u * LINES>;      // the workgroup's figures
-var<workgroup> cleared: u32;                              // a line cleared the pair
-var<workgroup> whole_item: u32;                           // the item is its pair's whole work
+var<workgroup> flat_a: array<vec2f, 3u * WORKGROUP>;  // a round's faces of a: corners on screen
+var<workgroup> deep_a: array<f32, 3u * WORKGROUP>;    // and their depths
+var<workgroup> flat_b: array<vec2f, 3u * WORKGROUP>;  // a block's faces of b
+var<workgroup> deep_b: array<f32, 3u * WORKGROUP>;
+var<workgroup> box_b: array<vec4f, WORKGROUP>;        // each face's screen box: lo, hi
+var<workgroup> box_a: array<vec4f, WORKGROUP>;
+var<workgroup> span_b: array<atomic<u32>, 5>;         // keys of the box of the block's faces (lo x,
+                                                      // lo y, hi x, hi y) and of its largest face
+var<workgroup> red_a: array<vec4f, WORKGROUP>;        // a cluster item's boxes of a, reduced
+var<workgroup> red_b: array<vec4f, WORKGROUP>;        // and of b
+var<workgroup> red_size: array<vec2f, WORKGROUP>;     // and their largest faces
+var<workgroup> kept_a: atomic<u32>;                   // faces of a and of b a cluster item keeps
+var<workgroup> kept_b: atomic<u32>;
+var<workgroup> hits: array<vec2u, WORKGROUP>;         // per face of a: bits of the b faces it meets
+var<workgroup> first_hit: array<u32, WORKGROUP>;      // where each face's face pairs start
+var<workgroup> hit_count: u32;                        // face pairs of the round and block
+var<workgroup> views: array<mat3x3f, LINES>;          // rows: screen x, screen y, n
+var<workgroup> source: array<u32, LINES>;             // the line whose figures a line takes
+var<workgroup> kept: array<atomic<u32>, 2u * LINES>;  // the workgroup's figures
+var<workgroup> cleared: u32;                          // a line cleared the pair
+var<workgroup> todo_lines: u32;                       // bits: the lines measured
+var<workgroup> item_shape: vec3u;                     // rounds of a, blocks of b, whole item
 
 // The LINES directions: each body's own three axes (its transform's columns), which follow the
 // body when it is turned and most often clear a touching pair at once, then the 13 lines through
@@ -151,6 +177,35 @@ fn key(f: f32) -> u32 {
     return b | 0x80000000u;
 }
 
+// The float of a word of key().
+fn unkey(w: u32) -> f32 {
+    if ((w & 0x80000000u) != 0u) {
+        return bitcast<f32>(w & 0x7FFFFFFFu);
+    }
+    return bitcast<f32>(~w);
+}
+
+fn same_view(a: mat3x3f, b: mat3x3f) -> bool {
+    return all(a[0] == b[0]) && all(a[1] == b[1]) && all(a[2] == b[2]);
+}
+
+// The k-th (from 0) set bit of the 64 bits lo | hi << 32.
+fn nth_bit(bits: vec2u, k: u32) -> u32 {
+    let low = countOneBits(bits.x);
+    let in_hi = k >= low;
+    var w = select(bits.x, bits.y, in_hi);
+    var rest = select(k, k - low, in_hi);
+    var at = select(0u, 32u, in_hi);
+    for (var step = 16u; step > 0u; step >>= 1u) {
+        let below = countOneBits(w & ((1u << step) - 1u));
+        let up = rest >= below;
+        rest = select(rest, rest - below, up);
+        at += select(0u, step, up);
+        w = select(w, w >> step, up);
+    }
+    return at;
+}
+
 // Whether the figures kept so far for line i say it clears the pair: no ray meets both bodies,
 // or one way along it leaves them apart already.
 fn clears(i: u32) -> bool {
@@ -159,10 +214,53 @@ fn clears(i: u32) -> bool {
     return ahead == 0u || ahead <= key(0.0) || behind <= key(0.0);
 }
 
+// Corners of face j of the round's faces of a and of face u of the block's faces of b.
+fn corners_a(j: u32) -> array<vec3f, 3> {
+    return array<vec3f, 3>(vec3f(flat_a[3u * j], deep_a[3u * j]),
+                           vec3f(flat_a[3u * j + 1u], deep_a[3u * j + 1u]),
+                           vec3f(flat_a[3u * j + 2u], deep_a[3u * j + 2u]));
+}
+
+fn corners_b(u: u32) -> array<vec3f, 3> {
+    return array<vec3f, 3>(vec3f(flat_b[3u * u], deep_b[3u * u]),
+                           vec3f(flat_b[3u * u + 1u], deep_b[3u * u + 1u]),
+                           vec3f(flat_b[3u * u + 2u], deep_b[3u * u + 2u]));
+}
+
+// The largest depth_b - depth_a (x) and depth_a - depth_b (y) over the rays through faces pa of
+// a and pb of b (NONE where none meets both): at a corner of one inside the other, or where their
+// edges cross.
+fn face_pair(pa: array<vec3f, 3>, pb: array<vec3f, 3>) -> vec2f {
+    var most = NONE;
+    var least = NONE;
+    for (var c = 0u; c < 3u; c++) {
+        let in_b = depth_in(pb[0], pb[1], pb[2], pa[c].xy);
+        if (in_b.x > 0.0) {
+            most = max(most, in_b.y - pa[c].z);
+            least = max(least, pa[c].z - in_b.y);
+        }
+        let in_a = depth_in(pa[0], pa[1], pa[2], pb[c].xy);
+        if (in_a.x > 0.0) {
+            most = max(most, pb[c].z - in_a.y);
+            least = max(least, in_a.y - pb[c].z);
+        }
+        for (var e = 0u; e < 3u; e++) {
+            let x = crossing(pa[c], pa[(c + 1u) % 3u], pb[e], pb[(e + 1u) % 3u]);
+            if (x.x > 0.0) {
+                most = max(most, x.y);
+                least = max(least, -x.y);
+            }
+        }
+    }
+    return vec2f(most, least);
+}
+
+// The loops below test their exit at their end: a CPU adapter runs a loop's body once more, with
+// every lane masked off, when the test comes first.
 @compute @workgroup_size(WORKGROUP)
 fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
     let k = wg.y * ROW + wg.x;
-    if (k >= params.items) {
+    if (k >= params.split) {
         return;  // uniform across the workgroup
     }
     let item = items[k];
@@ -176,12 +274,237 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
         ma = frame.m1;
         mb = frame.m0;
     }
-    for (var t = lid; t < item.b_count; t += WORKGROUP) {
-        let f = item.b_start + t;
-        for (var j = 0u; j < 3u; j++) {
-            tri_b[3u * t + j] = to_pair(mb, vertex(faces[3u * f + j]));
+    if (lid < LINES) {
+        views[lid] = view_of(line(lid, frame));
+    }
+    if (lid < 2u * LINES) {
+        atomicStore(&kept[lid], 0u);
+    }
+    if (lid < 5u) {
+        // lo x, lo y start above every key; hi x, hi y and the largest face below every key.
+        atomicStore(&span_b[lid], select(0u, 0xFFFFFFFFu, lid < 2u));
+    }
+    workgroupBarrier();
+    let skip = (item.whole >> ITEM_SKIP_SHIFT) & ((1u << LINES) - 1u);
+    if (lid == 0u) {
+        // The lines measured: those not skipped whose view no earlier such line has; the others
+        // take that line's figures.
+        var todo = 0u;
+        for (var i = 0u; i < LINES; i++) {
+            var earlier = i;
+            if (((skip >> i) & 1u) == 0u) {
+                for (var j = 0u; j < i; j++) {
+                    if (((skip >> j) & 1u) == 0u && same_view(views[j], views[i])) {
+                        earlier = j;
+                        break;
+                    }
+                }
+                if (earlier == i) {
+                    todo |= 1u << i;
+                }
+            }
+            source[i] = earlier;
+        }
+        todo_lines = todo;
+        item_shape = vec3u((item.a_count + WORKGROUP - 1u) / WORKGROUP,
+                           (item.b_count + WORKGROUP - 1u) / WORKGROUP, item.whole & ITEM_WHOLE);
+    }
+    var todo = workgroupUniformLoad(&todo_lines);  // a barrier, and uniform
+    let shape = workgroupUniformLoad(&item_shape);
+    var last = LINES - 1u;  // the last line whose figures are written (the early stop)
+    if (todo != 0u && shape.x != 0u && shape.y != 0u) {
+        loop {
+            let i = firstTrailingBit(todo);
+            todo &= todo - 1u;
+            let v = views[i];
+            var most = NONE;   // max(depth_b - depth_a)
+            var least = NONE;  // max(depth_a - depth_b)
+            var round = 0u;
+            loop {
+                // This round's faces of a: one per thread.
+                let fa = round * WORKGROUP + lid;
+                let has_a = fa < item.a_count;
+                var pa = array<vec3f, 3>(vec3f(0.0), vec3f(0.0), vec3f(0.0));
+                if (has_a) {
+                    let f = item.a_start + fa;
+                    pa = array<vec3f, 3>(project(v, to_pair(ma, vertex(faces[3u * f]))),
+                                         project(v, to_pair(ma, vertex(faces[3u * f + 1u]))),
+                                         project(v, to_pair(ma, vertex(faces[3u * f + 2u]))));
+                }
+                for (var c = 0u; c < 3u; c++) {
+                    flat_a[3u * lid + c] = pa[c].xy;
+                    deep_a[3u * lid + c] = pa[c].z;
+                }
+                let a_lo = min(pa[0].xy, min(pa[1].xy, pa[2].xy));
+                let a_hi = max(pa[0].xy, max(pa[1].xy, pa[2].xy));
+                let a_size = max(a_hi.x - a_lo.x, a_hi.y - a_lo.y);
+                var block = 0u;
+                loop {
+                    // This block's faces of b, and the box of them all.
+                    let t = block * WORKGROUP + lid;
+                    if (t < item.b_count) {
+                        let f = item.b_start + t;
+                        let p0 = project(v, to_pair(mb, vertex(faces[3u * f])));
+                        let p1 = project(v, to_pair(mb, vertex(faces[3u * f + 1u])));
+                        let p2 = project(v, to_pair(mb, vertex(faces[3u * f + 2u])));
+                        flat_b[3u * lid] = p0.xy;
+                        flat_b[3u * lid + 1u] = p1.xy;
+                        flat_b[3u * lid + 2u] = p2.xy;
+                        deep_b[3u * lid] = p0.z;
+                        deep_b[3u * lid + 1u] = p1.z;
+                        deep_b[3u * lid + 2u] = p2.z;
+                        let b_lo = min(p0.xy, min(p1.xy, p2.xy));
+                        let b_hi = max(p0.xy, max(p1.xy, p2.xy));
+                        box_b[lid] = vec4f(b_lo, b_hi);
+                        atomicMin(&span_b[0], key(b_lo.x));
+                        atomicMin(&span_b[1], key(b_lo.y));
+                        atomicMax(&span_b[2], key(b_hi.x));
+                        atomicMax(&span_b[3], key(b_hi.y));
+                        atomicMax(&span_b[4], key(max(b_hi.x - b_lo.x, b_hi.y - b_lo.y)));
+                    }
+                    workgroupBarrier();
+                    // The faces of b whose screen boxes meet this thread's face's (their
+                    // projections can meet): none where the box of them all is apart.
+                    let span_lo = vec2f(unkey(atomicLoad(&span_b[0])),
+                                        unkey(atomicLoad(&span_b[1])));
+                    let span_hi = vec2f(unkey(atomicLoad(&span_b[2])),
+                                        unkey(atomicLoad(&span_b[3])));
+                    let span_size = unkey(atomicLoad(&span_b[4]));
+                    let span_gap = max(a_lo - span_hi, span_lo - a_hi);
+                    var n = 0u;
+                    if (has_a && !(max(span_gap.x, span_gap.y) > SLACK * max(a_size, span_size))) {
+                        n = min(WORKGROUP, item.b_count - block * WORKGROUP);
+                    }
+                    var hit = vec2u(0u);
+                    var u = 0u;
+                    loop {
+                        let box = box_b[u];
+                        let gap = max(a_lo - box.zw, box.xy - a_hi);
+                        let size = max(a_size, max(box.z - box.x, box.w - box.y));
+                        if (u < n && !(max(gap.x, gap.y) > SLACK * size)) {
+                            if (u < 32u) {
+                                hit.x |= 1u << u;
+                            } else {
+                                hit.y |= 1u << (u - 32u);
+                            }
+                        }
+                        u++;
+                        if (u >= n) {
+                            break;
+                        }
+                    }
+                    hits[lid] = hit;
+                    first_hit[lid] = countOneBits(hit.x) + countOneBits(hit.y);
+                    workgroupBarrier();
+                    if (lid == 0u) {
+                        var sum = 0u;
+                        for (var j = 0u; j < WORKGROUP; j++) {
+                            let count = first_hit[j];
+                            first_hit[j] = sum;
+                            sum += count;
+                        }
+                        hit_count = sum;
+                        for (var w = 0u; w < 5u; w++) {
+                            atomicStore(&span_b[w], select(0u, 0xFFFFFFFFu, w < 2u));
+                        }
+                    }
+                    let total = workgroupUniformLoad(&hit_count);
+                    // The face pairs found, shared among the threads.
+                    var e = lid;
+                    loop {
+                        if (e < total) {
+                            var j = 0u;
+                            for (var step = WORKGROUP / 2u; step > 0u; step >>= 1u) {
+                                j = select(j, j + step, first_hit[j + step] <= e);
+                            }
+                            let b = nth_bit(hits[j], e - first_hit[j]);
+                            let figure = face_pair(corners_a(j), corners_b(b));
+                            most = max(most, figure.x);
+                            least = max(least, figure.y);
+                        }
+                        e += WORKGROUP;
+                        if (e >= total) {
+                            break;
+                        }
+                    }
+                    workgroupBarrier();  // every thread is done with this block's faces
+                    block++;
+                    if (block >= shape.y) {
+                        break;
+                    }
+                }
+                round++;
+                if (round >= shape.x) {
+                    break;
+                }
+            }
+            if (most > NONE) {
+                atomicMax(&kept[2u * i], key(most));
+                atomicMax(&kept[2u * i + 1u], key(least));
+            }
+            workgroupBarrier();
+            // An item that is its pair's whole work stops at the first line that clears the
+            // pair (its depth is then 0 whatever the other lines say).
+            if (shape.z != 0u) {
+                if (lid == 0u) {
+                    cleared = u32(clears(i));
+                }
+                if (workgroupUniformLoad(&cleared) != 0u) {
+                    last = i;
+                    break;
+                }
+            }
+            if (todo == 0u) {
+                break;
+            }
         }
     }
+    workgroupBarrier();
+    if (lid < 2u * LINES) {
+        let i = lid >> 1u;
+        if (i <= last && ((skip >> i) & 1u) == 0u) {
+            let word = atomicLoad(&kept[2u * source[i] + (lid & 1u)]);
+            if (word != 0u) {
+                atomicMax(&best[item.pair * 2u * LINES + (lid ^ u32(flipped))], word);
+            }
+        }
+    }
+}
+
+// The items of a cluster of each body (the second entry point: items params.split and on),
+// CLUSTER_ITEMS of them per workgroup (a CPU adapter spends more on starting a workgroup of this
+// shader than on a line of an item): one round of a and one block of b, each thread holding a
+// face of each, moved to the pair's frame once for every line.
+@compute @workgroup_size(WORKGROUP)
+fn depth_clusters(@builtin(workgroup_id) wg: vec3u,
+                  @builtin(local_invocation_index) lid: u32) {
+    let first = params.split + (wg.y * ROW + wg.x) * CLUSTER_ITEMS;
+    var k = first;
+    loop {
+        if (k >= params.items) {
+            break;  // uniform across the workgroup
+        }
+        cluster_item(k, lid);
+        k++;
+        if (k >= first + CLUSTER_ITEMS) {
+            break;
+        }
+        workgroupBarrier();  // every thread is done with the item's figures
+    }
+}
+
+// Whether a face's screen box (lo, hi, its size) is apart from a box of faces (``span``, their
+// largest size): then it is apart from each of them by the per-face test below (a gap to the box
+// is never more than to any face in it, rounding included).
+fn apart(lo: vec2f, hi: vec2f, size: f32, span: vec4f, span_size: f32) -> bool {
+    let gap = max(lo - span.zw, span.xy - hi);
+    return max(gap.x, gap.y) > SLACK * max(size, span_size);
+}
+
+fn cluster_item(k: u32, lid: u32) {
+    let item = items[k];
+    let frame = frames[item.pair];
+    let skip = (item.whole >> ITEM_SKIP_SHIFT) & ((1u << LINES) - 1u);
     if (lid < LINES) {
         views[lid] = view_of(line(lid, frame));
     }
@@ -189,74 +512,179 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
         atomicStore(&kept[lid], 0u);
     }
     if (lid == 0u) {
-        whole_item = item.whole & ITEM_WHOLE;
+        atomicStore(&kept_a, 0u);
+        atomicStore(&kept_b, 0u);
     }
-    let whole = workgroupUniformLoad(&whole_item);  // a barrier, and uniform
-    for (var i = 0u; i < LINES; i++) {
-        let v = views[i];
-        var most = NONE;   // max(depth_b - depth_a)
-        var least = NONE;  // max(depth_a - depth_b)
-        // Each thread takes every WORKGROUP-th face of a.
-        for (var fa = lid; fa < item.a_count; fa += WORKGROUP) {
-            let f = item.a_start + fa;
-            let pa = array<vec3f, 3>(project(v, to_pair(ma, vertex(faces[3u * f]))),
-                                     project(v, to_pair(ma, vertex(faces[3u * f + 1u]))),
-                                     project(v, to_pair(ma, vertex(faces[3u * f + 2u]))));
+    let has_a = lid < item.a_count;
+    let has_b = lid < item.b_count;
+    let fa = item.a_start + min(lid, item.a_count - 1u);
+    let fb = item.b_start + min(lid, item.b_count - 1u);
+    let ta = array<vec3f, 3>(to_pair(frame.m0, vertex(faces[3u * fa])),
+                             to_pair(frame.m0, vertex(faces[3u * fa + 1u])),
+                             to_pair(frame.m0, vertex(faces[3u * fa + 2u])));
+    let tb = array<vec3f, 3>(to_pair(frame.m1, vertex(faces[3u * fb])),
+                             to_pair(frame.m1, vertex(faces[3u * fb + 1u])),
+                             to_pair(frame.m1, vertex(faces[3u * fb + 2u])));
+    workgroupBarrier();
+    if (lid < LINES) {
+        // The line whose figures this one takes: the first line not skipped with its view.
+        var earlier = lid;
+        if (((skip >> lid) & 1u) == 0u) {
+            var j = 0u;
+            loop {
+                if (j < lid && ((skip >> j) & 1u) == 0u && earlier == lid
+                        && same_view(views[j], views[lid])) {
+                    earlier = j;
+                }
+                j++;
+                if (j >= lid) {
+                    break;
+                }
+            }
+        }
+        source[lid] = earlier;
+    }
+    workgroupBarrier();
+    if (lid == 0u) {
+        var todo = 0u;
+        for (var i = 0u; i < LINES; i++) {
+            if (((skip >> i) & 1u) == 0u && source[i] == i) {
+                todo |= 1u << i;
+            }
+        }
+        todo_lines = todo;
+    }
+    var todo = workgroupUniformLoad(&todo_lines);  // a barrier, and uniform
+    if (todo != 0u) {
+        loop {
+            let i = firstTrailingBit(todo);
+            todo &= todo - 1u;
+            let v = views[i];
+            let pa = array<vec3f, 3>(project(v, ta[0]), project(v, ta[1]), project(v, ta[2]));
+            let pb = array<vec3f, 3>(project(v, tb[0]), project(v, tb[1]), project(v, tb[2]));
             let a_lo = min(pa[0].xy, min(pa[1].xy, pa[2].xy));
             let a_hi = max(pa[0].xy, max(pa[1].xy, pa[2].xy));
-            for (var t = 0u; t < item.b_count; t++) {
-                let pb = array<vec3f, 3>(project(v, tri_b[3u * t]), project(v, tri_b[3u * t + 1u]),
-                                         project(v, tri_b[3u * t + 2u]));
-                let b_lo = min(pb[0].xy, min(pb[1].xy, pb[2].xy));
-                let b_hi = max(pb[0].xy, max(pb[1].xy, pb[2].xy));
-                let gap = max(a_lo - b_hi, b_lo - a_hi);
-                let size = max(max(a_hi.x - a_lo.x, a_hi.y - a_lo.y),
-                               max(b_hi.x - b_lo.x, b_hi.y - b_lo.y));
-                if (max(gap.x, gap.y) > SLACK * size) {
-                    continue;  // their projections are apart
+            let a_size = max(a_hi.x - a_lo.x, a_hi.y - a_lo.y);
+            let b_lo = min(pb[0].xy, min(pb[1].xy, pb[2].xy));
+            let b_hi = max(pb[0].xy, max(pb[1].xy, pb[2].xy));
+            let b_size = max(b_hi.x - b_lo.x, b_hi.y - b_lo.y);
+            // The box of each cluster's faces and its largest face, reduced over the threads.
+            red_a[lid] = select(NO_BOX, vec4f(a_lo, a_hi), has_a);
+            red_b[lid] = select(NO_BOX, vec4f(b_lo, b_hi), has_b);
+            red_size[lid] = vec2f(select(0.0, a_size, has_a), select(0.0, b_size, has_b));
+            workgroupBarrier();
+            var half = WORKGROUP / 2u;
+            loop {
+                if (lid < half) {
+                    let ra = red_a[lid + half];
+                    let rb = red_b[lid + half];
+                    red_a[lid] = vec4f(min(red_a[lid].xy, ra.xy), max(red_a[lid].zw, ra.zw));
+                    red_b[lid] = vec4f(min(red_b[lid].xy, rb.xy), max(red_b[lid].zw, rb.zw));
+                    red_size[lid] = max(red_size[lid], red_size[lid + half]);
                 }
-                for (var c = 0u; c < 3u; c++) {
-                    let in_b = depth_in(pb[0], pb[1], pb[2], pa[c].xy);
-                    if (in_b.x > 0.0) {
-                        most = max(most, in_b.y - pa[c].z);
-                        least = max(least, pa[c].z - in_b.y);
-                    }
-                    let in_a = depth_in(pa[0], pa[1], pa[2], pb[c].xy);
-                    if (in_a.x > 0.0) {
-                        most = max(most, pb[c].z - in_a.y);
-                        least = max(least, in_a.y - pb[c].z);
-                    }
-                    for (var e = 0u; e < 3u; e++) {
-                        let x = crossing(pa[c], pa[(c + 1u) % 3u], pb[e], pb[(e + 1u) % 3u]);
-                        if (x.x > 0.0) {
-                            most = max(most, x.y);
-                            least = max(least, -x.y);
-                        }
-                    }
+                workgroupBarrier();
+                half >>= 1u;
+                if (half == 0u) {
+                    break;
                 }
             }
-        }
-        if (most > NONE) {
-            atomicMax(&kept[2u * i], key(most));
-            atomicMax(&kept[2u * i + 1u], key(least));
-        }
-        // An item that is its pair's whole work stops at the first line that clears the pair
-        // (its depth is then 0 whatever the other lines say).
-        if (whole != 0u) {
+            // Only the faces of each cluster that can meet a face of the other are kept, at the
+            // front of the workgroup's arrays (in any order: the figures are maxima).
+            let all_a = red_a[0];
+            let all_b = red_b[0];
+            let all_size = red_size[0];
+            if (has_a && !apart(a_lo, a_hi, a_size, all_b, all_size.y)) {
+                let slot = atomicAdd(&kept_a, 1u);
+                for (var c = 0u; c < 3u; c++) {
+                    flat_a[3u * slot + c] = pa[c].xy;
+                    deep_a[3u * slot + c] = pa[c].z;
+                }
+                box_a[slot] = vec4f(a_lo, a_hi);
+            }
+            if (has_b && !apart(b_lo, b_hi, b_size, all_a, all_size.x)) {
+                let slot = atomicAdd(&kept_b, 1u);
+                for (var c = 0u; c < 3u; c++) {
+                    flat_b[3u * slot + c] = pb[c].xy;
+                    deep_b[3u * slot + c] = pb[c].z;
+                }
+                box_b[slot] = vec4f(b_lo, b_hi);
+            }
+            workgroupBarrier();
+            // Thread j takes kept face j of a: the kept faces of b whose boxes meet its box.
+            let n_a = atomicLoad(&kept_a);
+            let n = select(0u, atomicLoad(&kept_b), lid < n_a);
+            let mine = box_a[lid];
+            let size_a = max(mine.z - mine.x, mine.w - mine.y);
+            var hit = vec2u(0u);
+            var u = 0u;
+            loop {
+                let box = box_b[u];
+                let gap = max(mine.xy - box.zw, box.xy - mine.zw);
+                let size = max(size_a, max(box.z - box.x, box.w - box.y));
+                if (u < n && !(max(gap.x, gap.y) > SLACK * size)) {
+                    if (u < 32u) {
+                        hit.x |= 1u << u;
+                    } else {
+                        hit.y |= 1u << (u - 32u);
+                    }
+                }
+                u++;
+                if (u >= n) {
+                    break;
+                }
+            }
+            hits[lid] = hit;
+            first_hit[lid] = countOneBits(hit.x) + countOneBits(hit.y);
             workgroupBarrier();
             if (lid == 0u) {
-                cleared = u32(clears(i));
+                var sum = 0u;
+                for (var j = 0u; j < WORKGROUP; j++) {
+                    let count = first_hit[j];
+                    first_hit[j] = sum;
+                    sum += count;
+                }
+                hit_count = sum;
+                atomicStore(&kept_a, 0u);
+                atomicStore(&kept_b, 0u);
             }
-            if (workgroupUniformLoad(&cleared) != 0u) {
+            let total = workgroupUniformLoad(&hit_count);
+            var most = NONE;   // max(depth_b - depth_a)
+            var least = NONE;  // max(depth_a - depth_b)
+            var e = lid;
+            loop {
+                if (e < total) {
+                    var j = 0u;
+                    for (var step = WORKGROUP / 2u; step > 0u; step >>= 1u) {
+                        j = select(j, j + step, first_hit[j + step] <= e);
+                    }
+                    let b = nth_bit(hits[j], e - first_hit[j]);
+                    let figure = face_pair(corners_a(j), corners_b(b));
+                    most = max(most, figure.x);
+                    least = max(least, figure.y);
+                }
+                e += WORKGROUP;
+                if (e >= total) {
+                    break;
+                }
+            }
+            if (most > NONE) {
+                atomicMax(&kept[2u * i], key(most));
+                atomicMax(&kept[2u * i + 1u], key(least));
+            }
+            if (todo == 0u) {
                 break;
             }
+            workgroupBarrier();  // every thread is done with this line's faces
         }
     }
     workgroupBarrier();
     if (lid < 2u * LINES) {
-        let word = atomicLoad(&kept[lid]);
-        if (word != 0u) {
-            atomicMax(&best[item.pair * 2u * LINES + (lid ^ u32(flipped))], word);
+        let i = lid >> 1u;
+        if (((skip >> i) & 1u) == 0u) {
+            let word = atomicLoad(&kept[2u * source[i] + (lid & 1u)]);
+            if (word != 0u) {
+                atomicMax(&best[item.pair * 2u * LINES + lid], word);
+            }
         }
     }
 }

@@ -85,6 +85,7 @@ from ...scene import Scene
 from ...scene.pack import ShapePack
 from ..broad.prune import sweep_and_prune
 from .clearance import ERROR_SCALE
+from .cull import depth_items
 from .depth import (
     ITEM_FLIPPED,
     ITEM_WHOLE,
@@ -96,7 +97,7 @@ from .depth import (
     lines,
 )
 from .local import LOCAL_GROW, overlap_parts, pair_kinds
-from .pairwork import ITEM, pair_frames, spread
+from .pairwork import ITEM, pair_frames
 from .regions import RegionBuffers, meeting_regions, tile_side
 
 if TYPE_CHECKING:
@@ -138,18 +139,21 @@ class Figures(NamedTuple):
     lie; for a pair measured locally, ``depth``'s rounding."""
 
 
-def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray
+def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, cull: bool = True
          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The work of pass H1: each pair's frame and its items: its two bodies whole, when one has at
     most :data:`~pycinder.focused.modes.depth.WHOLE_FACES` faces and they make at most
-    :data:`~pycinder.focused.modes.depth.WHOLE_WORK` face pairs, else every pair of their face
-    clusters.
+    :data:`~pycinder.focused.modes.depth.WHOLE_WORK` face pairs, else the pairs of their face
+    clusters that meet along some line, each along those lines alone
+    (:func:`~pycinder.focused.modes.cull.depth_items`; with ``cull`` False, every pair of their
+    clusters along every line: the same figures, at the cost of the product of their counts).
 
     Parameters
     ----------
     scene : Scene
     pack : ShapePack
     pairs : (K, 2) int
+    cull : bool
 
     Returns
     -------
@@ -165,31 +169,22 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray
     faces = np.diff(pack.face_start)
     shape_a, shape_b = scene.body_shape[a], scene.body_shape[b]
     fa, fb = faces[shape_a], faces[shape_b]
-    whole = (np.minimum(fa, fb) <= WHOLE_FACES) & (fa * fb <= WHOLE_WORK)
-    start = pack.cluster_start
-    count_a = np.where(whole, 1, start[shape_a + 1] - start[shape_a])
-    count_b = np.where(whole, 1, start[shape_b + 1] - start[shape_b])
-    per_pair = count_a * count_b
-    # Item i of its pair: cluster i // count_b of body a, cluster i % count_b of body b.
-    pair, i = spread(per_pair)
-    cluster_a = start[shape_a][pair] + i // count_b[pair]
-    cluster_b = start[shape_b][pair] + i % count_b[pair]
-    items = ITEM.zeros(len(pair))
-    items["pair"] = pair
-    items["a_start"], items["a_count"] = pack.clusters[cluster_a, 0], pack.clusters[cluster_a, 1]
-    items["b_start"], items["b_count"] = pack.clusters[cluster_b, 0], pack.clusters[cluster_b, 1]
     # A whole pair is one item of both bodies' faces, the body with fewer in workgroup memory.
-    w = np.flatnonzero(whole)
+    w = np.flatnonzero((np.minimum(fa, fb) <= WHOLE_FACES) & (fa * fb <= WHOLE_WORK))
     flip = fa[w] < fb[w]
-    first = np.cumsum(per_pair)[w] - 1  # a whole pair's one item
     small = np.where(flip, shape_a[w], shape_b[w])
     large = np.where(flip, shape_b[w], shape_a[w])
-    items["a_start"][first] = pack.face_start[large]
-    items["a_count"][first] = faces[large]
-    items["b_start"][first] = pack.face_start[small]
-    items["b_count"][first] = faces[small]
-    items["whole"][first] = ITEM_WHOLE | np.where(flip, ITEM_FLIPPED, 0)
-    return items, frames, reach
+    whole = ITEM.zeros(len(w))
+    whole["pair"] = w
+    whole["a_start"], whole["a_count"] = pack.face_start[large], faces[large]
+    whole["b_start"], whole["b_count"] = pack.face_start[small], faces[small]
+    whole["whole"] = ITEM_WHOLE | np.where(flip, ITEM_FLIPPED, 0)
+    # The others, cluster pair by cluster pair.
+    dense = np.setdiff1d(np.arange(len(pairs)), w)
+    items = depth_items(pack, scene.shapes, np.stack([shape_a[dense], shape_b[dense]], axis=1),
+                        frames[dense], cull)
+    items["pair"] = dense[items["pair"]]
+    return np.concatenate([whole, items]), frames, reach
 
 
 class HardClash:

@@ -32,7 +32,8 @@ ITEM = Struct("PairItem", [
     ("a_count", "u32", "faces in it"),
     ("b_start", "u32", "first face of body b's cluster"),
     ("b_count", "u32", "faces in it"),
-    ("whole", "u32", "pass H1's bits: the pair's bodies whole (its only item), flipped"),
+    ("whole", "u32", ("pass H1's bits: the pair's bodies whole (its only item), flipped, the "
+                      "lines the item skips")),
 ], doc="Faces of body a and faces of body b of one candidate pair: a cluster of each (at most "
        "CLUSTER_FACES faces), or for pass H1 the bodies whole.")
 
@@ -41,7 +42,10 @@ FRAME = Struct("PairFrame", [
     ("m1", "array<vec4f, 3>", "pair-from-body rows of body b"),
 ], doc="A candidate pair's own frame, centred where its bodies meet.")
 
-PARAMS = Struct("PairParams", [("items", "u32", "items of the dispatch")], uniform=True)
+PARAMS = Struct("PairParams", [
+    ("items", "u32", "items of the pass"),
+    ("split", "u32", "items the first entry point takes (the others take the rest)"),
+], uniform=True)
 
 _U = wgpu.BufferUsage
 
@@ -115,7 +119,10 @@ class ClusterPairPass:
 
     Subclasses name their shader (``SHADER``, entry point ``ENTRY``), their pass (``INFO``),
     the words per pair (``WORDS``), each word's value before the pass (``START``) and the
-    constants generated into the shader (``CONSTS``).
+    constants generated into the shader (``CONSTS``). A pass with a second entry point
+    (``SECOND``) runs the items :meth:`second` picks with it, in a second dispatch after the
+    first's, ``SECOND_ITEMS`` items per workgroup (its workgroup ``i`` takes items
+    ``params.split + SECOND_ITEMS i`` on).
 
     Parameters
     ----------
@@ -130,12 +137,15 @@ class ClusterPairPass:
     WORDS: ClassVar[int]
     START: ClassVar[int]
     CONSTS: ClassVar[dict[str, int | float]] = {}
+    SECOND: ClassVar[str | None] = None
+    SECOND_ITEMS: ClassVar[int] = 1
 
     def __init__(self, gpu: Gpu, timeout: float = DEFAULT_TIMEOUT) -> None:
         self.gpu = gpu
         self.timeout = timeout
-        self.stage = Stage(gpu, self.SHADER, self.ENTRY, label=self.INFO.title,
-                           structs=(ITEM, FRAME, PARAMS), consts=self.CONSTS)
+        self.stages = [Stage(gpu, self.SHADER, entry, label=self.INFO.title,
+                             structs=(ITEM, FRAME, PARAMS), consts=self.CONSTS)
+                       for entry in (self.ENTRY, self.SECOND) if entry is not None]
         device = gpu.device
 
         def grow(label: str, usage: int = _U.STORAGE | _U.COPY_DST) -> GrowableBuffer:
@@ -146,6 +156,10 @@ class ClusterPairPass:
         self.params = device.create_buffer(label=f"{self.INFO.name} parameters", size=16,
                                            usage=_U.UNIFORM | _U.COPY_DST)
         self.readback = Readback(device, f"{self.INFO.name} figures")
+
+    def second(self, items: np.ndarray) -> np.ndarray:
+        """Which of ``items`` (I,) the second entry point takes: (I,) bool (none here)."""
+        return np.zeros(len(items), bool)
 
     def words(self, positions: GrowableBuffer, faces: GrowableBuffer, items: np.ndarray,
               frames: np.ndarray) -> np.ndarray:
@@ -168,6 +182,10 @@ class ClusterPairPass:
         if k == 0:
             return np.zeros((0, self.WORDS), np.uint32)
         nbytes = 4 * self.WORDS * k
+        later = self.second(items) if len(self.stages) > 1 else np.zeros(len(items), bool)
+        split = len(items) - int(np.count_nonzero(later))
+        if split < len(items):
+            items = np.concatenate([items[~later], items[later]])
         self.items.ensure(max(items.nbytes, ITEM.size))
         if len(items):
             self.items.write(items)
@@ -176,14 +194,17 @@ class ClusterPairPass:
         self.best.ensure(nbytes)
         self.best.write(np.full(self.WORDS * k, self.START, np.uint32))
         params = PARAMS.zeros()
-        params["items"] = len(items)
+        params["items"], params["split"] = len(items), split
         self.gpu.device.queue.write_buffer(self.params, 0, params)
         encoder = self.gpu.device.create_command_encoder()
         if len(items):
             cpass = encoder.begin_compute_pass(label=self.INFO.title)
-            dispatch(cpass, self.stage, self.stage.group(
-                positions=positions, faces=faces, items=self.items, frames=self.frames,
-                best=self.best, params=(self.params, 0, 16)), len(items))
+            later = -(-(len(items) - split) // self.SECOND_ITEMS)
+            for stage, count in zip(self.stages, (split, later)):
+                if count:
+                    dispatch(cpass, stage, stage.group(
+                        positions=positions, faces=faces, items=self.items,
+                        frames=self.frames, best=self.best, params=(self.params, 0, 16)), count)
             cpass.end()
         staging = self.readback.ensure(nbytes)
         encoder.copy_buffer_to_buffer(self.best.buffer, 0, staging, 0, nbytes)

@@ -1,0 +1,264 @@
+"""The cluster pairs of a dense candidate pair that can add to its figures: pass H1's lines by
+screen boxes (:func:`depth_items`), pass C1's by the distance already found (:func:`nearest`).
+
+Pass H1 (:mod:`~pycinder.focused.modes.depth`) measures a pair along 19 lines, face pair by face
+pair; along a line ``n`` a face pair adds to the figures only where the faces' projections along
+``n`` meet (the shader skips every face pair whose screen boxes are more than ``SLACK`` times
+their size apart). A face's screen box lies in the box of its cluster's vertices' projections,
+so a cluster pair whose boxes are apart on a line's screen adds nothing along that line: it is
+measured only along the lines where they meet, and not at all where they meet along none. Over
+two dense surfaces that meet, a cluster of one meets along a line only the clusters of the
+other in its own shadow, so the work grows with the clusters that meet, not with the product of
+their counts.
+
+The boxes are computed in float64 from the vertices and frames the shader reads (single
+precision values, taken exactly) and grown by :data:`CULL_MARGIN` times the largest a
+coordinate of the pair's frame can be, far more than the shader's rounding of a projected
+corner and its slack together: a cluster pair the host leaves out is one every one of whose
+face pairs the shader would skip. The figures are therefore exactly those of every cluster pair
+measured along every line. A pair that has a line along which no cluster pair meets is cleared
+by that line (no ray meets both bodies): as a whole item stops at the first line that clears
+it, its cluster pairs are measured only up to that line.
+
+A line whose direction lies within rounding of the shader's choice of screen axes
+(:data:`AMBIGUOUS`) is not culled: its screen could be either of two.
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+
+from ...scene.pack import ShapePack
+from .depth import ITEM_SKIP_SHIFT, LINES, WORLD_LINES
+from .pairwork import ITEM, spread
+
+CULL_MARGIN = 2.0**-12
+"""Growth of the screen boxes, per unit of the largest a coordinate of the pair's frame can be
+(``|linear part| |vertex| + |translation|`` of either body): the shader's rounding of a projected
+corner is under ``2^-19`` of it, its slack ``2^-17``."""
+
+SLICE = 2**21
+"""Most cluster pairs and lines tested at once (a bound on the host memory of the test)."""
+
+AMBIGUOUS = 1e-6
+"""A line whose unit direction's x is this close to the shader's 0.75 (where its screen axes
+change) is measured over every cluster pair."""
+
+_WORLD = np.array([(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, -1, 0), (1, 0, 1), (1, 0, -1),
+                   (0, 1, 1), (0, 1, -1), (1, 1, 1), (1, 1, -1), (1, -1, 1), (-1, 1, 1)],
+                  np.float64)
+assert len(_WORLD) == WORLD_LINES
+
+_VERTICES: weakref.WeakKeyDictionary[ShapePack, dict[int, tuple[np.ndarray, np.ndarray]]] = \
+    weakref.WeakKeyDictionary()
+
+
+def cluster_vertices(pack: ShapePack, shape: int) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct vertices of each cluster of one packed shape (kept with the pack).
+
+    Returns
+    -------
+    index : (n,) int64
+        Vertex indices into the shape's own vertices, cluster after cluster.
+    start : (C + 1,) int64
+        Where each of the shape's C clusters starts in ``index``.
+    """
+    known = _VERTICES.setdefault(pack, {})
+    if shape not in known:
+        c0, c1 = int(pack.cluster_start[shape]), int(pack.cluster_start[shape + 1])
+        f0, f1 = int(pack.face_start[shape]), int(pack.face_start[shape + 1])
+        counts = pack.clusters[c0:c1, 1].astype(np.int64)
+        cluster = np.repeat(np.arange(c1 - c0), 3 * counts)
+        vertex = pack.faces[f0:f1].reshape(-1).astype(np.int64) - pack.vertex_start[shape]
+        n = int(pack.vertex_start[shape + 1] - pack.vertex_start[shape])
+        keys = np.unique(cluster * n + vertex)
+        start = np.searchsorted(keys // n, np.arange(c1 - c0 + 1))
+        known[shape] = (keys % n, start.astype(np.int64))
+    return known[shape]
+
+
+def screens(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each pair's lines' screen axes as the shader's ``view_of(line(i))`` makes them (in
+    float64, from the frames' single-precision values).
+
+    Parameters
+    ----------
+    frames : (K,) structured array of :data:`~pycinder.focused.modes.pairwork.FRAME`
+
+    Returns
+    -------
+    axes : (K, LINES, 4, 3) float64
+        Screen x and y of each line, in the pair's frame, and the two diagonals between them.
+    ambiguous : (K, LINES) bool
+        Lines whose screen the shader could take either way (:data:`AMBIGUOUS`).
+    """
+    k = len(frames)
+    d = np.empty((k, LINES, 3))
+    d[:, 0:3] = np.swapaxes(frames["m0"][:, :, :3].astype(np.float64), 1, 2)
+    d[:, 3:6] = np.swapaxes(frames["m1"][:, :, :3].astype(np.float64), 1, 2)
+    d[:, 6:] = _WORLD
+    length = np.linalg.norm(d, axis=2, keepdims=True)
+    n = np.where(length > 0, d / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0])
+    ambiguous = np.abs(np.abs(n[..., 0]) - 0.75) < AMBIGUOUS
+    helper = np.where((np.abs(n[..., 0]) > 0.75)[..., None], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0])
+    x = np.cross(helper, n)
+    x /= np.linalg.norm(x, axis=2, keepdims=True)
+    y = np.cross(n, x)
+    return np.stack([x, y, (x + y) * 0.5**0.5, (x - y) * 0.5**0.5], axis=2), ambiguous
+
+
+def _magnitude(m: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """The largest a coordinate of the pair's frame can be for a body (rows ``m`` (K, 3, 4) of
+    its pair-from-body map, vertices within ``reach`` (K,) of its origin)."""
+    return np.linalg.norm(m[:, :, :3], axis=(1, 2)) * reach + np.linalg.norm(m[:, :, 3], axis=1)
+
+
+def screen_boxes(pack: ShapePack, shapes: list, shape: np.ndarray, m: np.ndarray,
+                 axes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The screen box of every cluster of one body of each pair, on each of its lines.
+
+    Parameters
+    ----------
+    pack : ShapePack
+    shapes : list of Shape
+        The packed shapes with their current vertices.
+    shape : (K,) int
+        The body's shape, per pair.
+    m : (K, 3, 4) float64
+        Its pair-from-body rows.
+    axes : (K, LINES, A, 3) float64
+        Directions on each line's screen (:func:`screens`).
+
+    Returns
+    -------
+    lo, hi : (C, LINES, A) float64
+        Per cluster (the pairs' clusters, pair after pair), the extent of its vertices'
+        projections along each direction.
+    owner : (C,) int64
+        The pair it belongs to.
+    """
+    width = axes.shape[1] * axes.shape[2]
+    # Screen coordinates: (axes . linear) p + axes . translation, per pair.
+    coef = np.einsum("klaj,kji->klai", axes, m[:, :, :3]).reshape(-1, width, 3)
+    offset = np.einsum("klaj,kj->kla", axes, m[:, :, 3]).reshape(-1, width)
+    points: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    lo, hi, owner = [], [], []
+    for k, s in enumerate(np.asarray(shape).tolist()):
+        if s not in points:
+            index, start = cluster_vertices(pack, s)
+            points[s] = (np.asarray(shapes[s].vertices, np.float64)[index], start[:-1])
+        p, start = points[s]
+        proj = p[:, 0:1] * coef[k, :, 0] + p[:, 1:2] * coef[k, :, 1] + p[:, 2:3] * coef[k, :, 2]
+        proj += offset[k]
+        lo.append(np.minimum.reduceat(proj, start, axis=0))
+        hi.append(np.maximum.reduceat(proj, start, axis=0))
+        owner.append(np.full(len(start), k, np.int64))
+    out = (-1,) + axes.shape[1:3]
+    if not lo:
+        empty = np.zeros((0,) + axes.shape[1:3])
+        return empty, empty, np.zeros(0, np.int64)
+    return (np.concatenate(lo).reshape(out), np.concatenate(hi).reshape(out),
+            np.concatenate(owner))
+
+
+def depth_items(pack: ShapePack, shapes: list, pair_shapes: np.ndarray, frames: np.ndarray,
+                cull: bool = True) -> np.ndarray:
+    """Pass H1's items for pairs measured cluster pair by cluster pair: every pair of a cluster
+    of body a and a cluster of body b whose projections meet along some line, skipping the
+    lines along which they do not (see the module), or with ``cull`` False every pair of their
+    clusters along every line.
+
+    Parameters
+    ----------
+    pack : ShapePack
+    shapes : list of Shape
+        The packed shapes with their current vertices.
+    pair_shapes : (K, 2) int
+        The shapes of each pair's two bodies.
+    frames : (K,) structured array of :data:`~pycinder.focused.modes.pairwork.FRAME`
+        The pairs' frames (what the shader reads).
+    cull : bool
+
+    Returns
+    -------
+    (I,) structured array of :data:`~pycinder.focused.modes.pairwork.ITEM`
+        ``pair`` is the row of ``pair_shapes``.
+    """
+    start = pack.cluster_start
+    sa, sb = pair_shapes[:, 0], pair_shapes[:, 1]
+    count_a, count_b = start[sa + 1] - start[sa], start[sb + 1] - start[sb]
+    if not cull:
+        pair, i = spread(count_a * count_b)
+        ca = start[sa][pair] + i // count_b[pair]
+        cb = start[sb][pair] + i % count_b[pair]
+        bits = np.full(len(pair), (1 << LINES) - 1, np.int64)
+    else:
+        pair, ca, cb, bits = _meeting_lines(pack, shapes, pair_shapes, frames)
+    items = ITEM.zeros(len(pair))
+    items["pair"] = pair
+    items["a_start"], items["a_count"] = pack.clusters[ca, 0], pack.clusters[ca, 1]
+    items["b_start"], items["b_count"] = pack.clusters[cb, 0], pack.clusters[cb, 1]
+    items["whole"] = (((1 << LINES) - 1) & ~bits) << ITEM_SKIP_SHIFT
+    return items
+
+
+def _meeting_lines(pack: ShapePack, shapes: list, pair_shapes: np.ndarray, frames: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The cluster pairs that meet along some line, up to each pair's first line along which
+    none does: their pair (K,), clusters of a and of b (packed indices) and the bits of the
+    lines they meet along."""
+    k = len(frames)
+    axes, ambiguous = screens(frames)
+    boxes, reach = [], []
+    for side, field in enumerate(("m0", "m1")):
+        m = frames[field].astype(np.float64)
+        boxes.append(screen_boxes(pack, shapes, pair_shapes[:, side], m, axes))
+        lo = np.array([shapes[s].lo for s in pair_shapes[:, side]]).reshape(k, 3)
+        hi = np.array([shapes[s].hi for s in pair_shapes[:, side]]).reshape(k, 3)
+        reach.append(_magnitude(m, np.linalg.norm(np.maximum(np.abs(lo), np.abs(hi)), axis=1)))
+    grow = np.where(ambiguous, np.inf, CULL_MARGIN * np.maximum(reach[0], reach[1])[:, None])
+    (lo_a, hi_a, own_a), (lo_b, hi_b, own_b) = boxes
+    # A pair's clusters are consecutive rows of its side's boxes.
+    first_a = np.searchsorted(own_a, np.arange(k + 1))
+    first_b = np.searchsorted(own_b, np.arange(k + 1))
+    found = []
+    for p in range(k):
+        # Every cluster of a with every cluster of b, on every line (in slices of a's).
+        a0, a1, b0, b1 = first_a[p], first_a[p + 1], first_b[p], first_b[p + 1]
+        g = grow[p][None, None, :, None]
+        step = max(1, SLICE // max((b1 - b0) * LINES, 1))
+        for s0 in range(a0, a1, step):
+            s1 = min(s0 + step, a1)
+            meet = np.all((lo_b[None, b0:b1] <= hi_a[s0:s1, None] + g)
+                          & (lo_a[s0:s1, None] <= hi_b[None, b0:b1] + g), axis=3)
+            i, j, line = np.nonzero(meet)
+            found.append((i + s0, j + b0, line, np.full(len(i), p, np.int64)))
+    row_a, row_b, along, pair = (np.concatenate(x) for x in zip(*found)) if found else \
+        (np.zeros(0, np.int64),) * 4
+    # Lines along which some cluster pair meets; a pair's lines after its first without any
+    # are not measured (it is cleared there).
+    meets = np.zeros((k, LINES), bool)
+    meets[pair, along] = True
+    stop = np.where(meets.all(axis=1), LINES - 1, np.argmin(meets, axis=1))
+    keep = along <= stop[pair]
+    row_a, row_b, along = row_a[keep], row_b[keep], along[keep]
+    # One item per cluster pair, with the bits of its lines.
+    key = row_a * max(len(own_b), 1) + row_b
+    order = np.argsort(key, kind="stable")
+    key = key[order]
+    first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if len(key) else np.zeros(0, int)
+    bits = np.bitwise_or.reduceat(np.int64(1) << along[order], first) if len(key) else \
+        np.zeros(0, np.int64)
+    row_a, row_b = row_a[order][first], row_b[order][first]
+    # Packed cluster indices.
+    pair = own_a[row_a]
+    start = pack.cluster_start
+    ca = start[pair_shapes[pair, 0]] + row_a - first_a[pair]
+    cb = start[pair_shapes[pair, 1]] + row_b - first_b[pair]
+    return pair, ca, cb, bits
+
+
+__all__ = ["AMBIGUOUS", "CULL_MARGIN", "SLICE", "cluster_vertices", "depth_items", "screen_boxes",
+           "screens"]
