@@ -74,10 +74,15 @@ from it)."""
 ERROR_SCALE = 2.0**-16
 """Bound of a measured distance's error, per unit of the pair's reach from its frame's centre."""
 
+NEAREST_MARGIN = 4.0
+"""Cluster pairs whose boxes are farther apart than the least distance found plus this many
+times a distance's error bound are not measured (they could not be nearer)."""
 
-def cluster_boxes(pack: ShapePack, shapes: list) -> tuple[np.ndarray, np.ndarray]:
-    """Body-space box of every cluster of the packed shapes, from the shapes' current vertices
-    (a pack keeps those of the frame that made it; a deforming shape has new ones).
+
+def cluster_boxes(pack: ShapePack, shapes: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Body-space box of every cluster of the packed shapes, and a point of its surface near
+    the box's centre, from the shapes' current vertices (a pack keeps those of the frame that
+    made it; a deforming shape has new ones).
 
     Parameters
     ----------
@@ -88,14 +93,21 @@ def cluster_boxes(pack: ShapePack, shapes: list) -> tuple[np.ndarray, np.ndarray
     Returns
     -------
     lo, hi : (C, 3) float64
+    point : (C, 3) float64
+        The centroid of the cluster's face whose centroid is nearest the box's centre.
     """
     positions = np.concatenate([s.vertices for s in shapes]) if shapes else pack.positions
     corners = positions[pack.faces.reshape(-1)].reshape(-1, 3, 3).astype(np.float64)
     face_lo, face_hi = corners.min(axis=1), corners.max(axis=1)
     start = pack.clusters[:, 0].astype(np.int64)
     if len(start) == 0:
-        return np.zeros((0, 3)), np.zeros((0, 3))
-    return np.minimum.reduceat(face_lo, start), np.maximum.reduceat(face_hi, start)
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
+    lo, hi = np.minimum.reduceat(face_lo, start), np.maximum.reduceat(face_hi, start)
+    cluster = np.repeat(np.arange(len(start)), pack.clusters[:, 1].astype(np.int64))
+    centroid = corners.mean(axis=1)
+    off = ((centroid - 0.5 * (lo + hi)[cluster]) ** 2).sum(axis=1)
+    order = np.lexsort((off, cluster))
+    return lo, hi, centroid[order[np.searchsorted(cluster[order], np.arange(len(start)))]]
 
 
 def _world(lo: np.ndarray, hi: np.ndarray, transforms: np.ndarray
@@ -115,7 +127,8 @@ def _gap(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray)
 
 
 def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, c: float,
-         boxes: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+         boxes: tuple[np.ndarray, np.ndarray, np.ndarray]
+         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The work of pass C1: each pair's frame and its cluster pairs within ``c``.
 
     Parameters
@@ -124,7 +137,7 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, c: float,
     pack : ShapePack
     pairs : (K, 2) int
     c : float
-    boxes : (C, 3) float, (C, 3) float
+    boxes : (C, 3) float, (C, 3) float, (C, 3) float
         :func:`cluster_boxes` of ``pack``.
 
     Returns
@@ -133,8 +146,13 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, c: float,
     frames : (K,) structured array of :data:`~pycinder.focused.modes.pairwork.FRAME`
     reach : (K,) float64
         How far each pair's bodies reach from its frame's centre (``L`` of the error bound).
+    gap : (I,) float64
+        The distance between each item's cluster boxes (at most ``c``): a lower bound of its
+        clusters' distance.
+    apart : (I,) float64
+        The distance between a point of each of its clusters: an upper bound of it.
     """
-    lo_all, hi_all = boxes
+    lo_all, hi_all, point_all = boxes
     start = pack.cluster_start
     face_start = pack.clusters[:, 0].astype(np.int64)
     face_count = pack.clusters[:, 1].astype(np.int64)
@@ -149,23 +167,28 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, c: float,
         shape = scene.body_shape[body]
         row, j = spread(start[shape + 1] - start[shape])
         ids = start[shape][row] + j
-        lo, hi = _world(lo_all[ids], hi_all[ids], scene.transforms[body[row]])
+        t = scene.transforms[body[row]]
+        lo, hi = _world(lo_all[ids], hi_all[ids], t)
         keep = _gap(lo, hi, world_lo[other[row]], world_hi[other[row]]) <= c
-        near.append((row[keep], ids[keep], lo[keep], hi[keep]))
-    (row_a, ia, la, ha), (row_b, ib, lb, hb) = near
+        point = np.einsum("nij,nj->ni", t[keep, :3, :3], point_all[ids[keep]]) + t[keep, :3, 3]
+        near.append((row[keep], ids[keep], lo[keep], hi[keep], point))
+    (row_a, ia, la, ha, pa), (row_b, ib, lb, hb, pb) = near
     # Every near cluster of a with every near cluster of b of the same pair, kept within c.
     na, nb = np.bincount(row_a, minlength=len(pairs)), np.bincount(row_b, minlength=len(pairs))
     pair, i = spread(na * nb)
     first_a, first_b = np.cumsum(na) - na, np.cumsum(nb) - nb
     ka = first_a[pair] + i // np.maximum(nb[pair], 1)
     kb = first_b[pair] + i % np.maximum(nb[pair], 1)
-    close = _gap(la[ka], ha[ka], lb[kb], hb[kb]) <= c
-    pair, ca, cb = pair[close], ia[ka[close]], ib[kb[close]]
+    gap = _gap(la[ka], ha[ka], lb[kb], hb[kb])
+    close = gap <= c
+    ka, kb = ka[close], kb[close]
+    pair, ca, cb, gap = pair[close], ia[ka], ib[kb], gap[close]
+    apart = np.sqrt(((pa[ka] - pb[kb]) ** 2).sum(axis=1))
     items = ITEM.zeros(len(pair))
     items["pair"] = pair
     items["a_start"], items["a_count"] = face_start[ca], face_count[ca]
     items["b_start"], items["b_count"] = face_start[cb], face_count[cb]
-    return items, frames, reach
+    return items, frames, reach, gap, apart
 
 
 class Clearance:
@@ -181,7 +204,7 @@ class Clearance:
         self.strategy = strategy
         self.distance = Distance(strategy.gpu, timeout=strategy.request.timeout)
         self.regions = RegionBuffers(strategy.gpu.device, "C1 regions")
-        self._boxes: tuple[tuple, tuple[np.ndarray, np.ndarray]] | None = None
+        self._boxes: tuple[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
 
     def run(self, scene: Scene, stats: Stats, c: float, groups: np.ndarray | None,
             records: str | None, within: np.ndarray | None,
@@ -214,16 +237,20 @@ class Clearance:
         lo, hi = scene.world_boxes()
         pairs = sweep_and_prune(lo - 0.5 * c, hi + 0.5 * c, within, groups)
         pack = self.strategy.pack(scene, stats)
-        items, frames, reach = plan(scene, pack, pairs, c, self._cluster_boxes(pack, scene))
+        items, frames, reach, gap, apart = plan(scene, pack, pairs, c,
+                                                self._cluster_boxes(pack, scene))
         error = ERROR_SCALE * reach
         # Pairs too large (or too far from the origin) for the whole-pair frame are measured in
         # the regions where they come within c.
         local = error > c / 16
-        items = items[~local[items["pair"]]]
+        mine = ~local[items["pair"]]
+        items, gap, apart = items[mine], gap[mine], apart[mine]
         t0 = time.perf_counter()
         buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
-        measured = self.distance.run(buffers.positions, buffers.faces, items,
-                                     frames).astype(np.float64)
+        # Cluster pairs farther apart than the least distance found are not measured (the
+        # figures are those of every cluster pair within c: see Distance.nearest).
+        measured = self.distance.nearest(buffers.positions, buffers.faces, items, frames, gap,
+                                         apart, NEAREST_MARGIN * error).astype(np.float64)
         if local.any():
             k = np.flatnonzero(local)
             measured[k], error[k] = self._measure_regions(scene, pairs[k], c)
@@ -281,7 +308,8 @@ class Clearance:
             np.maximum.at(error, owner, ERROR_SCALE * reach)
         return distance, error
 
-    def _cluster_boxes(self, pack: ShapePack, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    def _cluster_boxes(self, pack: ShapePack, scene: Scene
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         # A shape object is made for new vertex content: the shapes' identities are the key.
         key = (id(pack), tuple(id(s) for s in scene.shapes))
         if self._boxes is None or self._boxes[0] != key:

@@ -16,6 +16,10 @@ from .pairwork import FRAME, ITEM, PARAMS, ClusterPairPass
 FAR = int(np.float32(np.inf).view(np.uint32))
 """The figure of a pair no item measured (its bits: +inf)."""
 
+FIRST_ITEMS = 16
+"""Items of each pair measured first by :meth:`Distance.nearest`: those whose cluster boxes are
+nearest each other."""
+
 
 class Distance(ClusterPairPass):
     """C1: one workgroup per item (a cluster of body a and one of body b whose boxes are within
@@ -38,5 +42,46 @@ class Distance(ClusterPairPass):
         """
         return self.words(positions, faces, items, frames)[:, 0].view(np.float32).copy()
 
+    def nearest(self, positions: GrowableBuffer, faces: GrowableBuffer, items: np.ndarray,
+                frames: np.ndarray, gap: np.ndarray, apart: np.ndarray, margin: np.ndarray
+                ) -> np.ndarray:
+        """:meth:`run`'s figures, measuring only the items that can lower them.
 
-__all__ = ["FAR", "FRAME", "ITEM", "PARAMS", "Distance"]
+        An item's distance lies between its ``gap`` and its ``apart``; measured, it is at least
+        its gap less its rounding. So an item whose gap exceeds a pair's least ``apart``, or the
+        least distance measured so far, by more than ``margin`` (at least twice that rounding)
+        could not be below the least found, and is left out: first each pair's
+        :data:`FIRST_ITEMS` items of least ``apart`` are measured, then those of its others
+        still within reach (none once a distance of 0 is found). The figures are :meth:`run`'s
+        over every item, bit for bit.
+
+        Parameters
+        ----------
+        positions, faces : GrowableBuffer
+        items : (I,) structured array of :data:`~pycinder.focused.modes.pairwork.ITEM`
+        frames : (K,) structured array of :data:`~pycinder.focused.modes.pairwork.FRAME`
+        gap, apart : (I,) float64
+            A lower and an upper bound of each item's distance.
+        margin : (K,) float64
+            Per pair, at least twice the rounding of a distance measured in its frame.
+
+        Returns
+        -------
+        (K,) float32
+        """
+        pair = items["pair"].astype(np.int64)
+        bound = np.full(len(frames), np.inf)
+        np.minimum.at(bound, pair, apart)
+        within = np.flatnonzero(gap <= bound[pair] + margin[pair])
+        order = within[np.lexsort((apart[within], pair[within]))]
+        rank = np.arange(len(order)) - np.searchsorted(pair[order], pair[order])
+        found = self.run(positions, faces, items[order[rank < FIRST_ITEMS]], frames)
+        rest = order[rank >= FIRST_ITEMS]
+        least = found[pair[rest]].astype(np.float64)
+        rest = rest[(least > 0) & (gap[rest] <= least + margin[pair[rest]])]
+        if len(rest):
+            found = np.minimum(found, self.run(positions, faces, items[rest], frames))
+        return found
+
+
+__all__ = ["FAR", "FIRST_ITEMS", "FRAME", "ITEM", "PARAMS", "Distance"]
