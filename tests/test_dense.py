@@ -141,7 +141,7 @@ def test_culling_measures_a_small_share_of_the_cluster_pairs():
     scene, pack, _ = internals(det, meshes, t)
     items, _, _ = hardclash.plan(scene, pack, np.array([[0, 1]]))
     skipped = (items["whole"].astype(np.int64) >> ITEM_SKIP_SHIFT) & ((1 << LINES) - 1)
-    measured = LINES * len(items) - sum(bin(int(s)).count("1") for s in skipped)
+    measured = LINES * len(items) - sum(int(s).bit_count() for s in skipped)
     clusters = np.diff(pack.cluster_start)
     a, b = scene.body_shape
     assert measured < 0.06 * LINES * clusters[a] * clusters[b], measured
