@@ -277,3 +277,29 @@ def test_dense_clearance_is_every_cluster_pairs_and_exact(scale, first, monkeypa
             assert got.pairs.tolist() == [[0, 1]]
         if got.pairs.tolist():
             assert abs(got.distances[0] - exact) <= got.distance_errors[0] + 1e-12 * scale
+
+
+def test_regions_skip_the_lines_their_chunks_do_not_meet_along(monkeypatch):
+    """A dense non-convex pair measured locally, in regions (their faces cut to the overlap's
+    box, packed in chunks): the same depths with the regions' chunk pairs culled and not."""
+    meshes = [torus(), sphere(0.5, 4)]
+    transforms = [np.eye(4), np.eye(4)]
+    transforms[1][:3, 3] = (0.8, 0.1, 0.05)
+    det = pycinder.Detector(min_depth=0.01)
+    culled = det.find_collisions(meshes, transforms)
+    monkeypatch.setattr(hardclash, "skip_lines", lambda positions, faces, items, frames: items)
+    every = pycinder.Detector(min_depth=0.01).find_collisions(meshes, transforms)
+    assert culled.pairs.tolist() == every.pairs.tolist() == [[0, 1]]
+    assert np.array_equal(culled.depths, every.depths)
+    assert np.array_equal(culled.depth_errors, every.depth_errors)
+
+
+def test_the_dense_benchmark_runs_and_is_right():
+    """The benchmark's cases at a small size: every answer keeps its contract."""
+    pytest.importorskip("coal", reason="the benchmark's depths come from coal")
+    pytest.importorskip("fcl", reason="the benchmark's distances come from python-fcl")
+    from pycinder.benchmarks import dense
+
+    results = dense.run(faces=320, repeat=1)
+    assert {row["right"] for row in results["rows"]} <= {"yes", "yes (reported)"}
+    assert len(dense.markdown(results)) == 4 + len(results["rows"])

@@ -31,7 +31,7 @@ import weakref
 import numpy as np
 
 from ...scene.pack import ShapePack
-from .depth import ITEM_SKIP_SHIFT, LINES, WORLD_LINES
+from .depth import ITEM_SKIP_SHIFT, ITEM_WHOLE, LINES, WORLD_LINES
 from .pairwork import ITEM, spread
 
 CULL_MARGIN = 2.0**-12
@@ -204,6 +204,13 @@ def depth_items(pack: ShapePack, shapes: list, pair_shapes: np.ndarray, frames: 
     return items
 
 
+def _meet(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray,
+          grow: np.ndarray) -> np.ndarray:
+    """Whether boxes (..., A) meet along every direction, grown by ``grow`` (...)."""
+    grow = grow[..., None]
+    return np.all((lo_b <= hi_a + grow) & (lo_a <= hi_b + grow), axis=-1)
+
+
 def _meeting_lines(pack: ShapePack, shapes: list, pair_shapes: np.ndarray, frames: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The cluster pairs that meet along some line, up to each pair's first line along which
@@ -260,5 +267,68 @@ def _meeting_lines(pack: ShapePack, shapes: list, pair_shapes: np.ndarray, frame
     return pair, ca, cb, bits
 
 
+def skip_lines(positions: np.ndarray, faces: np.ndarray, items: np.ndarray, frames: np.ndarray
+               ) -> np.ndarray:
+    """Pass H1's items of chunks of faces (not whole), with the lines along which their two
+    chunks' projections are apart skipped, as :func:`depth_items` culls cluster pairs (items
+    apart along every line are left out, and a pair's lines past the first along which none
+    of its items meets): for items packed apart from the shapes (regions).
+
+    Parameters
+    ----------
+    positions : (3 P,) float32
+        The vertices the items' faces index.
+    faces : (3 F,) uint32
+    items : (I,) structured array of :data:`~pycinder.focused.modes.pairwork.ITEM`
+    frames : (K,) structured array of :data:`~pycinder.focused.modes.pairwork.FRAME`
+
+    Returns
+    -------
+    (I',) structured array of :data:`~pycinder.focused.modes.pairwork.ITEM`
+    """
+    chunked = (items["whole"] & ITEM_WHOLE) == 0
+    if not chunked.any():
+        return items
+    part = items[chunked]
+    k = len(frames)
+    points = np.asarray(positions, np.float32).reshape(-1, 3).astype(np.float64)
+    corners = np.asarray(faces, np.int64)
+    axes, ambiguous = screens(frames)
+    width = LINES * axes.shape[2]
+    boxes, reach = [], np.zeros(k)
+    for first, count, field in (("a_start", "a_count", "m0"), ("b_start", "b_count", "m1")):
+        m = frames[field].astype(np.float64)
+        coef = np.einsum("klaj,kji->klai", axes, m[:, :, :3]).reshape(k, width, 3)
+        offset = np.einsum("klaj,kj->kla", axes, m[:, :, 3]).reshape(k, width)
+        key = np.stack([part["pair"], part[first], part[count]], axis=1).astype(np.int64)
+        chunk, which = np.unique(key, axis=0, return_inverse=True)
+        row, j = spread(3 * chunk[:, 2])
+        p = points[corners[3 * chunk[row, 1] + j]]
+        size = np.linalg.norm(p, axis=1)
+        np.maximum.at(reach, chunk[row, 0], _magnitude(m[chunk[row, 0]], size))
+        proj = np.empty((len(p), width))
+        for pair in np.unique(chunk[:, 0]).tolist():
+            rows = slice(*np.searchsorted(chunk[row, 0], [pair, pair + 1]))
+            q = p[rows]
+            proj[rows] = (q[:, 0:1] * coef[pair, :, 0] + q[:, 1:2] * coef[pair, :, 1]
+                          + q[:, 2:3] * coef[pair, :, 2] + offset[pair])
+        cut = np.cumsum(3 * chunk[:, 2]) - 3 * chunk[:, 2]
+        shape3 = (-1, LINES, axes.shape[2])
+        boxes.append((np.minimum.reduceat(proj, cut, axis=0).reshape(shape3)[which.ravel()],
+                      np.maximum.reduceat(proj, cut, axis=0).reshape(shape3)[which.ravel()]))
+    grow = np.where(ambiguous, np.inf, CULL_MARGIN * reach[:, None])
+    pair = part["pair"].astype(np.int64)
+    (lo_a, hi_a), (lo_b, hi_b) = boxes
+    meet = _meet(lo_a, hi_a, lo_b, hi_b, grow[pair])  # (I, LINES)
+    meets = np.zeros((k, LINES), bool)
+    np.logical_or.at(meets, pair, meet)
+    stop = np.where(meets.all(axis=1), LINES - 1, np.argmin(meets, axis=1))
+    meet &= np.arange(LINES) <= stop[pair][:, None]
+    bits = (meet.astype(np.int64) << np.arange(LINES)).sum(axis=1)
+    part["whole"] = (part["whole"] & ((1 << ITEM_SKIP_SHIFT) - 1)) \
+        | ((((1 << LINES) - 1) & ~bits) << ITEM_SKIP_SHIFT)
+    return np.concatenate([items[~chunked], part[bits != 0]])
+
+
 __all__ = ["AMBIGUOUS", "CULL_MARGIN", "SLICE", "cluster_vertices", "depth_items", "screen_boxes",
-           "screens"]
+           "screens", "skip_lines"]

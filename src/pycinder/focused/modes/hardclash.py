@@ -85,7 +85,7 @@ from ...scene import Scene
 from ...scene.pack import ShapePack
 from ..broad.prune import sweep_and_prune
 from .clearance import ERROR_SCALE
-from .cull import depth_items
+from .cull import depth_items, skip_lines
 from .depth import (
     ITEM_FLIPPED,
     ITEM_WHOLE,
@@ -340,6 +340,7 @@ class HardClash:
         geometry, owner = meeting_regions(scene, pairs, grow, side, solids=True, orient=True,
                                           option="min_depth", value=d, search=search)
         positions, faces, items, frames, reach = geometry.packed(WHOLE_FACES)
+        items = skip_lines(positions, faces, items, frames)
         stats.add_ms("regions", (time.perf_counter() - t0) * 1e3)
         t1 = time.perf_counter()
         figures = np.zeros((0, LINES, 2))
