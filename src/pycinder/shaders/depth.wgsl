@@ -5,50 +5,48 @@
 // Along a direction n, moving a by s n puts all of a beyond all of b on a ray parallel to n when
 // s > (the farthest point of b on the ray) - (the nearest point of a on it), so
 //     U(n) = max over rays of (max depth of b - min depth of a)
-// is a translation that separates the pair (what pycinder.focused.modes.hardclash takes the least of). A ray's
-// extremes lie on the surfaces, so U(n) is the largest of depth_b - depth_a over every face of a
-// and face of b, over the region where their projections along n overlap. Both depths are affine
-// there, so that largest value is found at the region's corners: a corner of one face inside the
-// other's projection, or a crossing of an edge of each. The same corners give the smallest value,
-// which is -U(-n), so each line serves both ways.
+// is a translation that separates the pair (what pycinder.focused.modes.hardclash takes the least
+// of). A ray's extremes lie on the surfaces, so U(n) is the largest of depth_b - depth_a over
+// every face of a and face of b, over the region where their projections along n overlap. Both
+// depths are affine there, so that largest value is found at the region's corners: a corner of
+// one face inside the other's projection, or a crossing of an edge of each. The same corners give
+// the smallest value, which is -U(-n), so each line serves both ways.
 //
-// One workgroup per item: the faces of a pair's two bodies whole (when b has at most WHOLE_FACES),
-// or a cluster of each, measured in rounds of WORKGROUP faces of a (one per thread) against
-// blocks of WORKGROUP faces of b, both projected into workgroup memory. Each thread first tests
-// the screen box of its face of a against the box of the whole block (a gap to that box is never
-// more than the gap to any face in it, rounding included, so nothing the per-face test would keep
-// is left out), then against each face's box; the face pairs whose boxes meet are then shared
-// among the threads, so that the exact test of the corners below (the costly part) runs once
-// per face pair that can add to the figures, with every thread busy. An item skips the lines its
-// skip bits name (the host found its faces' projections apart along them: they would add
-// nothing) and a line whose view equals an earlier one's (it takes that line's figures). An item
-// that is its pair's whole work stops at the first line that clears the pair. Depths are
-// computed as convex combinations of corner depths (barycentric weights clamped at 0), so a
-// rounding error never takes a figure outside the faces' own depth range. Figures are kept as
-// order-preserving bits: word 2 i holds max(depth_b - depth_a) along line i, word 2 i + 1
-// max(depth_a - depth_b); 0 means no ray met both bodies.
+// One workgroup per item: the faces of a pair's two bodies whole (when b has at most WHOLE_FACES:
+// entry point depth, in rounds of WORKGROUP faces of a against blocks of WORKGROUP faces of b),
+// or a cluster of each (depth_clusters). For each line, each thread projects a face of each
+// body, and face_pairs finds the face pairs whose screen boxes meet, first dropping the faces of
+// each side that are apart from the box of the other side's faces (a gap to that box is never
+// more than the gap to any face in it, rounding included, so no face pair the per-face test would
+// keep is left out), then shares them among the threads, so that the exact test of the corners
+// (face_pair, the costly part) runs once per face pair that can add to the figures, with every
+// thread busy. An item skips the lines its skip bits name (the host found its faces'
+// projections apart along them: they would add nothing) and a line whose view equals an earlier
+// one's (it takes that line's figures). An item that is its pair's whole work stops at the first
+// line that clears the pair. Depths are computed as convex combinations of corner depths
+// (barycentric weights clamped at 0), so a rounding error never takes a figure outside the faces'
+// own depth range. Figures are kept as order-preserving bits: word 2 i holds max(depth_b -
+// depth_a) along line i, word 2 i + 1 max(depth_a - depth_b); 0 means no ray met both bodies.
 //!include layout
 //!include pairwork.wgsl
 
 const NONE: f32 = -3.0e38;  // below every figure: no corner found yet
 const NO_BOX = vec4f(3.0e38, 3.0e38, -3.0e38, -3.0e38);  // the box of no face
 
-var<workgroup> flat_a: array<vec2f, 3u * WORKGROUP>;  // a round's faces of a: corners on screen
+var<workgroup> flat_a: array<vec2f, 3u * WORKGROUP>;  // the kept faces of a: corners on screen
 var<workgroup> deep_a: array<f32, 3u * WORKGROUP>;    // and their depths
-var<workgroup> flat_b: array<vec2f, 3u * WORKGROUP>;  // a block's faces of b
+var<workgroup> box_a: array<vec4f, WORKGROUP>;        // and screen boxes: lo, hi
+var<workgroup> flat_b: array<vec2f, 3u * WORKGROUP>;  // the same of the kept faces of b
 var<workgroup> deep_b: array<f32, 3u * WORKGROUP>;
-var<workgroup> box_b: array<vec4f, WORKGROUP>;        // each face's screen box: lo, hi
-var<workgroup> box_a: array<vec4f, WORKGROUP>;
-var<workgroup> span_b: array<atomic<u32>, 5>;         // keys of the box of the block's faces (lo x,
-                                                      // lo y, hi x, hi y) and of its largest face
-var<workgroup> red_a: array<vec4f, WORKGROUP>;        // a cluster item's boxes of a, reduced
+var<workgroup> box_b: array<vec4f, WORKGROUP>;
+var<workgroup> red_a: array<vec4f, WORKGROUP>;        // the box of the faces of a, reduced
 var<workgroup> red_b: array<vec4f, WORKGROUP>;        // and of b
 var<workgroup> red_size: array<vec2f, WORKGROUP>;     // and their largest faces
-var<workgroup> kept_a: atomic<u32>;                   // faces of a and of b a cluster item keeps
+var<workgroup> kept_a: atomic<u32>;                   // faces of a and of b kept
 var<workgroup> kept_b: atomic<u32>;
 var<workgroup> hits: array<vec2u, WORKGROUP>;         // per face of a: bits of the b faces it meets
 var<workgroup> first_hit: array<u32, WORKGROUP>;      // where each face's face pairs start
-var<workgroup> hit_count: u32;                        // face pairs of the round and block
+var<workgroup> hit_count: u32;                        // face pairs found
 var<workgroup> views: array<mat3x3f, LINES>;          // rows: screen x, screen y, n
 var<workgroup> source: array<u32, LINES>;             // the line whose figures a line takes
 var<workgroup> kept: array<atomic<u32>, 2u * LINES>;  // the workgroup's figures
@@ -177,14 +175,6 @@ fn key(f: f32) -> u32 {
     return b | 0x80000000u;
 }
 
-// The float of a word of key().
-fn unkey(w: u32) -> f32 {
-    if ((w & 0x80000000u) != 0u) {
-        return bitcast<f32>(w & 0x7FFFFFFFu);
-    }
-    return bitcast<f32>(~w);
-}
-
 fn same_view(a: mat3x3f, b: mat3x3f) -> bool {
     return all(a[0] == b[0]) && all(a[1] == b[1]) && all(a[2] == b[2]);
 }
@@ -214,7 +204,7 @@ fn clears(i: u32) -> bool {
     return ahead == 0u || ahead <= key(0.0) || behind <= key(0.0);
 }
 
-// Corners of face j of the round's faces of a and of face u of the block's faces of b.
+// Corners of kept face j of a and of kept face u of b.
 fn corners_a(j: u32) -> array<vec3f, 3> {
     return array<vec3f, 3>(vec3f(flat_a[3u * j], deep_a[3u * j]),
                            vec3f(flat_a[3u * j + 1u], deep_a[3u * j + 1u]),
@@ -255,8 +245,207 @@ fn face_pair(pa: array<vec3f, 3>, pb: array<vec3f, 3>) -> vec2f {
     return vec2f(most, least);
 }
 
+// Whether a face's screen box (lo, hi, its size) is apart from a box of faces (span, their
+// largest size): then it is apart from each of them by the per-face test in face_pairs (a gap to
+// the box is never more than the gap to any face in it, rounding included).
+fn apart(lo: vec2f, hi: vec2f, size: f32, span: vec4f, span_size: f32) -> bool {
+    let gap = max(lo - span.zw, span.xy - hi);
+    return max(gap.x, gap.y) > SLACK * max(size, span_size);
+}
+
+fn project_face(v: mat3x3f, t: array<vec3f, 3>) -> array<vec3f, 3> {
+    return array<vec3f, 3>(project(v, t[0]), project(v, t[1]), project(v, t[2]));
+}
+
+// Face f of a body in the pair's frame (m: pair-from-body rows).
+fn face_in_pair(m: array<vec4f, 3>, f: u32) -> array<vec3f, 3> {
+    return array<vec3f, 3>(to_pair(m, vertex(faces[3u * f])),
+                           to_pair(m, vertex(faces[3u * f + 1u])),
+                           to_pair(m, vertex(faces[3u * f + 2u])));
+}
+
 // The loops below test their exit at their end: a CPU adapter runs a loop's body once more, with
-// every lane masked off, when the test comes first.
+// every lane masked off, when the test comes first (and runs both ways of every branch).
+//
+// Over the workgroup's faces of a and of b on one line's screen (each thread's own: pa where
+// has_a, pb where has_b), max(depth_b - depth_a) (x) and max(depth_a - depth_b) (y) of the face
+// pairs this thread is given (NONE where none). Every thread calls it (it holds barriers). The
+// boxes of each side's faces are reduced over the threads; the faces of each side whose boxes
+// are apart from the other side's box are dropped (the per-face test would skip them with every
+// face of the other side); each thread then tests a kept face of a against every kept face of b
+// by their screen boxes, and the face pairs found are shared among the threads for the exact
+// test.
+fn face_pairs(pa: array<vec3f, 3>, has_a: bool, pb: array<vec3f, 3>, has_b: bool, lid: u32
+              ) -> vec2f {
+    let a_lo = min(pa[0].xy, min(pa[1].xy, pa[2].xy));
+    let a_hi = max(pa[0].xy, max(pa[1].xy, pa[2].xy));
+    let a_size = max(a_hi.x - a_lo.x, a_hi.y - a_lo.y);
+    let b_lo = min(pb[0].xy, min(pb[1].xy, pb[2].xy));
+    let b_hi = max(pb[0].xy, max(pb[1].xy, pb[2].xy));
+    let b_size = max(b_hi.x - b_lo.x, b_hi.y - b_lo.y);
+    red_a[lid] = select(NO_BOX, vec4f(a_lo, a_hi), has_a);
+    red_b[lid] = select(NO_BOX, vec4f(b_lo, b_hi), has_b);
+    red_size[lid] = vec2f(select(0.0, a_size, has_a), select(0.0, b_size, has_b));
+    workgroupBarrier();
+    var half = WORKGROUP / 2u;
+    loop {
+        if (lid < half) {
+            let ra = red_a[lid + half];
+            let rb = red_b[lid + half];
+            red_a[lid] = vec4f(min(red_a[lid].xy, ra.xy), max(red_a[lid].zw, ra.zw));
+            red_b[lid] = vec4f(min(red_b[lid].xy, rb.xy), max(red_b[lid].zw, rb.zw));
+            red_size[lid] = max(red_size[lid], red_size[lid + half]);
+        }
+        workgroupBarrier();
+        half >>= 1u;
+        if (half == 0u) {
+            break;
+        }
+    }
+    // The kept faces go to the front of the arrays, in any order (the figures are maxima).
+    let all_a = red_a[0];
+    let all_b = red_b[0];
+    let all_size = red_size[0];
+    if (has_a && !apart(a_lo, a_hi, a_size, all_b, all_size.y)) {
+        let slot = atomicAdd(&kept_a, 1u);
+        for (var c = 0u; c < 3u; c++) {
+            flat_a[3u * slot + c] = pa[c].xy;
+            deep_a[3u * slot + c] = pa[c].z;
+        }
+        box_a[slot] = vec4f(a_lo, a_hi);
+    }
+    if (has_b && !apart(b_lo, b_hi, b_size, all_a, all_size.x)) {
+        let slot = atomicAdd(&kept_b, 1u);
+        for (var c = 0u; c < 3u; c++) {
+            flat_b[3u * slot + c] = pb[c].xy;
+            deep_b[3u * slot + c] = pb[c].z;
+        }
+        box_b[slot] = vec4f(b_lo, b_hi);
+    }
+    workgroupBarrier();
+    // Thread j: kept face j of a against every kept face of b, by their screen boxes (the face
+    // pairs more than SLACK times their size apart add nothing).
+    let n_a = atomicLoad(&kept_a);
+    let n = select(0u, atomicLoad(&kept_b), lid < n_a);
+    let mine = box_a[lid];
+    let size_a = max(mine.z - mine.x, mine.w - mine.y);
+    var hit = vec2u(0u);
+    var u = 0u;
+    loop {
+        let box = box_b[u];
+        let gap = max(mine.xy - box.zw, box.xy - mine.zw);
+        let size = max(size_a, max(box.z - box.x, box.w - box.y));
+        if (u < n && !(max(gap.x, gap.y) > SLACK * size)) {
+            if (u < 32u) {
+                hit.x |= 1u << u;
+            } else {
+                hit.y |= 1u << (u - 32u);
+            }
+        }
+        u++;
+        if (u >= n) {
+            break;
+        }
+    }
+    hits[lid] = hit;
+    first_hit[lid] = countOneBits(hit.x) + countOneBits(hit.y);
+    workgroupBarrier();
+    if (lid == 0u) {
+        var sum = 0u;
+        for (var j = 0u; j < WORKGROUP; j++) {
+            let count = first_hit[j];
+            first_hit[j] = sum;
+            sum += count;
+        }
+        hit_count = sum;
+        atomicStore(&kept_a, 0u);
+        atomicStore(&kept_b, 0u);
+    }
+    let total = workgroupUniformLoad(&hit_count);
+    // The face pairs found, shared among the threads: entry e is bit e - first_hit[j] of face
+    // j's hits.
+    var most = NONE;
+    var least = NONE;
+    var e = lid;
+    loop {
+        if (e < total) {
+            var j = 0u;
+            for (var step = WORKGROUP / 2u; step > 0u; step >>= 1u) {
+                j = select(j, j + step, first_hit[j + step] <= e);
+            }
+            let figure = face_pair(corners_a(j), corners_b(nth_bit(hits[j], e - first_hit[j])));
+            most = max(most, figure.x);
+            least = max(least, figure.y);
+        }
+        e += WORKGROUP;
+        if (e >= total) {
+            break;
+        }
+    }
+    workgroupBarrier();  // every thread is done with these faces
+    return vec2f(most, least);
+}
+
+// The views of the LINES lines (all threads), and the lines an item measures (thread 0): those
+// its skip bits leave whose view no earlier such line has; the others take that line's figures.
+fn start_item(frame: PairFrame, skip: u32, lid: u32) {
+    if (lid < LINES) {
+        views[lid] = view_of(line(lid, frame));
+    }
+    if (lid < 2u * LINES) {
+        atomicStore(&kept[lid], 0u);
+    }
+    if (lid == 0u) {
+        atomicStore(&kept_a, 0u);
+        atomicStore(&kept_b, 0u);
+    }
+    workgroupBarrier();
+    if (lid < LINES) {
+        var earlier = lid;
+        if (((skip >> lid) & 1u) == 0u) {
+            var j = 0u;
+            loop {
+                if (j < lid && ((skip >> j) & 1u) == 0u && earlier == lid
+                        && same_view(views[j], views[lid])) {
+                    earlier = j;
+                }
+                j++;
+                if (j >= lid) {
+                    break;
+                }
+            }
+        }
+        source[lid] = earlier;
+    }
+    workgroupBarrier();
+    if (lid == 0u) {
+        var todo = 0u;
+        for (var i = 0u; i < LINES; i++) {
+            if (((skip >> i) & 1u) == 0u && source[i] == i) {
+                todo |= 1u << i;
+            }
+        }
+        todo_lines = todo;
+    }
+}
+
+// The item's figures (lines up to last, those not skipped), added to its pair's.
+fn end_item(pair: u32, skip: u32, last: u32, flipped: bool, lid: u32) {
+    workgroupBarrier();
+    if (lid < 2u * LINES) {
+        let i = lid >> 1u;
+        if (i <= last && ((skip >> i) & 1u) == 0u) {
+            let word = atomicLoad(&kept[2u * source[i] + (lid & 1u)]);
+            if (word != 0u) {
+                atomicMax(&best[pair * 2u * LINES + (lid ^ u32(flipped))], word);
+            }
+        }
+    }
+}
+
+// Items of a pair's two bodies whole (the first entry point: items before params.split): rounds
+// of a's faces against blocks of b's, line by line, stopping at the first line that clears the
+// pair.
 @compute @workgroup_size(WORKGROUP)
 fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
     let k = wg.y * ROW + wg.x;
@@ -274,38 +463,9 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
         ma = frame.m1;
         mb = frame.m0;
     }
-    if (lid < LINES) {
-        views[lid] = view_of(line(lid, frame));
-    }
-    if (lid < 2u * LINES) {
-        atomicStore(&kept[lid], 0u);
-    }
-    if (lid < 5u) {
-        // lo x, lo y start above every key; hi x, hi y and the largest face below every key.
-        atomicStore(&span_b[lid], select(0u, 0xFFFFFFFFu, lid < 2u));
-    }
-    workgroupBarrier();
     let skip = (item.whole >> ITEM_SKIP_SHIFT) & ((1u << LINES) - 1u);
+    start_item(frame, skip, lid);
     if (lid == 0u) {
-        // The lines measured: those not skipped whose view no earlier such line has; the others
-        // take that line's figures.
-        var todo = 0u;
-        for (var i = 0u; i < LINES; i++) {
-            var earlier = i;
-            if (((skip >> i) & 1u) == 0u) {
-                for (var j = 0u; j < i; j++) {
-                    if (((skip >> j) & 1u) == 0u && same_view(views[j], views[i])) {
-                        earlier = j;
-                        break;
-                    }
-                }
-                if (earlier == i) {
-                    todo |= 1u << i;
-                }
-            }
-            source[i] = earlier;
-        }
-        todo_lines = todo;
         item_shape = vec3u((item.a_count + WORKGROUP - 1u) / WORKGROUP,
                            (item.b_count + WORKGROUP - 1u) / WORKGROUP, item.whole & ITEM_WHOLE);
     }
@@ -321,113 +481,17 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
             var least = NONE;  // max(depth_a - depth_b)
             var round = 0u;
             loop {
-                // This round's faces of a: one per thread.
                 let fa = round * WORKGROUP + lid;
-                let has_a = fa < item.a_count;
-                var pa = array<vec3f, 3>(vec3f(0.0), vec3f(0.0), vec3f(0.0));
-                if (has_a) {
-                    let f = item.a_start + fa;
-                    pa = array<vec3f, 3>(project(v, to_pair(ma, vertex(faces[3u * f]))),
-                                         project(v, to_pair(ma, vertex(faces[3u * f + 1u]))),
-                                         project(v, to_pair(ma, vertex(faces[3u * f + 2u]))));
-                }
-                for (var c = 0u; c < 3u; c++) {
-                    flat_a[3u * lid + c] = pa[c].xy;
-                    deep_a[3u * lid + c] = pa[c].z;
-                }
-                let a_lo = min(pa[0].xy, min(pa[1].xy, pa[2].xy));
-                let a_hi = max(pa[0].xy, max(pa[1].xy, pa[2].xy));
-                let a_size = max(a_hi.x - a_lo.x, a_hi.y - a_lo.y);
+                let pa = project_face(v, face_in_pair(ma, item.a_start
+                                                      + min(fa, item.a_count - 1u)));
                 var block = 0u;
                 loop {
-                    // This block's faces of b, and the box of them all.
-                    let t = block * WORKGROUP + lid;
-                    if (t < item.b_count) {
-                        let f = item.b_start + t;
-                        let p0 = project(v, to_pair(mb, vertex(faces[3u * f])));
-                        let p1 = project(v, to_pair(mb, vertex(faces[3u * f + 1u])));
-                        let p2 = project(v, to_pair(mb, vertex(faces[3u * f + 2u])));
-                        flat_b[3u * lid] = p0.xy;
-                        flat_b[3u * lid + 1u] = p1.xy;
-                        flat_b[3u * lid + 2u] = p2.xy;
-                        deep_b[3u * lid] = p0.z;
-                        deep_b[3u * lid + 1u] = p1.z;
-                        deep_b[3u * lid + 2u] = p2.z;
-                        let b_lo = min(p0.xy, min(p1.xy, p2.xy));
-                        let b_hi = max(p0.xy, max(p1.xy, p2.xy));
-                        box_b[lid] = vec4f(b_lo, b_hi);
-                        atomicMin(&span_b[0], key(b_lo.x));
-                        atomicMin(&span_b[1], key(b_lo.y));
-                        atomicMax(&span_b[2], key(b_hi.x));
-                        atomicMax(&span_b[3], key(b_hi.y));
-                        atomicMax(&span_b[4], key(max(b_hi.x - b_lo.x, b_hi.y - b_lo.y)));
-                    }
-                    workgroupBarrier();
-                    // The faces of b whose screen boxes meet this thread's face's (their
-                    // projections can meet): none where the box of them all is apart.
-                    let span_lo = vec2f(unkey(atomicLoad(&span_b[0])),
-                                        unkey(atomicLoad(&span_b[1])));
-                    let span_hi = vec2f(unkey(atomicLoad(&span_b[2])),
-                                        unkey(atomicLoad(&span_b[3])));
-                    let span_size = unkey(atomicLoad(&span_b[4]));
-                    let span_gap = max(a_lo - span_hi, span_lo - a_hi);
-                    var n = 0u;
-                    if (has_a && !(max(span_gap.x, span_gap.y) > SLACK * max(a_size, span_size))) {
-                        n = min(WORKGROUP, item.b_count - block * WORKGROUP);
-                    }
-                    var hit = vec2u(0u);
-                    var u = 0u;
-                    loop {
-                        let box = box_b[u];
-                        let gap = max(a_lo - box.zw, box.xy - a_hi);
-                        let size = max(a_size, max(box.z - box.x, box.w - box.y));
-                        if (u < n && !(max(gap.x, gap.y) > SLACK * size)) {
-                            if (u < 32u) {
-                                hit.x |= 1u << u;
-                            } else {
-                                hit.y |= 1u << (u - 32u);
-                            }
-                        }
-                        u++;
-                        if (u >= n) {
-                            break;
-                        }
-                    }
-                    hits[lid] = hit;
-                    first_hit[lid] = countOneBits(hit.x) + countOneBits(hit.y);
-                    workgroupBarrier();
-                    if (lid == 0u) {
-                        var sum = 0u;
-                        for (var j = 0u; j < WORKGROUP; j++) {
-                            let count = first_hit[j];
-                            first_hit[j] = sum;
-                            sum += count;
-                        }
-                        hit_count = sum;
-                        for (var w = 0u; w < 5u; w++) {
-                            atomicStore(&span_b[w], select(0u, 0xFFFFFFFFu, w < 2u));
-                        }
-                    }
-                    let total = workgroupUniformLoad(&hit_count);
-                    // The face pairs found, shared among the threads.
-                    var e = lid;
-                    loop {
-                        if (e < total) {
-                            var j = 0u;
-                            for (var step = WORKGROUP / 2u; step > 0u; step >>= 1u) {
-                                j = select(j, j + step, first_hit[j + step] <= e);
-                            }
-                            let b = nth_bit(hits[j], e - first_hit[j]);
-                            let figure = face_pair(corners_a(j), corners_b(b));
-                            most = max(most, figure.x);
-                            least = max(least, figure.y);
-                        }
-                        e += WORKGROUP;
-                        if (e >= total) {
-                            break;
-                        }
-                    }
-                    workgroupBarrier();  // every thread is done with this block's faces
+                    let fb = block * WORKGROUP + lid;
+                    let pb = project_face(v, face_in_pair(mb, item.b_start
+                                                          + min(fb, item.b_count - 1u)));
+                    let figure = face_pairs(pa, fa < item.a_count, pb, fb < item.b_count, lid);
+                    most = max(most, figure.x);
+                    least = max(least, figure.y);
                     block++;
                     if (block >= shape.y) {
                         break;
@@ -459,232 +523,40 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
             }
         }
     }
-    workgroupBarrier();
-    if (lid < 2u * LINES) {
-        let i = lid >> 1u;
-        if (i <= last && ((skip >> i) & 1u) == 0u) {
-            let word = atomicLoad(&kept[2u * source[i] + (lid & 1u)]);
-            if (word != 0u) {
-                atomicMax(&best[item.pair * 2u * LINES + (lid ^ u32(flipped))], word);
-            }
-        }
-    }
+    end_item(item.pair, skip, last, flipped, lid);
 }
 
-// The items of a cluster of each body (the second entry point: items params.split and on),
-// CLUSTER_ITEMS of them per workgroup (a CPU adapter spends more on starting a workgroup of this
-// shader than on a line of an item): one round of a and one block of b, each thread holding a
-// face of each, moved to the pair's frame once for every line.
+// Items of a cluster of each body (the second entry point: items params.split and on): each
+// thread holds a face of each, moved to the pair's frame once for every line.
 @compute @workgroup_size(WORKGROUP)
 fn depth_clusters(@builtin(workgroup_id) wg: vec3u,
                   @builtin(local_invocation_index) lid: u32) {
-    let first = params.split + (wg.y * ROW + wg.x) * CLUSTER_ITEMS;
-    var k = first;
-    loop {
-        if (k >= params.items) {
-            break;  // uniform across the workgroup
-        }
-        cluster_item(k, lid);
-        k++;
-        if (k >= first + CLUSTER_ITEMS) {
-            break;
-        }
-        workgroupBarrier();  // every thread is done with the item's figures
+    let k = params.split + wg.y * ROW + wg.x;
+    if (k >= params.items) {
+        return;  // uniform across the workgroup
     }
-}
-
-// Whether a face's screen box (lo, hi, its size) is apart from a box of faces (``span``, their
-// largest size): then it is apart from each of them by the per-face test below (a gap to the box
-// is never more than to any face in it, rounding included).
-fn apart(lo: vec2f, hi: vec2f, size: f32, span: vec4f, span_size: f32) -> bool {
-    let gap = max(lo - span.zw, span.xy - hi);
-    return max(gap.x, gap.y) > SLACK * max(size, span_size);
-}
-
-fn cluster_item(k: u32, lid: u32) {
     let item = items[k];
     let frame = frames[item.pair];
     let skip = (item.whole >> ITEM_SKIP_SHIFT) & ((1u << LINES) - 1u);
-    if (lid < LINES) {
-        views[lid] = view_of(line(lid, frame));
-    }
-    if (lid < 2u * LINES) {
-        atomicStore(&kept[lid], 0u);
-    }
-    if (lid == 0u) {
-        atomicStore(&kept_a, 0u);
-        atomicStore(&kept_b, 0u);
-    }
-    let has_a = lid < item.a_count;
-    let has_b = lid < item.b_count;
-    let fa = item.a_start + min(lid, item.a_count - 1u);
-    let fb = item.b_start + min(lid, item.b_count - 1u);
-    let ta = array<vec3f, 3>(to_pair(frame.m0, vertex(faces[3u * fa])),
-                             to_pair(frame.m0, vertex(faces[3u * fa + 1u])),
-                             to_pair(frame.m0, vertex(faces[3u * fa + 2u])));
-    let tb = array<vec3f, 3>(to_pair(frame.m1, vertex(faces[3u * fb])),
-                             to_pair(frame.m1, vertex(faces[3u * fb + 1u])),
-                             to_pair(frame.m1, vertex(faces[3u * fb + 2u])));
-    workgroupBarrier();
-    if (lid < LINES) {
-        // The line whose figures this one takes: the first line not skipped with its view.
-        var earlier = lid;
-        if (((skip >> lid) & 1u) == 0u) {
-            var j = 0u;
-            loop {
-                if (j < lid && ((skip >> j) & 1u) == 0u && earlier == lid
-                        && same_view(views[j], views[lid])) {
-                    earlier = j;
-                }
-                j++;
-                if (j >= lid) {
-                    break;
-                }
-            }
-        }
-        source[lid] = earlier;
-    }
-    workgroupBarrier();
-    if (lid == 0u) {
-        var todo = 0u;
-        for (var i = 0u; i < LINES; i++) {
-            if (((skip >> i) & 1u) == 0u && source[i] == i) {
-                todo |= 1u << i;
-            }
-        }
-        todo_lines = todo;
-    }
+    start_item(frame, skip, lid);
+    let ta = face_in_pair(frame.m0, item.a_start + min(lid, item.a_count - 1u));
+    let tb = face_in_pair(frame.m1, item.b_start + min(lid, item.b_count - 1u));
     var todo = workgroupUniformLoad(&todo_lines);  // a barrier, and uniform
     if (todo != 0u) {
         loop {
             let i = firstTrailingBit(todo);
             todo &= todo - 1u;
             let v = views[i];
-            let pa = array<vec3f, 3>(project(v, ta[0]), project(v, ta[1]), project(v, ta[2]));
-            let pb = array<vec3f, 3>(project(v, tb[0]), project(v, tb[1]), project(v, tb[2]));
-            let a_lo = min(pa[0].xy, min(pa[1].xy, pa[2].xy));
-            let a_hi = max(pa[0].xy, max(pa[1].xy, pa[2].xy));
-            let a_size = max(a_hi.x - a_lo.x, a_hi.y - a_lo.y);
-            let b_lo = min(pb[0].xy, min(pb[1].xy, pb[2].xy));
-            let b_hi = max(pb[0].xy, max(pb[1].xy, pb[2].xy));
-            let b_size = max(b_hi.x - b_lo.x, b_hi.y - b_lo.y);
-            // The box of each cluster's faces and its largest face, reduced over the threads.
-            red_a[lid] = select(NO_BOX, vec4f(a_lo, a_hi), has_a);
-            red_b[lid] = select(NO_BOX, vec4f(b_lo, b_hi), has_b);
-            red_size[lid] = vec2f(select(0.0, a_size, has_a), select(0.0, b_size, has_b));
-            workgroupBarrier();
-            var half = WORKGROUP / 2u;
-            loop {
-                if (lid < half) {
-                    let ra = red_a[lid + half];
-                    let rb = red_b[lid + half];
-                    red_a[lid] = vec4f(min(red_a[lid].xy, ra.xy), max(red_a[lid].zw, ra.zw));
-                    red_b[lid] = vec4f(min(red_b[lid].xy, rb.xy), max(red_b[lid].zw, rb.zw));
-                    red_size[lid] = max(red_size[lid], red_size[lid + half]);
-                }
-                workgroupBarrier();
-                half >>= 1u;
-                if (half == 0u) {
-                    break;
-                }
-            }
-            // Only the faces of each cluster that can meet a face of the other are kept, at the
-            // front of the workgroup's arrays (in any order: the figures are maxima).
-            let all_a = red_a[0];
-            let all_b = red_b[0];
-            let all_size = red_size[0];
-            if (has_a && !apart(a_lo, a_hi, a_size, all_b, all_size.y)) {
-                let slot = atomicAdd(&kept_a, 1u);
-                for (var c = 0u; c < 3u; c++) {
-                    flat_a[3u * slot + c] = pa[c].xy;
-                    deep_a[3u * slot + c] = pa[c].z;
-                }
-                box_a[slot] = vec4f(a_lo, a_hi);
-            }
-            if (has_b && !apart(b_lo, b_hi, b_size, all_a, all_size.x)) {
-                let slot = atomicAdd(&kept_b, 1u);
-                for (var c = 0u; c < 3u; c++) {
-                    flat_b[3u * slot + c] = pb[c].xy;
-                    deep_b[3u * slot + c] = pb[c].z;
-                }
-                box_b[slot] = vec4f(b_lo, b_hi);
-            }
-            workgroupBarrier();
-            // Thread j takes kept face j of a: the kept faces of b whose boxes meet its box.
-            let n_a = atomicLoad(&kept_a);
-            let n = select(0u, atomicLoad(&kept_b), lid < n_a);
-            let mine = box_a[lid];
-            let size_a = max(mine.z - mine.x, mine.w - mine.y);
-            var hit = vec2u(0u);
-            var u = 0u;
-            loop {
-                let box = box_b[u];
-                let gap = max(mine.xy - box.zw, box.xy - mine.zw);
-                let size = max(size_a, max(box.z - box.x, box.w - box.y));
-                if (u < n && !(max(gap.x, gap.y) > SLACK * size)) {
-                    if (u < 32u) {
-                        hit.x |= 1u << u;
-                    } else {
-                        hit.y |= 1u << (u - 32u);
-                    }
-                }
-                u++;
-                if (u >= n) {
-                    break;
-                }
-            }
-            hits[lid] = hit;
-            first_hit[lid] = countOneBits(hit.x) + countOneBits(hit.y);
-            workgroupBarrier();
-            if (lid == 0u) {
-                var sum = 0u;
-                for (var j = 0u; j < WORKGROUP; j++) {
-                    let count = first_hit[j];
-                    first_hit[j] = sum;
-                    sum += count;
-                }
-                hit_count = sum;
-                atomicStore(&kept_a, 0u);
-                atomicStore(&kept_b, 0u);
-            }
-            let total = workgroupUniformLoad(&hit_count);
-            var most = NONE;   // max(depth_b - depth_a)
-            var least = NONE;  // max(depth_a - depth_b)
-            var e = lid;
-            loop {
-                if (e < total) {
-                    var j = 0u;
-                    for (var step = WORKGROUP / 2u; step > 0u; step >>= 1u) {
-                        j = select(j, j + step, first_hit[j + step] <= e);
-                    }
-                    let b = nth_bit(hits[j], e - first_hit[j]);
-                    let figure = face_pair(corners_a(j), corners_b(b));
-                    most = max(most, figure.x);
-                    least = max(least, figure.y);
-                }
-                e += WORKGROUP;
-                if (e >= total) {
-                    break;
-                }
-            }
-            if (most > NONE) {
-                atomicMax(&kept[2u * i], key(most));
-                atomicMax(&kept[2u * i + 1u], key(least));
+            let figure = face_pairs(project_face(v, ta), lid < item.a_count, project_face(v, tb),
+                                    lid < item.b_count, lid);
+            if (figure.x > NONE) {
+                atomicMax(&kept[2u * i], key(figure.x));
+                atomicMax(&kept[2u * i + 1u], key(figure.y));
             }
             if (todo == 0u) {
                 break;
             }
-            workgroupBarrier();  // every thread is done with this line's faces
         }
     }
-    workgroupBarrier();
-    if (lid < 2u * LINES) {
-        let i = lid >> 1u;
-        if (((skip >> i) & 1u) == 0u) {
-            let word = atomicLoad(&kept[2u * source[i] + (lid & 1u)]);
-            if (word != 0u) {
-                atomicMax(&best[item.pair * 2u * LINES + lid], word);
-            }
-        }
-    }
+    end_item(item.pair, skip, LINES - 1u, false, lid);
 }

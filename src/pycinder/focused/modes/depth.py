@@ -29,8 +29,6 @@ ITEM_WHOLE = 1
 """``whole`` bit of an item: its faces are its pair's two bodies whole (its only item)."""
 ITEM_FLIPPED = 2
 """``whole`` bit of a whole item: body a's faces are the ones in workgroup memory."""
-CLUSTER_ITEMS = 8
-"""Items of a cluster of each body measured by one workgroup, one after another."""
 ITEM_SKIP_SHIFT = 8
 """First of the ``whole`` bits (one per line, :data:`LINES` in all) naming the lines an item
 skips: its faces' projections along them are apart, so they add nothing there."""
@@ -132,12 +130,11 @@ class Depth(ClusterPairPass):
         "lines, either way, to clear the other, face pair by face pair", when="hard-clash "
         "queries")
     SHADER, ENTRY, WORDS, START = "depth", "depth", 2 * LINES, 0
-    SECOND, SECOND_ITEMS = "depth_clusters", CLUSTER_ITEMS
+    SECOND = "depth_clusters"
     CONSTS: ClassVar[dict[str, int | float]] = {
         "LINES": LINES, "SLACK": SLACK, "WHOLE_FACES": WHOLE_FACES, "ITEM_WHOLE": ITEM_WHOLE,
         "ITEM_FLIPPED": ITEM_FLIPPED,
-        "ITEM_SKIP_SHIFT": ITEM_SKIP_SHIFT,
-        "CLUSTER_ITEMS": CLUSTER_ITEMS}
+        "ITEM_SKIP_SHIFT": ITEM_SKIP_SHIFT}
 
     def second(self, items: np.ndarray) -> np.ndarray:
         """The items of a cluster of each body (not whole): the second entry point's."""
@@ -157,6 +154,6 @@ class Depth(ClusterPairPass):
         return decode(self.words(positions, faces, items, frames)).reshape(-1, LINES, 2)
 
 
-__all__ = ["CLUSTER_ITEMS", "FRAME", "ITEM", "ITEM_FLIPPED", "ITEM_SKIP_SHIFT", "ITEM_WHOLE",
+__all__ = ["FRAME", "ITEM", "ITEM_FLIPPED", "ITEM_SKIP_SHIFT", "ITEM_WHOLE",
            "LINES", "PARAMS", "SLACK", "WHOLE_FACES", "WHOLE_WORK", "WORLD_LINES", "Depth",
            "decode", "hull_lower_bound", "lines"]

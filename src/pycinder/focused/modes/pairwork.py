@@ -121,8 +121,7 @@ class ClusterPairPass:
     the words per pair (``WORDS``), each word's value before the pass (``START``) and the
     constants generated into the shader (``CONSTS``). A pass with a second entry point
     (``SECOND``) runs the items :meth:`second` picks with it, in a second dispatch after the
-    first's, ``SECOND_ITEMS`` items per workgroup (its workgroup ``i`` takes items
-    ``params.split + SECOND_ITEMS i`` on).
+    first's: item ``params.split + i`` is its workgroup ``i``'s.
 
     Parameters
     ----------
@@ -138,7 +137,6 @@ class ClusterPairPass:
     START: ClassVar[int]
     CONSTS: ClassVar[dict[str, int | float]] = {}
     SECOND: ClassVar[str | None] = None
-    SECOND_ITEMS: ClassVar[int] = 1
 
     def __init__(self, gpu: Gpu, timeout: float = DEFAULT_TIMEOUT) -> None:
         self.gpu = gpu
@@ -199,8 +197,7 @@ class ClusterPairPass:
         encoder = self.gpu.device.create_command_encoder()
         if len(items):
             cpass = encoder.begin_compute_pass(label=self.INFO.title)
-            later = -(-(len(items) - split) // self.SECOND_ITEMS)
-            for stage, count in zip(self.stages, (split, later)):
+            for stage, count in zip(self.stages, (split, len(items) - split)):
                 if count:
                     dispatch(cpass, stage, stage.group(
                         positions=positions, faces=faces, items=self.items,
