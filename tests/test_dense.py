@@ -20,7 +20,7 @@ import pycinder
 from pycinder.focused.modes import clearance as clearance_mode
 from pycinder.focused.modes import distance as distance_mode
 from pycinder.focused.modes import hardclash
-from pycinder.focused.modes.depth import ITEM_SKIP_SHIFT, LINES
+from pycinder.focused.modes.depth import ITEM_SKIP_SHIFT, LINES, decode
 from pycinder.result import Stats
 from pycinder.testing import random_rotation, surface_distance
 
@@ -77,20 +77,26 @@ def internals(det: pycinder.Detector, meshes: list, transforms: list):
     return scene, pack, det.strategy
 
 
-def depth_figures(det, meshes, transforms, cull: bool) -> np.ndarray:
-    """Pass H1's figures (K, LINES, 2) of every pair of the scene, culled or not."""
+def depth_figures(det, meshes, transforms, cull: bool, rounds: bool = True) -> np.ndarray:
+    """Pass H1's figures (K, LINES, 2) of every pair of the scene, culled or not; without
+    ``rounds``, every line in one dispatch (no pair stops early)."""
     scene, pack, strategy = internals(det, meshes, transforms)
     n = len(meshes)
     pairs = np.array([(i, j) for i in range(n) for j in range(i + 1, n)])
     items, frames, _ = hardclash.plan(scene, pack, pairs, cull=cull)
     buffers = strategy.frames.buffers
-    return strategy._hard_clashes().depth.run(buffers.positions, buffers.faces, items, frames)
+    depth = strategy._hard_clashes().depth
+    if not rounds:
+        words = depth.words(buffers.positions, buffers.faces, items, frames)
+        return decode(words).reshape(-1, LINES, 2)
+    return depth.run(buffers.positions, buffers.faces, items, frames)
 
 
 def assert_same_figures(culled: np.ndarray, every: np.ndarray) -> None:
     """Culled figures are every cluster pair's, line by line, bit for bit, up to the first line
-    along which no ray meets both bodies (the pair is cleared there: no more lines are
-    measured, as a whole item stops there); the pair's depth and direction are the same."""
+    that clears the pair (no ray meets both bodies along it, or one way along it leaves them
+    apart: as a whole item, the pair may stop there, its later lines being those of no ray);
+    the pair's depth and direction are the same."""
     for k in range(len(every)):
         cleared = False
         for i in range(LINES):
@@ -100,7 +106,7 @@ def assert_same_figures(culled: np.ndarray, every: np.ndarray) -> None:
             else:
                 assert np.array_equal(culled[k, i], every[k, i]), (k, i, culled[k, i],
                                                                    every[k, i])
-            cleared = cleared or bool(np.all(every[k, i] == -np.inf))
+            cleared = cleared or bool(np.all(every[k, i] == -np.inf) or np.any(every[k, i] <= 0))
     flat_c = np.maximum(culled.reshape(len(culled), -1), 0)
     flat_e = np.maximum(every.reshape(len(every), -1), 0)
     assert np.array_equal(flat_c.min(axis=1), flat_e.min(axis=1))
@@ -148,8 +154,8 @@ def test_culling_measures_a_small_share_of_the_cluster_pairs():
 
 
 def test_a_dense_pair_cleared_along_a_line_stops_there():
-    """Two dense spheres side by side, apart along y: the first lines measured are those up to
-    a's y axis (its second line), which clears them; their depth is 0 either way."""
+    """Two dense spheres side by side, apart along y: a's y axis (its second line) has no ray
+    meeting both, so no later line is measured; their depth is 0 either way."""
     det = pycinder.Detector(min_depth=0.01)
     t = [np.eye(4), np.eye(4)]
     t[1][:3, 3] = (0.3, 2.05, 0.0)
@@ -159,6 +165,23 @@ def test_a_dense_pair_cleared_along_a_line_stops_there():
     assert_same_figures(culled, every)
     assert np.all(culled[0, 1] == -np.inf) and np.all(culled[0, 2:] == -np.inf)
     assert det.find_collisions(meshes, t).pairs.tolist() == []
+
+
+def test_a_dense_pair_cleared_one_way_stops_after_the_bodies_axes():
+    """Two dense spheres 0.01 apart, b mostly along a's x axis: a's x axis leaves them apart
+    one way, so the world's lines are not measured (the bodies' axes are, in one round); those
+    measured are every line's, in one dispatch."""
+    det = pycinder.Detector(min_depth=0.01)
+    t = [np.eye(4), np.eye(4)]
+    t[1][:3, 3] = 2.01 * np.array([1.0, 0.3, 0.2]) / np.linalg.norm([1.0, 0.3, 0.2])
+    meshes = [sphere(), sphere()]
+    culled = depth_figures(det, meshes, t, cull=True)
+    every = depth_figures(det, meshes, t, cull=False, rounds=False)
+    assert np.isfinite(every[0, 6:]).any()
+    assert culled[0, 0, 1] < 0 < culled[0, 0, 0]
+    assert np.array_equal(culled[0, :6], every[0, :6])
+    assert np.all(culled[0, 6:] == -np.inf)
+    assert_same_figures(culled, every)
 
 
 # -- Against exact geometry ---------------------------------------------------------------------
@@ -303,3 +326,37 @@ def test_the_dense_benchmark_runs_and_is_right():
     results = dense.run(faces=320, repeat=1)
     assert {row["right"] for row in results["rows"]} <= {"yes", "yes (reported)"}
     assert len(dense.markdown(results)) == 4 + len(results["rows"])
+
+
+@pytest.mark.parametrize("turned", [False, True])
+def test_rounds_give_every_lines_figures_where_no_line_clears(turned):
+    """Two overlapping dense spheres, as placed (the bodies' axes are the world's, whose
+    figures they give) and turned: measured in rounds and culled, every line's figures are
+    those of every cluster pair along every line in one dispatch."""
+    det = pycinder.Detector(min_depth=0.01)
+    rng = np.random.default_rng(8)
+    t = [random_rotation(rng) if turned else np.eye(4) for _ in range(2)]
+    t[1][:3, 3] = (0.7, 0.3, 0.2)
+    meshes = [sphere(), sphere(1.0, 2)]
+    culled = depth_figures(det, meshes, t, cull=True)
+    every = depth_figures(det, meshes, t, cull=False, rounds=False)
+    assert np.all(every > 0)
+    assert np.array_equal(culled, every)
+
+
+def test_dense_boxes_as_placed_against_separating_axes():
+    """Dense boxes that are not turned (the bodies' axes are the world's) at depths around d:
+    the contract against the exact depth."""
+    d = 0.05
+    det = pycinder.Detector(min_depth=d)
+    for overlap in (-0.01, 0.02, 0.04, 0.06, 0.3):
+        extents = [np.array([1.0, 0.8, 0.6]), np.array([0.5, 0.7, 0.9])]
+        t = [np.eye(4), np.eye(4)]
+        t[1][:3, 3] = (0.75 - overlap, 0.1, -0.05)
+        exact = box_depth(extents[0], t[0], extents[1], t[1])
+        assert exact == pytest.approx(max(overlap, 0.0))
+        result = det.find_collisions([dense_box(e) for e in extents], t)
+        assert (result.pairs.tolist() == [[0, 1]]) == (exact > d), overlap
+        if exact > d:
+            got, error = float(result.depths[0]), float(result.depth_errors[0])
+            assert got - error - 1e-6 <= exact <= got + 1e-6

@@ -29,6 +29,10 @@ ITEM_WHOLE = 1
 """``whole`` bit of an item: its faces are its pair's two bodies whole (its only item)."""
 ITEM_FLIPPED = 2
 """``whole`` bit of a whole item: body a's faces are the ones in workgroup memory."""
+ROUNDS = ((0, 1, 2, 3, 4, 5), tuple(range(6, 6 + WORLD_LINES)))
+"""The lines items of a cluster of each body measure in each round: the bodies' own axes first
+(they most often clear a touching pair at once), then the world's, for the pairs not cleared
+yet."""
 ITEM_SKIP_SHIFT = 8
 """First of the ``whole`` bits (one per line, :data:`LINES` in all) naming the lines an item
 skips: its faces' projections along them are apart, so they add nothing there."""
@@ -133,8 +137,7 @@ class Depth(ClusterPairPass):
     SECOND = "depth_clusters"
     CONSTS: ClassVar[dict[str, int | float]] = {
         "LINES": LINES, "SLACK": SLACK, "WHOLE_FACES": WHOLE_FACES, "ITEM_WHOLE": ITEM_WHOLE,
-        "ITEM_FLIPPED": ITEM_FLIPPED,
-        "ITEM_SKIP_SHIFT": ITEM_SKIP_SHIFT}
+        "ITEM_FLIPPED": ITEM_FLIPPED, "ITEM_SKIP_SHIFT": ITEM_SKIP_SHIFT}
 
     def second(self, items: np.ndarray) -> np.ndarray:
         """The items of a cluster of each body (not whole): the second entry point's."""
@@ -144,6 +147,11 @@ class Depth(ClusterPairPass):
             frames: np.ndarray) -> np.ndarray:
         """Measure (arguments as :meth:`~pycinder.focused.modes.pairwork.ClusterPairPass.words`).
 
+        Items of a cluster of each body measure their lines in :data:`ROUNDS`, each a dispatch:
+        a pair that a line of one round clears is not measured in the next ones, as a whole item
+        stops at the first line that clears its pair (its figures up to that line are the same,
+        its later lines' are those of no ray).
+
         Returns
         -------
         (K, LINES, 2) float64
@@ -151,9 +159,60 @@ class Depth(ClusterPairPass):
             and against it (``[..., 1]``) that clears body b on every ray the pair's items meet
             (-inf where no ray meets both bodies).
         """
-        return decode(self.words(positions, faces, items, frames)).reshape(-1, LINES, 2)
+        later = self.second(items)
+        if not later.any():
+            return decode(self.words(positions, faces, items, frames)).reshape(-1, LINES, 2)
+        every = (1 << LINES) - 1
+        words = np.zeros((len(frames), 2 * LINES), np.uint32)
+        open_pairs = np.ones(len(frames), bool)
+        batch = items[~later]
+        same = _same_axes(frames)
+        for group in ROUNDS:
+            others = every & ~sum(1 << i for i in group)
+            part = items[later & open_pairs[items["pair"]]]
+            part["whole"] |= np.uint32(others << ITEM_SKIP_SHIFT)
+            # A world axis that is one of the bodies' axes measured already takes its figures.
+            for axis in range(3):
+                earlier = same[part["pair"], axis]
+                taken = (earlier >= 0) & (earlier < min(group))
+                part["whole"][taken] |= np.uint32(1 << (ITEM_SKIP_SHIFT + 6 + axis))
+            part = part[(part["whole"] >> ITEM_SKIP_SHIFT) & every != every]
+            batch = np.concatenate([batch, part])
+            if len(batch):
+                words = np.maximum(words, self.words(positions, faces, batch, frames))
+            for axis in range(3):
+                if 6 + axis in group:
+                    k = np.flatnonzero(open_pairs & (same[:, axis] >= 0)
+                                       & (same[:, axis] < min(group)))
+                    line = 2 * same[k, axis]
+                    words[k, 2 * (6 + axis)] = words[k, line]
+                    words[k, 2 * (6 + axis) + 1] = words[k, line + 1]
+            open_pairs &= ~_clears(words, group)
+            batch = items[:0]
+        return decode(words).reshape(-1, LINES, 2)
 
 
-__all__ = ["FRAME", "ITEM", "ITEM_FLIPPED", "ITEM_SKIP_SHIFT", "ITEM_WHOLE",
-           "LINES", "PARAMS", "SLACK", "WHOLE_FACES", "WHOLE_WORK", "WORLD_LINES", "Depth",
-           "decode", "hull_lower_bound", "lines"]
+def _same_axes(frames: np.ndarray) -> np.ndarray:
+    """Per pair and world axis (x, y, z: lines 6 to 8), the first of the bodies' axes (lines 0
+    to 5) that is that axis exactly, in single precision (a positive multiple of it, which the
+    shader normalises to it): its figures are the same (-1 where none)."""
+    columns = np.concatenate([np.swapaxes(frames["m0"][:, :, :3], 1, 2),
+                              np.swapaxes(frames["m1"][:, :, :3], 1, 2)], axis=1)  # (K, 6, 3)
+    out = np.full((len(frames), 3), -1, np.int64)
+    for axis in range(3):
+        alone = (columns[:, :, axis] > 0) & (np.count_nonzero(columns, axis=2) == 1)
+        out[:, axis] = np.where(alone.any(axis=1), np.argmax(alone, axis=1), -1)
+    return out
+
+
+def _clears(words: np.ndarray, group: tuple[int, ...]) -> np.ndarray:
+    """Which pairs (words (K, 2 LINES) uint32) a line of ``group`` clears: no ray meets both
+    bodies along it, or one way along it leaves them apart (as the shader's ``clears``)."""
+    ahead, behind = words[:, 2 * np.array(group)], words[:, 2 * np.array(group) + 1]
+    zero = np.uint32(0x80000000)  # the word of 0.0
+    return np.any((ahead == 0) | (ahead <= zero) | (behind <= zero), axis=1)
+
+
+__all__ = ["FRAME", "ITEM", "ITEM_FLIPPED", "ITEM_SKIP_SHIFT", "ITEM_WHOLE", "LINES", "PARAMS",
+           "ROUNDS", "SLACK", "WHOLE_FACES", "WHOLE_WORK", "WORLD_LINES", "Depth", "decode",
+           "hull_lower_bound", "lines"]
