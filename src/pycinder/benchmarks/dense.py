@@ -189,7 +189,7 @@ for k in range(int(data["count"])):
     meshes = [(data[f"v{k}_{i}"], data[f"f{k}_{i}"]) for i in range(2)]
     transforms = list(data[f"t{k}"])
     for option, value in (("min_depth", float(data["d"])), ("clearance", float(data["c"]))):
-        detector = pycinder.Detector(**{option: value})
+        detector = pycinder.Detector(**{option: value}, timeout=float(data["timeout"]))
         t0, c0 = time.perf_counter(), time.process_time()
         result = detector.find_collisions(meshes, transforms)
         row = {"s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
@@ -206,9 +206,10 @@ json.dump(out, open(sys.argv[2], "w"))
 
 def before(cases: list[Case], source: str, timeout: float) -> list[dict[str, Any]]:
     """The queries with the pycinder of source tree ``source`` (its ``src`` folder), once
-    each, a new detector each, in a subprocess: per case, min_depth then clearance."""
+    each, a new detector each (allowing the GPU ``timeout`` seconds a submission), in a
+    subprocess: per case, min_depth then clearance."""
     with tempfile.TemporaryDirectory() as folder:
-        arrays: dict[str, Any] = {"count": len(cases), "d": D, "c": C}
+        arrays: dict[str, Any] = {"count": len(cases), "d": D, "c": C, "timeout": timeout}
         for k, case in enumerate(cases):
             for i, (v, f) in enumerate(case.meshes):
                 arrays[f"v{k}_{i}"], arrays[f"f{k}_{i}"] = v, f

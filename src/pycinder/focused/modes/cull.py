@@ -1,26 +1,29 @@
-"""The cluster pairs of a dense candidate pair that can add to its figures: pass H1's lines by
-screen boxes (:func:`depth_items`), pass C1's by the distance already found (:func:`nearest`).
+"""Which pairs of face clusters of a dense candidate pair pass H1 measures, and along which
+lines (:func:`depth_items`; :func:`skip_lines` for items packed apart from the shapes, as
+regions are).
 
 Pass H1 (:mod:`~pycinder.focused.modes.depth`) measures a pair along 19 lines, face pair by face
-pair; along a line ``n`` a face pair adds to the figures only where the faces' projections along
-``n`` meet (the shader skips every face pair whose screen boxes are more than ``SLACK`` times
-their size apart). A face's screen box lies in the box of its cluster's vertices' projections,
-so a cluster pair whose boxes are apart on a line's screen adds nothing along that line: it is
-measured only along the lines where they meet, and not at all where they meet along none. Over
-two dense surfaces that meet, a cluster of one meets along a line only the clusters of the
-other in its own shadow, so the work grows with the clusters that meet, not with the product of
-their counts.
+pair. Along a line ``n`` a face pair adds to the figures only where the faces' projections along
+``n`` meet: every corner and crossing the shader takes lies within ``SLACK`` times the square
+root of 3 times the larger face's diameter of both faces' projections, as it computes them. So a
+cluster pair whose projections are farther apart than that along some direction of a line's
+screen adds nothing along the line: it is measured only along the lines where their projections
+meet, and not at all where they meet along none. Each cluster's projection is bounded by its
+vertices' extent along four directions of the screen (its axes and their diagonals). Over two
+dense surfaces that meet, a cluster of one meets along a line only the clusters of the other in
+its own shadow, so the work grows with the clusters that meet, not with the product of their
+counts.
 
-The boxes are computed in float64 from the vertices and frames the shader reads (single
-precision values, taken exactly) and grown by :data:`CULL_MARGIN` times the largest a
-coordinate of the pair's frame can be, far more than the shader's rounding of a projected
-corner and its slack together: a cluster pair the host leaves out is one every one of whose
-face pairs the shader would skip. The figures are therefore exactly those of every cluster pair
-measured along every line. A pair that has a line along which no cluster pair meets is cleared
-by that line (no ray meets both bodies): as a whole item stops at the first line that clears
-it, its cluster pairs are measured only up to that line.
+The extents are computed in float64 from the vertices and frames the shader reads (its single
+precision values, taken exactly) and grown by :data:`CULL_MARGIN` times the largest a coordinate
+of the pair's frame can be: over 16 times the shader's rounding of a projected corner and its
+slack together. A cluster pair left out along a line is one that no face pair of which could
+add to the figures: they are exactly those of every cluster pair measured along every line. A
+pair that has a line along which no cluster pair meets is cleared by that line (no ray meets
+both bodies): as a whole item stops at the first line that clears it, its lines past that one
+are not measured.
 
-A line whose direction lies within rounding of the shader's choice of screen axes
+A line whose direction lies within rounding of where the shader's choice of screen axes changes
 (:data:`AMBIGUOUS`) is not culled: its screen could be either of two.
 """
 
@@ -35,9 +38,10 @@ from .depth import ITEM_SKIP_SHIFT, ITEM_WHOLE, LINES, WORLD_LINES
 from .pairwork import ITEM, spread
 
 CULL_MARGIN = 2.0**-12
-"""Growth of the screen boxes, per unit of the largest a coordinate of the pair's frame can be
+"""Growth of the extents, per unit of the largest a coordinate of the pair's frame can be
 (``|linear part| |vertex| + |translation|`` of either body): the shader's rounding of a projected
-corner is under ``2^-19`` of it, its slack ``2^-17``."""
+corner is under ``2^-19`` of it, its slack (``SLACK`` times the square root of 3 times a face's
+diameter, at most twice that unit) under ``2^-16``."""
 
 SLICE = 2**21
 """Most cluster pairs and lines tested at once (a bound on the host memory of the test)."""
@@ -117,7 +121,8 @@ def _magnitude(m: np.ndarray, reach: np.ndarray) -> np.ndarray:
 
 def screen_boxes(pack: ShapePack, shapes: list, shape: np.ndarray, m: np.ndarray,
                  axes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The screen box of every cluster of one body of each pair, on each of its lines.
+    """The extent of every cluster of one body of each pair along each direction of each of its
+    lines' screens.
 
     Parameters
     ----------

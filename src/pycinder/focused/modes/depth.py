@@ -1,7 +1,9 @@
 """Pass H1, depth: for each candidate pair, how far body a must move along each of
 :data:`LINES` lines, either way, to leave body b behind on every ray parallel to it, exactly (in
-single precision) over every face of a and face of b (``depth.wgsl``). The hard-clash query's one
-pass; what its figures promise is in :mod:`pycinder.focused.modes.hardclash`."""
+single precision) over every face of a and face of b whose projections along it can meet
+(``depth.wgsl``; which cluster pairs meet along which lines: :mod:`~pycinder.focused.modes.cull`).
+The hard-clash query's one pass; what its figures promise is in
+:mod:`pycinder.focused.modes.hardclash`."""
 
 from __future__ import annotations
 
@@ -125,9 +127,9 @@ def hull_lower_bound(figures: np.ndarray, directions: np.ndarray) -> np.ndarray:
 
 
 class Depth(ClusterPairPass):
-    """H1: one workgroup per item (the pair's bodies whole, or a cluster of each); per pair and
-    line, the largest ``depth_b - depth_a`` and ``depth_a - depth_b`` over the rays that meet
-    both bodies (atomicMax)."""
+    """H1: one workgroup per item (the pair's bodies whole, entry point ``depth``, or a cluster of
+    each, ``depth_clusters``); per pair and line, the largest ``depth_b - depth_a`` and
+    ``depth_a - depth_b`` over the rays that meet both bodies (atomicMax)."""
 
     INFO: ClassVar[PassInfo] = PassInfo(
         "H1", "depth", "how far one body of each candidate pair must move along each of 19 "
