@@ -17,8 +17,8 @@ edge of one passes through the other. Only the cluster pairs that can be nearer 
 distance found are measured (:meth:`~pycinder.focused.modes.distance.Distance.nearest`): first
 each pair's cluster pairs with the nearest points, then those of the others whose boxes are
 nearer than the least distance found so far plus :data:`NEAREST_MARGIN` times its error bound
-(none once it is 0); a cluster pair left out could not have been nearer, so the figure is that of every cluster pair
-within ``c``, bit for bit. A distance of surfaces misses a body wholly inside another
+(none once it is 0); a cluster pair left out could not have been nearer, so the figure is that
+of every cluster pair within ``c``, bit for bit. A distance of surfaces misses a body wholly inside another
 with their surfaces farther apart than ``c``; the focused interference test finds those, run at
 a tolerance ``t`` of ``c / 4`` (or the one given, if finer): such a body reaches at least
 ``c = 4 t`` into the other, which the tolerance contract always reports (from ``2 t``). As that

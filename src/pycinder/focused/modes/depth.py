@@ -196,13 +196,14 @@ class Depth(ClusterPairPass):
 
 def _same_axes(frames: np.ndarray) -> np.ndarray:
     """Per pair and world axis (x, y, z: lines 6 to 8), the first of the bodies' axes (lines 0
-    to 5) that is that axis exactly, in single precision (a positive multiple of it, which the
-    shader normalises to it): its figures are the same (-1 where none)."""
+    to 5) that is exactly that axis in single precision (a unit column of a body that is neither
+    turned nor scaled along it): the shader's view of the two is the same, and so are their
+    figures (-1 where none)."""
     columns = np.concatenate([np.swapaxes(frames["m0"][:, :, :3], 1, 2),
                               np.swapaxes(frames["m1"][:, :, :3], 1, 2)], axis=1)  # (K, 6, 3)
     out = np.full((len(frames), 3), -1, np.int64)
     for axis in range(3):
-        alone = (columns[:, :, axis] > 0) & (np.count_nonzero(columns, axis=2) == 1)
+        alone = (columns[:, :, axis] == 1) & (np.count_nonzero(columns, axis=2) == 1)
         out[:, axis] = np.where(alone.any(axis=1), np.argmax(alone, axis=1), -1)
     return out
 

@@ -17,8 +17,8 @@ FAR = int(np.float32(np.inf).view(np.uint32))
 """The figure of a pair no item measured (its bits: +inf)."""
 
 FIRST_ITEMS = 16
-"""Items of each pair measured first by :meth:`Distance.nearest`: those whose cluster boxes are
-nearest each other."""
+"""Items of each pair measured first by :meth:`Distance.nearest`: those whose clusters' points
+are nearest each other."""
 
 
 class Distance(ClusterPairPass):
