@@ -22,7 +22,7 @@ from pycinder.focused.modes import distance as distance_mode
 from pycinder.focused.modes import hardclash
 from pycinder.focused.modes.depth import ITEM_SKIP_SHIFT, LINES, decode
 from pycinder.result import Stats
-from pycinder.testing import random_rotation, surface_distance
+from pycinder.testing import coal_depth, random_rotation, surface_distance
 
 SCALES = [1e-3, 1.0, 1e3]
 
@@ -232,31 +232,18 @@ def test_dense_boxes_against_separating_axes(scale):
 def test_dense_spheres_against_coal():
     """Two turned dense spheres (convex) pressed together at depths around d: coal's EPA depth
     lies within each reported depth's bound."""
-    coal = pytest.importorskip("coal", reason="coal's EPA is the truth for dense convex pairs")
+    pytest.importorskip("coal", reason="coal's EPA is the truth for dense convex pairs")
     rng = np.random.default_rng(5)
     d = 0.02
     det = pycinder.Detector(min_depth=d)
     mesh = sphere(0.5, 4)
 
-    def shape():
-        points = coal.StdVec_Vec3s()
-        for p in np.asarray(mesh.vertices, np.float64):
-            points.append(p)
-        triangles = coal.StdVec_Triangle()
-        for f in np.asarray(mesh.faces):
-            triangles.append(coal.Triangle(int(f[0]), int(f[1]), int(f[2])))
-        return coal.Convex(points, triangles)
-
-    convex = shape()
     for target in (0.0, 0.3 * d, 1.5 * d, 0.3):
         ta, tb = random_rotation(rng), random_rotation(rng)
         direction = rng.normal(size=3)
         direction /= np.linalg.norm(direction)
         tb[:3, 3] = direction * (1.0 - target)
-        pose = [coal.Transform3s(np.ascontiguousarray(t[:3, :3]),
-                                 np.ascontiguousarray(t[:3, 3])) for t in (ta, tb)]
-        exact = max(-coal.distance(convex, pose[0], convex, pose[1], coal.DistanceRequest(),
-                                   coal.DistanceResult()), 0.0)
+        exact = coal_depth(mesh, ta, mesh, tb)
         result = det.find_collisions([mesh, mesh], [ta, tb])
         reported = result.pairs.tolist() == [[0, 1]]
         assert reported or exact <= d, (target, exact)

@@ -23,6 +23,7 @@ import pytest
 import trimesh
 
 import pycinder
+from pycinder import testing
 from pycinder.focused.modes import hardclash
 from pycinder.testing import (grid_plate, l_shape, open_cup, open_tube, random_rotation,
                               surface_distance)
@@ -100,23 +101,7 @@ def fcl_crosses(case) -> bool:
 
 def coal_depth(a, ta, b, tb) -> float:
     """coal's penetration depth (GJK/EPA signed distance) of two convex meshes."""
-    import coal
-
-    def shape(mesh):
-        points = coal.StdVec_Vec3s()
-        for p in np.asarray(mesh.vertices, np.float64):
-            points.append(p)
-        triangles = coal.StdVec_Triangle()
-        for f in np.asarray(mesh.faces):
-            triangles.append(coal.Triangle(int(f[0]), int(f[1]), int(f[2])))
-        return coal.Convex(points, triangles)
-
-    def pose(t):
-        return coal.Transform3s(np.ascontiguousarray(t[:3, :3]), np.ascontiguousarray(t[:3, 3]))
-
-    distance = coal.distance(shape(a), pose(ta), shape(b), pose(tb), coal.DistanceRequest(),
-                             coal.DistanceResult())
-    return max(-float(distance), 0.0)
+    return testing.coal_depth(a, ta, b, tb)
 
 
 # -- Cases: pairs placed side by side in one scene ----------------------------------------------

@@ -360,6 +360,35 @@ def _fcl_object(mesh: trimesh.Trimesh) -> Any:
     return fcl.CollisionObject(model, fcl.Transform())
 
 
+def coal_convex(mesh: Any) -> Any:
+    """A convex mesh (trimesh, or anything with ``vertices`` (V, 3) and ``faces`` (F, 3)) as
+    coal's ``Convex``."""
+    coal = require("coal", "exact penetration depths", "test")
+    points = coal.StdVec_Vec3s()
+    for p in np.asarray(mesh.vertices, np.float64):
+        points.append(p)
+    triangles = coal.StdVec_Triangle()
+    for f in np.asarray(mesh.faces):
+        triangles.append(coal.Triangle(int(f[0]), int(f[1]), int(f[2])))
+    return coal.Convex(points, triangles)
+
+
+def coal_pose(transform: np.ndarray) -> Any:
+    """A (4, 4) rigid transform as coal's ``Transform3s``."""
+    coal = require("coal", "exact penetration depths", "test")
+    t = np.asarray(transform, np.float64)
+    return coal.Transform3s(np.ascontiguousarray(t[:3, :3]), np.ascontiguousarray(t[:3, 3]))
+
+
+def coal_depth(a: Any, ta: np.ndarray, b: Any, tb: np.ndarray) -> float:
+    """coal's penetration depth (GJK/EPA signed distance) of two convex meshes placed by
+    (4, 4) transforms; 0 where they are apart."""
+    coal = require("coal", "exact penetration depths", "test")
+    distance = coal.distance(coal_convex(a), coal_pose(ta), coal_convex(b), coal_pose(tb),
+                             coal.DistanceRequest(), coal.DistanceResult())
+    return max(-float(distance), 0.0)
+
+
 def surface_distance(a: Any, b: Any, transforms: Any = None) -> float:
     """Exact distance between two meshes' surfaces (python-fcl), 0 or less where they meet.
 

@@ -103,28 +103,13 @@ def truth(case: Case) -> dict[str, float | None]:
     """The exact depth (coal's EPA, convex pairs only: else None) and distance (python-fcl)."""
     import trimesh
 
-    from ..testing import surface_distance
+    from ..testing import coal_depth, surface_distance
 
     meshes = [trimesh.Trimesh(v, f, process=False) for v, f in case.meshes]
     distance = max(surface_distance(meshes[0], meshes[1], list(case.transforms)), 0.0)
     depth = None
     if case.convex:
-        import coal
-
-        def convex(mesh: trimesh.Trimesh) -> Any:
-            points = coal.StdVec_Vec3s()
-            for p in np.asarray(mesh.vertices, np.float64):
-                points.append(p)
-            triangles = coal.StdVec_Triangle()
-            for f in np.asarray(mesh.faces):
-                triangles.append(coal.Triangle(int(f[0]), int(f[1]), int(f[2])))
-            return coal.Convex(points, triangles)
-
-        pose = [coal.Transform3s(np.ascontiguousarray(t[:3, :3]), np.ascontiguousarray(t[:3, 3]))
-                for t in case.transforms]
-        signed = coal.distance(convex(meshes[0]), pose[0], convex(meshes[1]), pose[1],
-                               coal.DistanceRequest(), coal.DistanceResult())
-        depth = max(-float(signed), 0.0)
+        depth = coal_depth(meshes[0], case.transforms[0], meshes[1], case.transforms[1])
     return {"depth": depth, "distance": distance}
 
 
