@@ -269,3 +269,23 @@ def test_convex_pairs_get_depth_bounds_near_rounding():
         assert got - error <= depth + 1e-9 <= got + 1e-5, (depth, got, error)
         rounding = hardclash.ERROR_SCALE * np.sqrt(3**2 + 3**2 + 2**2)  # the pair's reach
         assert error <= 1e-3 * depth + 3 * rounding, (depth, got, error)
+
+
+def test_a_solid_flattened_as_placed_is_named(monkeypatch):
+    """A body that is a solid in its own space but not where it is placed cannot be cut: the
+    pair is refused by name, never measured as if it did not overlap."""
+    from pycinder.focused.modes import local
+
+    case = sleeve_case(OVERLAP, 0.0)
+    real = local.body_vertices
+
+    def flattened(scene, body, origin):
+        vertices, faces = real(scene, body, origin)
+        if body == 1:  # the pipe, as placed: every vertex in one plane
+            vertices = vertices.copy()
+            vertices[:, 2] = 0.0
+        return vertices, faces
+
+    monkeypatch.setattr(local, "body_vertices", flattened)
+    with pytest.raises(ValueError, match="not as placed"):
+        pycinder.Detector(min_depth=D).find_collisions(case.meshes, case.transforms)

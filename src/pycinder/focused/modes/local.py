@@ -114,15 +114,27 @@ def overlap_parts(scene: Scene, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarr
         The row of ``pairs`` of each part (a pair that does not overlap in volume has none).
     lo, hi : (P, 3) float64
         Each part's world box.
+
+    Raises
+    ------
+    ValueError
+        A body that manifold3d takes as a solid in its own space but not as placed, naming the
+        pair (never an overlap silently lost).
     """
     lo_w, hi_w = scene.world_boxes()
     owner: list[int] = []
     boxes: list[np.ndarray] = []
     for k, (a, b) in enumerate(np.asarray(pairs, np.int64)):
         origin = 0.5 * (np.maximum(lo_w[a], lo_w[b]) + np.minimum(hi_w[a], hi_w[b]))
-        solid_a = SolidCutter(*body_vertices(scene, int(a), origin)).solid
-        solid_b = SolidCutter(*body_vertices(scene, int(b), origin)).solid
-        for part in (solid_a ^ solid_b).decompose():
+        cutters = [SolidCutter(*body_vertices(scene, int(body), origin)) for body in (a, b)]
+        for body, cutter in zip((a, b), cutters):
+            if not cutter.ok:  # a solid in its own space, not where it is placed
+                raise ValueError(
+                    f"{scene.label(int(body))} is a solid, but not as placed (its transform "
+                    f"nearly flattens it), so its pair with "
+                    f"{scene.label(int(b if body == a else a))} cannot be measured where they "
+                    f"overlap; give it a transform that keeps its shape")
+        for part in (cutters[0].solid ^ cutters[1].solid).decompose():
             if part.is_empty() or part.volume() <= 0.0:
                 continue
             box = np.asarray(part.bounding_box(), np.float64)
