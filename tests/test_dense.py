@@ -12,6 +12,8 @@ two convex spheres, python-fcl's distances for clearance.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 import trimesh
@@ -297,11 +299,45 @@ def test_regions_skip_the_lines_their_chunks_do_not_meet_along(monkeypatch):
     transforms[1][:3, 3] = (0.8, 0.1, 0.05)
     det = pycinder.Detector(min_depth=0.01)
     culled = det.find_collisions(meshes, transforms)
-    monkeypatch.setattr(hardclash, "skip_lines", lambda positions, faces, items, frames: items)
+    mirrored = [np.diag([1.0, -1.0, 1.0, 1.0]), transforms[1]]  # the chunks' maps mirror
+    culled_mirrored = det.find_collisions(meshes, mirrored)
+    monkeypatch.setattr(hardclash, "skip_lines",
+                        lambda positions, faces, items, frames, closed=None: items)
     every = pycinder.Detector(min_depth=0.01).find_collisions(meshes, transforms)
     assert culled.pairs.tolist() == every.pairs.tolist() == [[0, 1]]
     assert np.array_equal(culled.depths, every.depths)
     assert np.array_equal(culled.depth_errors, every.depth_errors)
+    every = pycinder.Detector(min_depth=0.01).find_collisions(meshes, mirrored)
+    assert culled_mirrored.pairs.tolist() == every.pairs.tolist() == [[0, 1]]
+    assert np.array_equal(culled_mirrored.depths, every.depths)
+
+
+def test_culled_figures_of_mirrored_and_inside_out_bodies():
+    """Cluster pairs are also left out along a line where both clusters face the same way (a
+    ray enters a and leaves b elsewhere): with a transform that mirrors a body, and with a body
+    wound inside out, faces are still taken as facing out, and the culled figures are every
+    cluster pair's, bit for bit."""
+    rng = np.random.default_rng(11)
+    det = pycinder.Detector(min_depth=0.01)
+    mirror = np.diag([1.0, -1.0, 1.0, 1.0])
+    inside_out = sphere().copy()
+    inside_out.invert()
+    deep = [np.eye(4), np.eye(4)]
+    deep[1][:3, 3] = (0.5, 0.3, 0.2)  # two unit spheres overlapping deeply
+    for trial in range(6):
+        meshes = [sphere(), torus()] if trial < 3 else [sphere(), sphere()]
+        transforms = place(rng, 1.0, far=trial == 2) if trial < 3 else [t.copy() for t in deep]
+        if trial in (0, 2, 3):
+            transforms[0] = transforms[0] @ mirror
+        if trial in (1, 2, 4):
+            transforms[1] = transforms[1] @ mirror
+        if trial in (4, 5):
+            meshes[1] = inside_out
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the inside-out torus is warned about
+            culled = depth_figures(det, meshes, transforms, cull=True)
+            every = depth_figures(det, meshes, transforms, cull=False)
+        assert_same_figures(culled, every)
 
 
 def test_the_dense_benchmark_runs_and_is_right():

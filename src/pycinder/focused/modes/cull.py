@@ -2,6 +2,14 @@
 lines (:func:`depth_items`; :func:`skip_lines` for items packed apart from the shapes, as
 regions are).
 
+Two rules leave a cluster pair out along a line: its clusters' projections along the line do
+not meet (below), or both bodies are solids wound outward and the two clusters face the same
+way along the line (:func:`cluster_facing`: on a ray, a's nearest point is on a face where the
+ray enters a and b's farthest on one where it leaves b, or the other way round for the other
+way, so the largest ``far b - near a`` over the rays is never a pair of faces that face the same
+way, except faces within :data:`FACING` of edge-on, which count as facing both ways). Both
+rules leave the figures exactly what every cluster pair gives.
+
 Pass H1 (:mod:`~pycinder.focused.modes.depth`) measures a pair along 19 lines, face pair by face
 pair. Along a line ``n`` a face pair adds to the figures only where the faces' projections along
 ``n`` meet: every corner and crossing the shader takes lies within ``SLACK`` times the square
@@ -35,6 +43,7 @@ import numpy as np
 
 from ...scene.pack import ShapePack
 from .depth import ITEM_SKIP_SHIFT, ITEM_WHOLE, LINES, WORLD_LINES
+from .local import one_outward_solid
 from .pairwork import ITEM, spread
 
 CULL_MARGIN = 2.0**-12
@@ -216,6 +225,60 @@ def _meet(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray
     return np.all((lo_b <= hi_a + grow) & (lo_a <= hi_b + grow), axis=-1)
 
 
+FACING = 1e-3
+"""A face whose unit normal is within this cosine of square to a line counts as facing both
+ways along it (its depth on a ray is never what only the other way's faces give)."""
+
+
+def cluster_facing(pack: ShapePack, shapes: list, shape: np.ndarray, m: np.ndarray,
+                   axes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Which way each cluster's faces face along each line: whether some face looks against the
+    line (a ray along it can enter the body there) and whether some looks along it (a ray can
+    leave there). The clusters of a body that is not one solid wound outward
+    (:func:`~pycinder.focused.modes.local.one_outward_solid`: open, inside out, or in pieces,
+    one of which may be) face both ways.
+
+    Parameters
+    ----------
+    pack : ShapePack
+    shapes : list of Shape
+    shape : (K,) int
+        The body's shape, per pair.
+    m : (K, 3, 4) float64
+        Its pair-from-body rows.
+    axes : (K, LINES, A, 3) float64
+        Each line's screen (:func:`screens`); the line is their cross product.
+
+    Returns
+    -------
+    enters, leaves : (C, LINES) bool
+        Per cluster (pair after pair, as :func:`screen_boxes` orders them).
+    """
+    lines = np.cross(axes[:, :, 0], axes[:, :, 1])  # (K, LINES, 3) unit, the line's way
+    enters, leaves = [], []
+    for k, s in enumerate(np.asarray(shape).tolist()):
+        c0, c1 = int(pack.cluster_start[s]), int(pack.cluster_start[s + 1])
+        if not one_outward_solid(shapes[s]):
+            enters.append(np.ones((c1 - c0, LINES), bool))
+            leaves.append(np.ones((c1 - c0, LINES), bool))
+            continue
+        f0, f1 = int(pack.face_start[s]), int(pack.face_start[s + 1])
+        corners = pack.faces[f0:f1].reshape(-1, 3).astype(np.int64) - pack.vertex_start[s]
+        v = np.asarray(shapes[s].vertices, np.float64)[corners]  # (F, 3, 3)
+        # Outward in the pair's frame whether or not the frame mirrors the body (the inverse
+        # transpose keeps a normal's side).
+        normal = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]) @ np.linalg.inv(m[k, :, :3])
+        length = np.linalg.norm(normal, axis=1, keepdims=True)  # outward in the pair's frame
+        cos = (normal / np.where(length > 0, length, 1.0)) @ lines[k].T  # (F, LINES)
+        cos[length[:, 0] == 0] = 0.0  # a face without a normal faces both ways
+        first = np.r_[0, np.cumsum(pack.clusters[c0:c1, 1].astype(np.int64))[:-1]]
+        enters.append(np.minimum.reduceat(cos, first, axis=0) < FACING)
+        leaves.append(np.maximum.reduceat(cos, first, axis=0) > -FACING)
+    if not enters:
+        return np.zeros((0, LINES), bool), np.zeros((0, LINES), bool)
+    return np.concatenate(enters), np.concatenate(leaves)
+
+
 def _meeting_lines(pack: ShapePack, shapes: list, pair_shapes: np.ndarray, frames: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The cluster pairs that meet along some line, up to each pair's first line along which
@@ -223,10 +286,11 @@ def _meeting_lines(pack: ShapePack, shapes: list, pair_shapes: np.ndarray, frame
     lines they meet along."""
     k = len(frames)
     axes, ambiguous = screens(frames)
-    boxes, reach = [], []
+    boxes, reach, facing = [], [], []
     for side, field in enumerate(("m0", "m1")):
         m = frames[field].astype(np.float64)
         boxes.append(screen_boxes(pack, shapes, pair_shapes[:, side], m, axes))
+        facing.append(cluster_facing(pack, shapes, pair_shapes[:, side], m, axes))
         lo = np.array([shapes[s].lo for s in pair_shapes[:, side]]).reshape(k, 3)
         hi = np.array([shapes[s].hi for s in pair_shapes[:, side]]).reshape(k, 3)
         reach.append(_magnitude(m, np.linalg.norm(np.maximum(np.abs(lo), np.abs(hi)), axis=1)))
@@ -249,12 +313,18 @@ def _meeting_lines(pack: ShapePack, shapes: list, pair_shapes: np.ndarray, frame
             found.append((i + s0, j + b0, line, np.full(len(i), p, np.int64)))
     row_a, row_b, along, pair = (np.concatenate(x) for x in zip(*found)) if found else \
         (np.zeros(0, np.int64),) * 4
+    # On a ray along a line, body a's nearest point is where it enters and b's farthest where it
+    # leaves (and the other way round for the other way): a cluster pair that cannot be both
+    # adds nothing along that line, though its projections meet.
+    (enter_a, leave_a), (enter_b, leave_b) = facing
+    useful = ((enter_a[row_a, along] & leave_b[row_b, along])
+              | (leave_a[row_a, along] & enter_b[row_b, along]))
     # Lines along which some cluster pair meets; a pair's lines after its first without any
     # are not measured (it is cleared there).
     meets = np.zeros((k, LINES), bool)
     meets[pair, along] = True
     stop = np.where(meets.all(axis=1), LINES - 1, np.argmin(meets, axis=1))
-    keep = along <= stop[pair]
+    keep = (along <= stop[pair]) & useful
     row_a, row_b, along = row_a[keep], row_b[keep], along[keep]
     # One item per cluster pair, with the bits of its lines.
     key = row_a * max(len(own_b), 1) + row_b
@@ -272,8 +342,8 @@ def _meeting_lines(pack: ShapePack, shapes: list, pair_shapes: np.ndarray, frame
     return pair, ca, cb, bits
 
 
-def skip_lines(positions: np.ndarray, faces: np.ndarray, items: np.ndarray, frames: np.ndarray
-               ) -> np.ndarray:
+def skip_lines(positions: np.ndarray, faces: np.ndarray, items: np.ndarray, frames: np.ndarray,
+               closed: np.ndarray | None = None) -> np.ndarray:
     """Pass H1's items of chunks of faces (not whole), with the lines along which their two
     chunks' projections are apart skipped, as :func:`depth_items` culls cluster pairs (items
     apart along every line are left out, and a pair's lines past the first along which none
@@ -286,6 +356,10 @@ def skip_lines(positions: np.ndarray, faces: np.ndarray, items: np.ndarray, fram
     faces : (3 F,) uint32
     items : (I,) structured array of :data:`~pycinder.focused.modes.pairwork.ITEM`
     frames : (K,) structured array of :data:`~pycinder.focused.modes.pairwork.FRAME`
+    closed : (K, 2) bool, optional
+        Whether each pair's part of body a, and of b, is a closed solid (its chunks are then
+        also left out along the lines where they face the same way, as
+        :func:`cluster_facing` says for clusters); without it, none is.
 
     Returns
     -------
@@ -300,8 +374,11 @@ def skip_lines(positions: np.ndarray, faces: np.ndarray, items: np.ndarray, fram
     corners = np.asarray(faces, np.int64)
     axes, ambiguous = screens(frames)
     width = LINES * axes.shape[2]
-    boxes, reach = [], np.zeros(k)
-    for first, count, field in (("a_start", "a_count", "m0"), ("b_start", "b_count", "m1")):
+    boxes, reach, facing = [], np.zeros(k), []
+    lines = np.cross(axes[:, :, 0], axes[:, :, 1])  # (K, LINES, 3): each line's way
+    closed = np.zeros((k, 2), bool) if closed is None else np.asarray(closed, bool)
+    for side, (first, count, field) in enumerate((("a_start", "a_count", "m0"),
+                                                  ("b_start", "b_count", "m1"))):
         m = frames[field].astype(np.float64)
         coef = np.einsum("klaj,kji->klai", axes, m[:, :, :3]).reshape(k, width, 3)
         offset = np.einsum("klaj,kj->kla", axes, m[:, :, 3]).reshape(k, width)
@@ -321,6 +398,22 @@ def skip_lines(positions: np.ndarray, faces: np.ndarray, items: np.ndarray, fram
         shape3 = (-1, LINES, axes.shape[2])
         boxes.append((np.minimum.reduceat(proj, cut, axis=0).reshape(shape3)[which.ravel()],
                       np.maximum.reduceat(proj, cut, axis=0).reshape(shape3)[which.ravel()]))
+        # Which way each chunk's faces face along each line (both ways where not a solid).
+        tri = p.reshape(-1, 3, 3)
+        owner = chunk[row[::3], 0]
+        # The parts are wound outward in the world; stored through the inverse of the region's
+        # map, which turns them inside out where the map mirrors.
+        linear = m[:, :, :3]
+        normal = np.einsum("ti,tij->tj", np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
+                           np.linalg.inv(linear)[owner])
+        normal *= np.sign(np.linalg.det(linear))[owner][:, None]
+        length = np.linalg.norm(normal, axis=1, keepdims=True)
+        cos = np.einsum("tj,tlj->tl", normal / np.where(length > 0, length, 1.0), lines[owner])
+        cos[length[:, 0] == 0] = 0.0
+        open_part = ~closed[chunk[:, 0], side][:, None]
+        enters = (np.minimum.reduceat(cos, cut // 3, axis=0) < FACING) | open_part
+        leaves = (np.maximum.reduceat(cos, cut // 3, axis=0) > -FACING) | open_part
+        facing.append((enters[which.ravel()], leaves[which.ravel()]))
     grow = np.where(ambiguous, np.inf, CULL_MARGIN * reach[:, None])
     pair = part["pair"].astype(np.int64)
     (lo_a, hi_a), (lo_b, hi_b) = boxes
@@ -329,6 +422,8 @@ def skip_lines(positions: np.ndarray, faces: np.ndarray, items: np.ndarray, fram
     np.logical_or.at(meets, pair, meet)
     stop = np.where(meets.all(axis=1), LINES - 1, np.argmin(meets, axis=1))
     meet &= np.arange(LINES) <= stop[pair][:, None]
+    (enter_a, leave_a), (enter_b, leave_b) = facing
+    meet &= (enter_a & leave_b) | (leave_a & enter_b)  # as for clusters (_meeting_lines)
     bits = (meet.astype(np.int64) << np.arange(LINES)).sum(axis=1)
     part["whole"] = (part["whole"] & ((1 << ITEM_SKIP_SHIFT) - 1)) \
         | ((((1 << LINES) - 1) & ~bits) << ITEM_SKIP_SHIFT)

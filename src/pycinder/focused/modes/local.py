@@ -75,6 +75,35 @@ def shape_convex(shape: Shape) -> bool | None:
     return answer
 
 
+_outward: weakref.WeakKeyDictionary[Shape, bool] = weakref.WeakKeyDictionary()
+
+
+def one_outward_solid(shape: Shape) -> bool:
+    """Whether a shape is one solid wound outward: closed, taken by manifold3d as a single
+    two-manifold, of positive volume (a ray from outside enters it on a face facing against the
+    ray: what pass H1's culling by facing relies on). Kept per shape.
+
+    Parameters
+    ----------
+    shape : Shape
+
+    Returns
+    -------
+    bool
+    """
+    if shape in _outward:
+        return _outward[shape]
+    answer = False
+    faces = np.asarray(shape.topology.faces, np.int64)
+    if shape.topology.closed and len(faces):
+        v = np.asarray(shape.vertices, np.float64)[faces]
+        volume = np.einsum("ti,ti->", v[:, 0], np.cross(v[:, 1], v[:, 2])) / 6.0
+        cutter = SolidCutter(np.asarray(shape.vertices, np.float64), faces)
+        answer = bool(volume > 0 and cutter.ok and len(cutter.solid.decompose()) == 1)
+    _outward[shape] = answer
+    return answer
+
+
 def pair_kinds(scene: Scene, pairs: np.ndarray) -> np.ndarray:
     """Which pairs are measured locally: a body not convex, both solids manifold3d takes.
 
@@ -144,4 +173,5 @@ def overlap_parts(scene: Scene, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return np.array(owner, np.int64), table[:, :3], table[:, 3:]
 
 
-__all__ = ["CONVEX_SLACK", "LOCAL_GROW", "overlap_parts", "pair_kinds", "shape_convex"]
+__all__ = ["CONVEX_SLACK", "LOCAL_GROW", "one_outward_solid", "overlap_parts", "pair_kinds",
+           "shape_convex"]

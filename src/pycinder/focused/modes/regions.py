@@ -387,7 +387,8 @@ def meeting_regions(scene: Scene, pairs: np.ndarray, grow: float, side: float, s
             part_b = parts[1](tile_lo, tile_hi)
             if len(part_b) == 0:
                 continue
-            geometry.add(part_a, part_b, 0.5 * (tile_lo + tile_hi), map_a, map_b)
+            geometry.add(part_a, part_b, 0.5 * (tile_lo + tile_hi), map_a, map_b,
+                         (solid[0], solid[1]))
             geometry.boxes.append((tile_lo + origin, tile_hi + origin))
             owner.append(k)
     return geometry, np.array(owner, np.int64)
@@ -433,6 +434,9 @@ class RegionGeometry:
         self.positions: list[np.ndarray] = []
         self.faces_a: list[tuple[int, int]] = []
         self.faces_b: list[tuple[int, int]] = []
+        self.closed: list[tuple[bool, bool]] = []
+        """Whether each region's part of body a, and of b, is a closed solid (cut by
+        manifold3d and closed by the region's walls, wound outward), not a surface."""
         self.frames: list[np.ndarray] = []
         self.reach: list[float] = []
         self.boxes: list[tuple[np.ndarray, np.ndarray]] = []
@@ -440,9 +444,12 @@ class RegionGeometry:
         self._faces = 0
 
     def add(self, part_a: np.ndarray, part_b: np.ndarray, centre: np.ndarray,
-            map_a: np.ndarray, map_b: np.ndarray) -> None:
+            map_a: np.ndarray, map_b: np.ndarray,
+            closed: tuple[bool, bool] = (False, False)) -> None:
         """Add a region: both bodies' parts (M, 3, 3) float64 relative to the pair's origin,
-        the region's centre (3,) relative to it, and each body's 3x3 linear map."""
+        the region's centre (3,) relative to it, each body's 3x3 linear map, and whether each
+        part is a closed solid."""
+        self.closed.append(closed)
         frame = FRAME.zeros(1)
         spans = []
         for part, linear, field in ((part_a, map_a, "m0"), (part_b, map_b, "m1")):
