@@ -289,3 +289,21 @@ def test_a_solid_flattened_as_placed_is_named(monkeypatch):
     monkeypatch.setattr(local, "body_vertices", flattened)
     with pytest.raises(ValueError, match="not as placed"):
         pycinder.Detector(min_depth=D).find_collisions(case.meshes, case.transforms)
+
+
+def test_a_sleeve_wound_inside_out_is_measured_whole():
+    """A closed non-convex body wound inside out (warned about, and tested as a solid all the
+    same) cannot be cut as a solid: its pair keeps the whole pair's figure, so a 5 mm overlap is
+    still reported, and a graze is reported too (the whole figure is the sleeve's width)."""
+    import warnings
+
+    for overlap in (OVERLAP, GRAZE):
+        case = sleeve_case(overlap, 0.3)
+        sleeve = case.meshes[0].copy()
+        sleeve.invert()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = pycinder.Detector(min_depth=D).find_collisions(
+                [sleeve, case.meshes[1]], case.transforms)
+        assert result.pairs.tolist() == [[0, 1]], overlap
+        assert result.depths[0] >= clearing(case) - result.depth_errors[0]

@@ -24,6 +24,7 @@ such a pair may be reported where a local measure would not, never the other way
 from __future__ import annotations
 
 import weakref
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -44,13 +45,25 @@ CONVEX_SLACK = 1e-6
 (vertices rounded to single precision dent flat faces by less; a body dented by less is measured
 whole, which can only report it, never miss it)."""
 
-_convex: weakref.WeakKeyDictionary[Shape, bool | None] = weakref.WeakKeyDictionary()
+@dataclass(frozen=True)
+class SolidFacts:
+    """What manifold3d says of a shape as a solid (:func:`solid_facts`)."""
+
+    solid: bool
+    """Closed, a two-manifold manifold3d takes, wound outward (positive volume)."""
+    pieces: int
+    """Its connected pieces (0 where not a solid)."""
+    convex: bool
+    """One piece whose volume is its convex hull's, within :data:`CONVEX_SLACK`."""
 
 
-def shape_convex(shape: Shape) -> bool | None:
-    """Whether a shape is convex: a solid whose volume is its convex hull's (within
-    :data:`CONVEX_SLACK`). None where manifold3d cannot take it as a solid (open, or not a
-    two-manifold). Kept per shape (a deforming body's new vertices are a new shape).
+_facts: weakref.WeakKeyDictionary[Shape, SolidFacts] = weakref.WeakKeyDictionary()
+
+
+def solid_facts(shape: Shape) -> SolidFacts:
+    """A shape's :class:`SolidFacts`, kept per shape (a deforming body's new vertices are a new
+    shape). A body wound inside out is not a solid here: cut as one, its inside would be its
+    outside.
 
     Parameters
     ----------
@@ -58,50 +71,35 @@ def shape_convex(shape: Shape) -> bool | None:
 
     Returns
     -------
-    bool or None
+    SolidFacts
     """
-    if shape in _convex:
-        return _convex[shape]
-    answer: bool | None = None
+    if shape in _facts:
+        return _facts[shape]
+    facts = SolidFacts(False, 0, False)
     if shape.topology.closed and len(shape.topology.faces):
         cutter = SolidCutter(np.asarray(shape.vertices, np.float64),
                              np.asarray(shape.topology.faces, np.int64))
         if cutter.ok:
             volume = cutter.solid.volume()
+            pieces = len(cutter.solid.decompose())
             hull = cutter.solid.hull().volume()
-            answer = bool(len(cutter.solid.decompose()) == 1
-                          and hull - volume <= CONVEX_SLACK * hull)
-    _convex[shape] = answer
-    return answer
+            facts = SolidFacts(True, pieces, pieces == 1 and hull - volume <= CONVEX_SLACK * hull)
+    _facts[shape] = facts
+    return facts
 
 
-_outward: weakref.WeakKeyDictionary[Shape, bool] = weakref.WeakKeyDictionary()
+def shape_convex(shape: Shape) -> bool | None:
+    """Whether a shape is convex (:attr:`SolidFacts.convex`); None where it is not a solid
+    manifold3d can cut (open, not a two-manifold, or wound inside out)."""
+    facts = solid_facts(shape)
+    return facts.convex if facts.solid else None
 
 
 def one_outward_solid(shape: Shape) -> bool:
-    """Whether a shape is one solid wound outward: closed, taken by manifold3d as a single
-    two-manifold, of positive volume (a ray from outside enters it on a face facing against the
-    ray: what pass H1's culling by facing relies on). Kept per shape.
-
-    Parameters
-    ----------
-    shape : Shape
-
-    Returns
-    -------
-    bool
-    """
-    if shape in _outward:
-        return _outward[shape]
-    answer = False
-    faces = np.asarray(shape.topology.faces, np.int64)
-    if shape.topology.closed and len(faces):
-        v = np.asarray(shape.vertices, np.float64)[faces]
-        volume = np.einsum("ti,ti->", v[:, 0], np.cross(v[:, 1], v[:, 2])) / 6.0
-        cutter = SolidCutter(np.asarray(shape.vertices, np.float64), faces)
-        answer = bool(volume > 0 and cutter.ok and len(cutter.solid.decompose()) == 1)
-    _outward[shape] = answer
-    return answer
+    """Whether a shape is one solid wound outward (a ray from outside enters it on a face
+    facing against the ray: what pass H1's culling by facing relies on)."""
+    facts = solid_facts(shape)
+    return facts.solid and facts.pieces == 1
 
 
 def pair_kinds(scene: Scene, pairs: np.ndarray) -> np.ndarray:
@@ -173,5 +171,5 @@ def overlap_parts(scene: Scene, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return np.array(owner, np.int64), table[:, :3], table[:, 3:]
 
 
-__all__ = ["CONVEX_SLACK", "LOCAL_GROW", "one_outward_solid", "overlap_parts", "pair_kinds",
-           "shape_convex"]
+__all__ = ["CONVEX_SLACK", "LOCAL_GROW", "SolidFacts", "one_outward_solid", "overlap_parts",
+           "pair_kinds", "shape_convex", "solid_facts"]

@@ -266,7 +266,10 @@ class SolidCutter:
                           tri_verts=np.ascontiguousarray(faces, np.uint32))
         mesh.merge()
         self.solid = m3d.Manifold(mesh)
-        self.ok = self.solid.status() == m3d.Error.NoError and not self.solid.is_empty()
+        # Wound inside out (manifold3d takes it, with a negative volume), its inside would be
+        # cut as its outside: not a solid to cut.
+        self.ok = (self.solid.status() == m3d.Error.NoError and not self.solid.is_empty()
+                   and self.solid.volume() > 0)
 
     def within(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """The solid within the box ``lo``, ``hi`` (3,) as triangles (M, 3, 3) float64."""
@@ -408,7 +411,8 @@ def _pair_bodies(scene: Scene, a: int, b: int, meet_lo: np.ndarray, meet_hi: np.
             cutter = SolidCutter(*body_vertices(scene, body, origin))
             if not cutter.ok:
                 raise ValueError(
-                    f"{scene.label(body)} is closed but not a two-manifold solid manifold3d can "
+                    f"{scene.label(body)} is closed but not a two-manifold solid wound outward "
+                    f"that manifold3d can "
                     f"cut, so its pair with {scene.label(b if body == a else a)} cannot be "
                     f"measured in the regions where they meet; use a coarser {option} for it")
             parts.append(cutter.within)
