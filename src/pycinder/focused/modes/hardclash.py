@@ -279,10 +279,9 @@ class HardClash:
         best = np.argmin(flat, axis=1)
         depth = flat[np.arange(len(pairs)), best]
         direction = lines(scene.transforms[pairs[:, 0]], scene.transforms[pairs[:, 1]])
-        # Convex pairs: the penetration depth lies between the hull of the measured points
-        # and the figure, and within the directions' cosine of it.
-        lower = np.maximum(DIRECTION_COS * depth, hull_lower_bound(flat, direction))
-        bound = depth - lower + error
+        # Convex pairs: the penetration depth lies within the directions' cosine of the figure
+        # (and, for the pairs reported, between the hull of the measured points and it: below).
+        bound = depth * (1 - DIRECTION_COS) + error
         figure, rounding = depth.copy(), error.copy()
         if d is not None:
             near = figure > d - rounding
@@ -296,6 +295,10 @@ class HardClash:
                 depth[k], error[k] = figure[k], rounding[k]
                 bound[k] = rounding[k]  # the local depth is the figure itself
             self._large(scene, stats, pairs, d, large & ~local, figure, rounding)
+            # The hull's bound (a convex hull per pair) only where it is reported.
+            k = np.flatnonzero((figure > d - rounding) & ~local)
+            lower = np.maximum(DIRECTION_COS * depth[k], hull_lower_bound(flat[k], direction[k]))
+            bound[k] = depth[k] - lower + error[k]
         along = direction[np.arange(len(pairs)), best // 2]
         # Moving a along +n clears the pair (word 2 i): b lies behind a, along -n.
         normal = np.where((best % 2 == 0)[:, None], -along, along)
