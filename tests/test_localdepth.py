@@ -307,3 +307,41 @@ def test_a_sleeve_wound_inside_out_is_measured_whole():
                 [sleeve, case.meshes[1]], case.transforms)
         assert result.pairs.tolist() == [[0, 1]], overlap
         assert result.depths[0] >= clearing(case) - result.depth_errors[0]
+
+
+@pytest.mark.parametrize("overlap", [GRAZE, OVERLAP])
+def test_dense_pairs_go_straight_to_their_local_depth(overlap, monkeypatch):
+    """A pair measured locally whose bodies make more than ``LOCAL_FIRST_WORK`` face pairs skips
+    the whole-pair pass: with the threshold at 0, every interlocking pair does, and grazes and
+    overlaps keep the contract against exact geometry, turned and 707 km out as well; a convex
+    pair above the threshold keeps the whole-pair pass."""
+    calls = []
+    real = hardclash.local_first
+
+    def spy(scene, pack, pairs):
+        out = real(scene, pack, pairs)
+        calls.append({tuple(p) for p in np.asarray(pairs)[out].tolist()})
+        return out
+
+    monkeypatch.setattr(hardclash, "LOCAL_FIRST_WORK", 0)
+    monkeypatch.setattr(hardclash, "local_first", spy)
+    rng = np.random.default_rng(9)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    turn = q * np.sign(np.linalg.det(q))
+    chosen = cases(overlap)
+    far = [c.placed(turn, np.array([5e5, 5e5, 0.0]) + k * np.array([3.0, 0, 0]))
+           for k, c in enumerate(chosen)]
+    for placed, truth in ((chosen, None), (far, [c.placed(turn, np.zeros(3)) for c in chosen])):
+        calls.clear()
+        meshes, transforms = [], []
+        for case in placed:
+            meshes += case.meshes
+            transforms += case.transforms
+        result = pycinder.Detector(min_depth=D).find_collisions(meshes, transforms)
+        assert len(calls) == 1, calls
+        assert {(2 * k, 2 * k + 1) for k in range(len(placed))} <= calls[0]  # went straight
+        check(result, placed, D, truth)
+    ball = trimesh.creation.icosphere(subdivisions=2)
+    calls.clear()
+    pycinder.Detector(min_depth=D).find_collisions([ball, ball], [move(), move(0.5)])
+    assert calls == [set()]  # convex: the whole-pair figure is its depth

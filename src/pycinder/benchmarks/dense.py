@@ -208,13 +208,16 @@ def before(cases: list[Case], source: str, timeout: float) -> list[dict[str, Any
 
 
 def run(faces: int = 20000, repeat: int = 3, source: str | None = None,
-        timeout: float = 3600.0) -> dict[str, Any]:
-    """Every case and query kind, with its truth and, with ``source``, the earlier tree's."""
+        timeout: float = 3600.0, earlier: list[dict[str, Any]] | None = None
+        ) -> dict[str, Any]:
+    """Every case and query kind, with its truth and, with ``source``, the earlier tree's (or
+    ``earlier``: its rows as an earlier run measured them, per case min_depth then clearance)."""
     from ..gpu.device import get_gpu
 
     rows = []
     chosen = cases(faces)
-    earlier = before(chosen, source, timeout) if source else None
+    if source:
+        earlier = before(chosen, source, timeout)
     for k, case in enumerate(chosen):
         exact = truth(case)
         for q, option in enumerate(("min_depth", "clearance")):
@@ -267,8 +270,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="seconds the --before run may take")
     parser.add_argument("--out", default=None, help="write the Markdown here too")
     parser.add_argument("--json", default=None, help="write the results as JSON here")
+    parser.add_argument("--before-json", default=None, metavar="JSON",
+                        help="take the earlier tree's rows from this earlier --json output "
+                             "instead of running them again")
     args = parser.parse_args(argv)
-    results = run(args.faces, args.repeat, args.before, args.timeout)
+    earlier = None
+    if args.before_json:
+        earlier = [row["before"] for row in json.loads(Path(args.before_json).read_text())["rows"]]
+    results = run(args.faces, args.repeat, args.before, args.timeout, earlier)
     text = "\n".join(markdown(results)) + "\n"
     print(text)
     if args.out:

@@ -74,11 +74,12 @@ each line rather than the product of the two face counts. Where both bodies are 
 outward, a cluster pair whose clusters face the same way along a line is left out along it too:
 on a ray, body a's nearest point is where it enters and b's farthest where it leaves (and the
 other way round), so such a pair adds nothing. Such a pair measures its bodies' axes first and
-stops there when one clears it. Two spheres of 20,480 faces each overlapping deeply take 1.2 to
-1.4 s as placed and 1.7 s turned, pressed together by 0.4% of their radius 0.75 s, 0.5% apart
-0.3 s, and a 20,000-face torus through one 2.8 to 3.9 s (measured locally, in regions), where
-every cluster pair along every line took 194 to 274 s (lavapipe on 2 shared CPU cores:
-``benchmarks/results/dense.md``).
+stops there when one clears it. A pair measured locally whatever its whole figure, with more
+than :data:`LOCAL_FIRST_WORK` face pairs, skips the whole-pair pass (:func:`local_first`). Two
+spheres of 20,480 faces each overlapping deeply take 0.8 to 1.4 s as placed and 1.2 s turned,
+pressed together by 0.4% of their radius 0.55 s, 0.5% apart 0.23 s, and a 20,000-face torus
+through one 1.5 s (measured locally, in regions), where every cluster pair along every line took
+194 to 274 s (lavapipe on 2 shared CPU cores: ``benchmarks/results/dense.md``).
 """
 
 from __future__ import annotations
@@ -121,6 +122,10 @@ back per chunk)."""
 
 PRECISION_GROW = 1.0
 """Regions of a pair too large for one frame are grown by this many ``d`` on every side."""
+
+LOCAL_FIRST_WORK = 2**22
+"""Face pairs (the product of two bodies' face counts) above which a pair measured locally
+skips the whole-pair pass (:func:`local_first`): about two 2,000-face bodies."""
 
 DIRECTION_COS = 0.886
 """Every direction is within this cosine of one of the 26 directions through a cube's centre and
@@ -196,6 +201,34 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, cull: bool = True
     return np.concatenate([whole, items]), frames, reach
 
 
+def local_first(scene: Scene, pack: ShapePack, pairs: np.ndarray) -> np.ndarray:
+    """Which pairs go straight to their local depth, without the whole-pair pass: those measured
+    locally whatever their whole figure (:func:`~pycinder.focused.modes.local.pair_kinds`) whose
+    bodies make more than :data:`LOCAL_FIRST_WORK` face pairs. The local depth is at most the
+    whole figure, so a pair the whole figure would clear is cleared locally too; for a dense
+    pair, cutting it with manifold3d costs less than the whole-pair pass over its cluster pairs,
+    while for the many small pairs of a building it would cost more.
+
+    Parameters
+    ----------
+    scene : Scene
+    pack : ShapePack
+    pairs : (K, 2) int
+
+    Returns
+    -------
+    (K,) bool
+    """
+    out = np.zeros(len(pairs), bool)
+    if len(pairs) == 0:
+        return out
+    faces = np.diff(pack.face_start)[scene.body_shape[np.asarray(pairs, np.int64)]]
+    dense = np.flatnonzero(faces[:, 0] * faces[:, 1] > LOCAL_FIRST_WORK)
+    if len(dense):
+        out[dense] = pair_kinds(scene, pairs[dense])
+    return out
+
+
 class HardClash:
     """Hard-clash queries on a focused strategy's device and shapes.
 
@@ -261,8 +294,12 @@ class HardClash:
         error = np.zeros(len(pairs))
         figures = np.zeros((len(pairs), LINES, 2))
         large = np.zeros(len(pairs), bool)
-        for start in range(0, max(len(pairs), 1), CHUNK_PAIRS):
-            part = slice(start, start + CHUNK_PAIRS)
+        # Dense pairs measured locally anyway skip the whole-pair pass (see local_first).
+        first = (local_first(scene, pack, pairs) if d is not None
+                 else np.zeros(len(pairs), bool))
+        whole = np.flatnonzero(~first)
+        for start in range(0, max(len(whole), 1), CHUNK_PAIRS):
+            part = whole[start:start + CHUNK_PAIRS]
             items, frames, reach = plan(scene, pack, pairs[part])
             error[part] = ERROR_SCALE * reach
             if d is not None:
@@ -285,9 +322,9 @@ class HardClash:
         figure, rounding = depth.copy(), error.copy()
         if d is not None:
             near = figure > d - rounding
-            local = np.zeros(len(pairs), bool)
-            if (near | large).any():
-                k = np.flatnonzero(near | large)
+            local = first.copy()
+            if ((near | large) & ~first).any():
+                k = np.flatnonzero((near | large) & ~first)
                 local[k] = pair_kinds(scene, pairs[k])
             if local.any():
                 k = np.flatnonzero(local)
@@ -393,4 +430,5 @@ def _with_figures(result: CollisionResult, depths: np.ndarray, errors: np.ndarra
     return result
 
 
-__all__ = ["DIRECTION_COS", "ERROR_SCALE", "PASSES", "Figures", "HardClash", "plan"]
+__all__ = ["DIRECTION_COS", "ERROR_SCALE", "LOCAL_FIRST_WORK", "PASSES", "Figures", "HardClash",
+           "local_first", "plan"]
