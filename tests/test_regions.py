@@ -152,3 +152,52 @@ def test_triangles_meeting_a_box():
     assert triangles_meet_box(tri, np.array([0.4, 0.4, -1.0]), np.array([1.0, 1.0, 1.0]))[0]
     assert triangles_meet_box(tri, np.array([0.5, 0.5, 0.0]), np.array([1.0, 1.0, 1.0]))[0]
     assert not triangles_meet_box(tri, np.array([0.0, 0.0, 0.1]), np.array([1.0, 1.0, 1.0]))[0]
+
+
+def _lp_margin(tri: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float:
+    """The largest ``m`` such that a point of the triangle lies within the box shrunk by ``m``
+    (negative: how far it must grow to meet it), by linear programming over barycentric
+    coordinates (scipy's HiGHS): an independent truth for triangles meeting boxes."""
+    from scipy.optimize import linprog
+
+    # Variables: three barycentric weights and m; maximise m.
+    a_ub, b_ub = [], []
+    for axis in range(3):
+        row = list(tri[:, axis])
+        a_ub.append([-x for x in row] + [1.0])   # x >= lo + m
+        b_ub.append(-lo[axis])
+        a_ub.append(row + [1.0])                 # x <= hi - m
+        b_ub.append(hi[axis])
+    out = linprog([0, 0, 0, -1.0], A_ub=a_ub, b_ub=b_ub, A_eq=[[1, 1, 1, 0]], b_eq=[1],
+                  bounds=[(0, None)] * 3 + [(None, None)], method="highs")
+    assert out.status == 0
+    return -out.fun
+
+
+def test_triangles_meeting_boxes_and_cut_to_them_against_linear_programming():
+    """Random triangles and boxes, at several scales: whether each meets its box agrees with
+    linear programming wherever the margin is clear of rounding; the cut keeps points of the
+    triangle's plane within the box, and keeps nothing exactly where they do not meet."""
+    pytest.importorskip("scipy")
+    rng = np.random.default_rng(11)
+    checked = 0
+    for scale in (1e-3, 1.0, 1e3):
+        for _ in range(150):
+            tri = rng.normal(size=(3, 3)) * scale
+            centre = rng.normal(size=3) * scale
+            half = rng.uniform(0.05, 1.0, size=3) * scale
+            lo, hi = centre - half, centre + half
+            margin = _lp_margin(tri, lo, hi)
+            meets = bool(triangles_meet_box(tri[None], lo, hi)[0])
+            parts = clip_triangles(tri[None], lo, hi)
+            if abs(margin) < 1e-7 * scale:
+                continue  # touching, within rounding: either answer holds
+            checked += 1
+            assert meets == (margin > 0), (scale, margin)
+            assert (len(parts) > 0) == (margin > 0), (scale, margin)
+            if len(parts):
+                assert np.all(parts >= lo - 1e-9 * scale) and np.all(parts <= hi + 1e-9 * scale)
+                normal = np.cross(tri[1] - tri[0], tri[2] - tri[0])
+                off = (parts.reshape(-1, 3) - tri[0]) @ normal / np.linalg.norm(normal)
+                assert np.all(np.abs(off) <= 1e-9 * scale)
+    assert checked > 400

@@ -275,9 +275,10 @@ class Clearance:
         # Pairs measured in regions: overlapping where their surfaces cross (measured 0), and
         # one inside the other where a vertex of one lies within the other (closed) one,
         # however near their surfaces are (a pipe inside a slab, 0.5 c from its face: 0).
+        open_body = scene.open
         for k in np.flatnonzero(local):
             inside[k] = contained[k] = measured[k] > 0 and \
-                _nested(scene, int(pairs[k, 0]), int(pairs[k, 1]))
+                _nested(scene, int(pairs[k, 0]), int(pairs[k, 1]), lo, hi, open_body)
         near = measured < c + error
         keep = near | inside
         distances = np.where(contained, 0.0, np.minimum(measured, np.finfo(np.float64).max))
@@ -327,13 +328,14 @@ class Clearance:
         return self._boxes[1]
 
 
-def _nested(scene: Scene, a: int, b: int) -> bool:
+def _nested(scene: Scene, a: int, b: int, lo: np.ndarray, hi: np.ndarray,
+            open_body: np.ndarray) -> bool:
     """Whether either body of a pair whose surfaces do not meet lies inside the other (closed)
-    one: then any vertex of it does (float64, :func:`~.regions.contains`)."""
-    lo, hi = scene.world_boxes()
+    one: then any vertex of it does (float64, :func:`~.regions.contains`). ``lo``, ``hi``: the
+    scene's world boxes; ``open_body``: :attr:`Scene.open`."""
     origin = 0.5 * (np.maximum(lo[a], lo[b]) + np.minimum(hi[a], hi[b]))
     for inner, outer in ((a, b), (b, a)):
-        if scene.open[outer] or np.any(lo[inner] < lo[outer]) or np.any(hi[inner] > hi[outer]):
+        if open_body[outer] or np.any(lo[inner] < lo[outer]) or np.any(hi[inner] > hi[outer]):
             continue
         point = body_vertices(scene, inner, origin)[0][0]
         if contains(world_triangles(scene, outer, origin), point):

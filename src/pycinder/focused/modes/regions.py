@@ -80,16 +80,19 @@ def triangles_meet_box(tris: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.n
     meet = np.all((v.min(axis=1) <= half + slack[:, None]) &
                   (v.max(axis=1) >= -half - slack[:, None]), axis=1)
     edges = np.roll(v, -1, axis=1) - v  # (T, 3, 3): edge i from corner i
-    axes = [np.cross(edges[:, 0], edges[:, 1])]
-    for i in range(3):
-        for j in range(3):
-            unit = np.zeros(3)
-            unit[j] = 1.0
-            axes.append(np.cross(unit, edges[:, i]))
-    for axis in axes:
-        p = np.einsum("tkc,tc->tk", v, axis)
-        r = (np.abs(axis) * half).sum(axis=1) + slack * np.abs(axis).sum(axis=1)
-        meet &= (p.min(axis=1) <= r) & (p.max(axis=1) >= -r)
+    ex, ey, ez = edges[..., 0], edges[..., 1], edges[..., 2]  # (T, 3) each
+    zero = np.zeros_like(ex)
+    # The normal, then the unit axes x, y, z crossed with each edge (T, 10, 3).
+    axes = np.concatenate([
+        np.cross(edges[:, 0], edges[:, 1])[:, None],
+        np.stack([zero, -ez, ey], axis=2),   # x cross each edge
+        np.stack([ez, zero, -ex], axis=2),   # y cross each edge
+        np.stack([-ey, ex, zero], axis=2),   # z cross each edge
+    ], axis=1)
+    p = np.einsum("tkc,tac->tak", v, axes)  # (T, 10, 3): each corner along each axis
+    size = np.abs(axes)
+    r = np.einsum("tac,tc->ta", size, half) + slack[:, None] * size.sum(axis=2)
+    meet &= np.all((p.min(axis=2) <= r) & (p.max(axis=2) >= -r), axis=1)
     return meet
 
 
@@ -192,14 +195,16 @@ def clip_triangles(tris: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarr
     for axis in range(3):
         for bound, sign in ((lo[axis], 1.0), (hi[axis], -1.0)):
             dist = sign * (poly[:, :, axis] - bound)  # >= 0 inside
-            new = np.zeros_like(poly)
-            new_count = np.zeros_like(count)
             k = np.arange(most)
             valid = k[None, :] < count[:, None]
+            if np.all(dist[valid] >= 0):  # no corner beyond this plane: nothing to cut
+                continue
+            new = np.zeros_like(poly)
+            new_count = np.zeros_like(count)
             nxt = (k[None, :] + 1) % np.maximum(count[:, None], 1)
             p, q = poly, np.take_along_axis(poly, nxt[:, :, None], axis=1)
             dp, dq = dist, np.take_along_axis(dist, nxt, axis=1)
-            for j in range(most):
+            for j in range(int(count.max())):  # each plane adds at most one corner
                 v = valid[:, j]
                 # Keep p when inside; add the crossing when the edge p q crosses the plane.
                 keep_p = v & (dp[:, j] >= 0)
@@ -215,7 +220,7 @@ def clip_triangles(tris: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarr
                 new_count[rows] += 1
             poly, count = new, new_count
     fans = []
-    for j in range(1, most - 1):
+    for j in range(1, int(count.max(initial=0)) - 1):
         rows = np.flatnonzero(count > j + 1)
         fans.append(np.stack([poly[rows, 0], poly[rows, j], poly[rows, j + 1]], axis=1))
     parts = np.concatenate([keep, *fans])
