@@ -165,7 +165,12 @@ def test_dense_entry(tmp_path):
     entry = B.dense_entry(tmp_path / "dense.json")
     assert entry["status"] == "run"
     assert entry["rows"] == [{"system": "pycinder", "faces": 20000, "clash_s": 1.25}]
-    assert B._dense_lines(entry)[1] == "- system pycinder, faces 20000, clash_s 1.25"
+    assert B._dense_lines(entry)[-1] == "| system pycinder, faces 20000, clash_s 1.25 | | | | | |"
+    (tmp_path / "dense.json").write_text(json.dumps({"rows": [
+        {"case": "torus through sphere", "option": "min_depth", "first_s": 1.87, "s": 1.5,
+         "reported": True, "right": "yes (reported)"}]}))
+    assert B._dense_lines(B.dense_entry(tmp_path / "dense.json"))[-1] == \
+        "| torus through sphere | min_depth | 1.87 | 1.50 | yes | yes (reported) |"
     (tmp_path / "dense.json").write_text("{")
     assert B.dense_entry(tmp_path / "dense.json")["status"] == "unreadable"
 

@@ -458,9 +458,17 @@ def _dense_lines(dense: dict[str, Any] | None) -> list[str]:
     if dense["status"] != "run":
         why = dense.get("why") or f"no {dense.get('source')}"
         return [head + f"{dense['status']} ({why})."]
-    return [head + f"from `{Path(dense['source']).name}`:"] + [
-        "- " + ", ".join(f"{k} {v:,.4g}" if isinstance(v, float) else f"{k} {v}"
-                         for k, v in row.items()) for row in dense["rows"]]
+    lines = [head + f"from `{Path(dense['source']).name}`:", "",
+             "| case | query | first query s | prepared query s | reported | right |",
+             "|---|---|---:|---:|---|---|"]
+    for row in dense["rows"]:
+        if {"case", "option", "first_s", "s"} <= row.keys():
+            lines.append(f"| {row['case']} | {row['option']} | {row['first_s']:.2f} | "
+                         f"{row['s']:.2f} | {'yes' if row.get('reported') else 'no'} | "
+                         f"{row.get('right', '')} |")
+        else:  # a file of another shape: its plain values as they are
+            lines.append("| " + ", ".join(f"{k} {v}" for k, v in row.items()) + " | | | | | |")
+    return lines
 
 
 def markdown(r: dict[str, Any]) -> list[str]:
