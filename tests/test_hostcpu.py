@@ -80,3 +80,20 @@ def test_a_fresh_process_measures_this_checkout():
                              stages=False)
     assert [(r["scene"], r["planner"]) for r in rows] == [("two-small-prepared", "numpy")]
     assert "stages_ms" not in rows[0] and rows[0]["wgpu_calls"] > 0
+
+
+def test_the_floor_skeleton_runs_its_shader_and_is_measured():
+    """The floor's skeleton (upload, dispatches, a render bundle, one submission, one map)
+    really runs: its shader's answer is the largest body index; the measure reports its calls,
+    more with pycinder's watch than without, and a positive host CPU."""
+    from pycinder.benchmarks import hostfloor
+    from pycinder.gpu.device import get_gpu
+
+    skeleton = hostfloor.Skeleton(get_gpu().device, 300, 3, True, 64)
+    answer = skeleton.query()
+    assert answer[0] == 0 and answer[1] == 299
+    watched = hostfloor.measure(2, 2, False, 64, True, batches=2, per_batch=3)
+    bare = hostfloor.measure(2, 2, False, 64, False, batches=2, per_batch=3)
+    assert watched["cpu_ms"] > 0 and bare["cpu_ms"] > 0
+    assert watched["calls"] > bare["calls"] >= 13
+    assert "| 2 | 2 | no | 64 | yes |" in "\n".join(hostfloor.markdown_lines([watched], "x"))
