@@ -214,9 +214,11 @@ def markdown_lines(rows: Sequence[dict[str, Any]], adapter: str) -> list[str]:
              "wgpu-py calls |",
              "|---:|---:|---|---:|---|---:|---:|---:|---:|---:|"]
     for r in rows:
-        lines.append(f"| {r['bodies']:,} | {r['dispatches']} | {'yes' if r['bundle'] else 'no'} "
-                     f"| {r['answer_bytes']:,} | {'yes' if r['watched'] else 'no'} | {r['cpu_ms']:.3f} | {r['main_ms']:.3f} | "
-                     f"{r['other_ms']:.3f} | {r['wall_ms']:.3f} | {r['calls']} |")
+        yes = {True: "yes", False: "no"}
+        lines.append(f"| {r['bodies']:,} | {r['dispatches']} | {yes[r['bundle']]} | "
+                     f"{r['answer_bytes']:,} | {yes[r['watched']]} | {r['cpu_ms']:.3f} | "
+                     f"{r['main_ms']:.3f} | {r['other_ms']:.3f} | {r['wall_ms']:.3f} | "
+                     f"{r['calls']} |")
     return lines
 
 
