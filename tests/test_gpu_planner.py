@@ -152,7 +152,7 @@ def test_random_scenes_against_exact_geometry(gpu_detector, n, seed, size):
     result = gpu_detector.find_collisions(meshes, transforms)
     assert 0 < result.stats.waited_ms < result.stats.submitted_ms
     assert_matches_truth(result.pairs, truth, context=f"{n} bodies, seed {seed}, size {size}")
-    other = pycinder.Detector().find_collisions(meshes, transforms)
+    other = pycinder.Detector(planner="numpy").find_collisions(meshes, transforms)
     assert {tuple(p) for p in other.pairs.tolist()} ^ {tuple(p) for p in result.pairs.tolist()} \
         <= {tuple(p) for p in truth.ambiguous.tolist()}
 
@@ -315,3 +315,32 @@ def test_two_queries_in_flight_keep_their_own_tiles():
     assert second.result().stats.tiles > 2 * first.result().stats.tiles
     assert_matches_truth(first.result().pairs, ground_truth(small, small_t), context="first")
     assert_matches_truth(second.result().pairs, ground_truth(large, large_t), context="second")
+
+
+def test_auto_plans_on_the_gpu_from_its_pair_count(monkeypatch):
+    """``planner="auto"`` (the default) plans on the GPU from ``GPU_PLANNER_PAIRS`` candidate
+    pairs (the CPU adapter's count on a CPU adapter), on the host below it and for a query that
+    stops at its first pair; ``stats.planner`` says which, and the pairs are those of the NumPy
+    planner, right against the truth."""
+    import pycinder.request as request
+
+    gpu = get_gpu()
+    key = "cpu" if gpu.cpu_adapter else "gpu"
+    meshes, transforms = random_scene(24, 4)
+    reference = pycinder.Detector(planner="numpy").find_collisions(meshes, transforms)
+    pairs = reference.stats.candidates
+    assert pairs >= 4
+    for threshold, where in ((pairs, "gpu"), (pairs + 1, "numpy")):
+        monkeypatch.setitem(request.GPU_PLANNER_PAIRS, key, threshold)
+        result = pycinder.Detector().find_collisions(meshes, transforms)
+        assert result.stats.planner == where
+        assert result.pairs.tolist() == reference.pairs.tolist()
+    assert reference.stats.planner == "numpy"
+    assert pycinder.Detector(planner="gpu").find_collisions(meshes, transforms).stats.planner \
+        == "gpu"
+    monkeypatch.setitem(request.GPU_PLANNER_PAIRS, key, 0)  # stops at its first: the host's
+    assert pycinder.Detector().in_collision(meshes, transforms) == (len(reference.pairs) > 0)
+    assert_matches_truth(reference.pairs, ground_truth(meshes, transforms))
+    with pytest.raises(ValueError, match="planner applies to strategy='focused'"):
+        pycinder.Detector(strategy="scene", planner="gpu")
+    assert pycinder.Detector(strategy="scene").request.planner == "auto"

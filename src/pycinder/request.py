@@ -72,12 +72,20 @@ READBACK_MODES = ("compact", "full", "mipmap", "adaptive")
 ENCODINGS = ("edge", "normal")
 RECORD_MODES = ("found", "all", "none")
 BROAD_PHASES = ("auto", "gpu", "numpy")
-PLANNERS = ("numpy", "gpu")
+PLANNERS = ("auto", "numpy", "gpu")
 
 GPU_BROAD_PHASE_BODIES = 2000
 """Bodies from which ``broad_phase="auto"`` finds the candidate pairs on the GPU: below that the
 GPU saves nothing and costs a second round trip (the measurements are in the benchmarks'
 README, "Measurements behind the constants")."""
+
+GPU_PLANNER_PAIRS = {"gpu": 250, "cpu": 1000}
+"""Candidate pairs from which ``planner="auto"`` plans the tiles on the GPU, on a GPU and on a CPU
+adapter (lavapipe, llvmpipe): below that its second submission and map cost more than planning on
+the host saves. Measured with ``python -m pycinder.benchmarks.hostcpu --planner-sweep`` on
+ManyBodies scenes (``benchmarks/results/hostcpu.md``, "Which planner"): on an NVIDIA H200 the GPU
+planner's frame is as fast from 236 pairs and 1.7 times as fast from 4,559; on lavapipe as fast
+from 1,009 pairs and slower at 236."""
 
 FOUND_RECORDS_PER_PAIR = 16
 """Records kept per pair with ``records="found"`` (the first samples found)."""
@@ -195,13 +203,15 @@ class CollisionRequest:
         which the tile planner then separates. ``"numpy"``: a vectorised sweep on the host.
         ``"auto"`` (default): the GPU from :data:`GPU_BROAD_PHASE_BODIES` bodies. The pairs
         reported are the same.
-    planner : {"numpy", "gpu"}
-        Focused strategy: where the tiles are planned. ``"numpy"`` (default): on the host, in
-        float64. ``"gpu"``: compute passes plan every pair's view and window and pack the atlas
+    planner : {"auto", "numpy", "gpu"}
+        Focused strategy: where the tiles are planned. ``"numpy"``: on the host, in float64.
+        ``"gpu"``: compute passes plan every pair's view and window and pack the atlas
         (:class:`pycinder.focused.plan.gpu.GpuPlanner`), one more submission and map per query; a
         plan equals the host's up to single precision's rounding, relative to each pair's own
-        extent (see :mod:`pycinder.focused.plan.gpu`). A query that stops at its first pair plans
-        on the host.
+        extent (see :mod:`pycinder.focused.plan.gpu`). ``"auto"`` (default): the GPU from
+        :data:`GPU_PLANNER_PAIRS` candidate pairs (fewer on a GPU than on a CPU adapter), where
+        its frame was measured as fast or faster, else the host. A query that stops at its first
+        pair plans on the host. ``result.stats.planner`` says which planned.
     records : {"found", "all", "none"}, optional
         Focused strategy: ``"found"`` (default) stops testing a pair as soon as one of its tiles
         found it colliding (large windows are probed at their centre first) and returns the
@@ -246,7 +256,7 @@ class CollisionRequest:
     timeout: float = DEFAULT_TIMEOUT
     max_pixels: int = DEFAULT_MAX_PIXELS
     broad_phase: str = "auto"
-    planner: str = "numpy"
+    planner: str = "auto"
     contacts: bool = False
     clearance: float | None = None
     min_depth: float | None = None
@@ -285,7 +295,7 @@ class CollisionRequest:
         if self.broad_phase != "auto":
             raise ValueError("broad_phase applies to strategy='focused'; the scene strategy "
                              "draws every body in one image, with no broad phase")
-        if self.planner != "numpy":
+        if self.planner not in ("auto", "numpy"):
             raise ValueError("planner applies to strategy='focused'; the scene strategy draws "
                              "every body in one image, with no tiles to plan")
         if self.resolution is None:
@@ -308,6 +318,13 @@ class CollisionRequest:
         """Whether a focused query of ``bodies`` bodies finds its candidate pairs on the GPU."""
         return self.broad_phase == "gpu" or (self.broad_phase == "auto"
                                              and bodies >= GPU_BROAD_PHASE_BODIES)
+
+    def gpu_planner(self, pairs: int, cpu_adapter: bool) -> bool:
+        """Whether a focused query of ``pairs`` candidate pairs plans its tiles on the GPU (on a
+        CPU adapter where ``cpu_adapter``; see :data:`GPU_PLANNER_PAIRS`)."""
+        if self.planner != "auto":
+            return self.planner == "gpu"
+        return pairs >= GPU_PLANNER_PAIRS["cpu" if cpu_adapter else "gpu"]
 
     @property
     def max_bodies(self) -> int:

@@ -29,6 +29,8 @@ class FocusedStats:
     """Pairs whose world boxes overlap (the broad phase's answer)."""
     broad_phase: str = ""
     """Where the candidates were found: "numpy" or "gpu" (see the request's ``broad_phase``)."""
+    planner: str = ""
+    """Where the tiles were planned: "numpy" or "gpu" (see the request's ``planner``)."""
     separated: int = 0
     """Candidates dropped because their oriented boxes are apart along some axis."""
     tiles: int = 0

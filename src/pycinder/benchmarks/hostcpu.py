@@ -613,6 +613,43 @@ def comparison_lines(result: dict[str, list[dict[str, Any]]]) -> list[str]:
     return out
 
 
+SWEEP_SIZES = (60, 250, 1000, 2000)
+"""Bodies of the ManyBodies scenes :func:`planner_sweep` measures."""
+
+
+def planner_sweep(sizes: Sequence[int] = SWEEP_SIZES, *, repeats: int = 5, batch: int = 3
+                  ) -> list[dict[str, Any]]:
+    """Frame wall time and host CPU of both planners on prepared ManyBodies scenes of ``sizes``
+    bodies (alternating batch by batch, :func:`measure`): what ``planner="auto"`` chooses by.
+
+    Returns
+    -------
+    list of dict
+        :func:`measure`'s rows (no stages), with ``bodies`` and ``candidates``.
+    """
+    from .scenes import ManyBodies
+
+    rows: list[dict[str, Any]] = []
+    for n in sizes:
+        case = Case(f"many-{n}", f"{n} rigid bodies (ManyBodies), prepared", 0.0,
+                    _rigid(lambda n=n: ManyBodies(n)))
+        rows += measure(case, PLANNERS, repeats=repeats, batch=batch, stages=False, counted=1)
+    return rows
+
+
+def sweep_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """:func:`planner_sweep`'s rows as a Markdown table, the planners side by side."""
+    out = ["| bodies | candidate pairs | tiles | frame wall ms, numpy | gpu | host CPU ms, numpy "
+           "| gpu |", "|---:|---:|---:|---:|---:|---:|---:|"]
+    by = {(r["scene"], r["planner"]): r for r in rows}
+    for scene in dict.fromkeys(r["scene"] for r in rows):
+        n, g = by[(scene, "numpy")], by[(scene, "gpu")]
+        out.append(f"| {n['bodies']:,} | {n['candidates']:,} | {n['tiles']:,} | "
+                   f"{_ms(n['wall_ms'])} | {_ms(g['wall_ms'])} | {_ms(n['host_cpu_ms'])} | "
+                   f"{_ms(g['host_cpu_ms'])} |")
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     p = argparse.ArgumentParser(prog="python -m pycinder.benchmarks.hostcpu",
                                 description=__doc__.split("\n\n")[0])
@@ -628,8 +665,17 @@ def main(argv: Sequence[str] | None = None) -> None:
                    "and this one in alternating fresh processes")
     p.add_argument("--rounds", type=int, default=3, help="processes per checkout (--against)")
     p.add_argument("--json", metavar="PATH", help="write the rows as JSON ('-': stdout)")
+    p.add_argument("--planner-sweep", nargs="*", type=int, metavar="N",
+                   help="instead: both planners' frame wall and host CPU on ManyBodies scenes of "
+                        f"N bodies (default {' '.join(map(str, SWEEP_SIZES))})")
     a = p.parse_args(argv)
     say = (lambda msg: print(msg, file=sys.stderr, flush=True))
+    if a.planner_sweep is not None:
+        rows = planner_sweep(a.planner_sweep or SWEEP_SIZES)
+        if a.json:
+            Path(a.json).write_text(json.dumps(rows, indent=1))
+        print("\n".join(sweep_lines(rows)))
+        return
     if a.against:
         result = compare(a.against, a.scenes, a.planners, rounds=a.rounds, repeats=a.repeats,
                          batch=a.batch, progress=say)

@@ -167,7 +167,9 @@ class FocusedStrategy:
         gpu_tiles = None
         # A query that stops at its first pair plans on the host: its lead pairs, and the flag
         # that stops the GPU, are the host's.
-        planned_on_gpu = self.request.planner == "gpu" and not stop_at_first
+        planned_on_gpu = not stop_at_first and self.request.gpu_planner(len(pairs),
+                                                                        self.gpu.cpu_adapter)
+        stats.planner = "gpu" if planned_on_gpu else "numpy"
         if planned_on_gpu:
             if self._planner is None:
                 from .plan.gpu import GpuPlanner

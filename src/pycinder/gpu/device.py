@@ -84,6 +84,14 @@ class Gpu:
         info = self.adapter.info
         return f"{info['device']} ({info['backend_type']}, {info['adapter_type']})"
 
+    @property
+    def cpu_adapter(self) -> bool:
+        """Whether the adapter runs on the CPU: its type says so, or it is Mesa's llvmpipe
+        (lavapipe on Vulkan; on OpenGL the type may be unknown)."""
+        info = self.adapter.info
+        return (str(info.get("adapter_type", "")).lower() == "cpu"
+                or str(info.get("device", "")).lower().startswith("llvmpipe"))
+
 
 class _Fork:
     """What this process knows of forks: how many it has gone through (a detector made before one
