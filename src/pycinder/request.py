@@ -84,7 +84,7 @@ GPU_PLANNER_PAIRS = {"gpu": 250, "cpu": 1000}
 adapter (lavapipe, llvmpipe): below that its second submission and map cost more than planning on
 the host saves. Measured with ``python -m pycinder.benchmarks.hostcpu --planner-sweep`` on
 ManyBodies scenes (``benchmarks/results/hostcpu.md``, "Which planner"): on an NVIDIA H200 the GPU
-planner's frame is as fast from 236 pairs and 1.7 times as fast from 4,559; on lavapipe as fast
+planner's frame is as fast from 236 pairs and 1.6-1.7 times as fast from 4,559; on lavapipe as fast
 from 1,009 pairs and slower at 236."""
 
 FOUND_RECORDS_PER_PAIR = 16
