@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import re
 import subprocess
 import sys
@@ -23,6 +22,7 @@ from pycinder.bim import ifc  # noqa: E402
 from pycinder.bim.groups import group_clashes, pair_key, topic_guid  # noqa: E402
 from pycinder.bim.tracking import track  # noqa: E402
 from pycinder.cli import main  # noqa: E402
+from pycinder.util.environ import path_first  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -278,7 +278,7 @@ def _rendering(*argv) -> tuple[int, str, str]:
     """``pycinder check`` in a process of its own: pictures are rendered by pygfx on wgpu's
     default device, which the demos (tested in this process too) configure for themselves."""
     done = subprocess.run([sys.executable, "-m", "pycinder", "check", *map(str, argv)],
-                          env={**os.environ, "PYTHONPATH": str(ROOT / "src")},
+                          env=path_first(ROOT / "src"),
                           capture_output=True, text=True, timeout=600)
     return done.returncode, done.stdout, done.stderr
 
@@ -406,7 +406,7 @@ def test_bad_options_are_named(runs, capsys, tmp_path):
 
 
 def _check(args: list[str], folder: Path) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    env = path_first(ROOT / "src")
     return subprocess.run([sys.executable, "-m", "pycinder", "check", *args], cwd=folder,
                           env=env, capture_output=True, text=True, timeout=300)
 

@@ -97,3 +97,18 @@ def test_the_floor_skeleton_runs_its_shader_and_is_measured():
     assert watched["cpu_ms"] > 0 and bare["cpu_ms"] > 0
     assert watched["calls"] > bare["calls"] >= 13
     assert "| 2 | 2 | no | 64 | yes |" in "\n".join(hostfloor.markdown_lines([watched], "x"))
+
+
+def test_a_child_process_finds_this_ones_python_path_after_the_tree(monkeypatch):
+    """The fresh processes of the benchmarks import the tree given first and still find what
+    this process finds on its PYTHONPATH (wheels installed with ``--target`` on a machine without
+    a package index): the GPU machine's run of the fresh-process test lost wgpu without it."""
+    import os
+
+    from pycinder.util.environ import path_first
+
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(["/opt/site", "", "/opt/more"]))
+    assert path_first("/tree/src").get("PYTHONPATH", "").split(os.pathsep) == \
+        ["/tree/src", "/opt/site", "/opt/more"]
+    monkeypatch.delenv("PYTHONPATH")
+    assert path_first("/a", "/b")["PYTHONPATH"] == os.pathsep.join(["/a", "/b"])

@@ -9,7 +9,6 @@ circle at all. The same checks run on a copy of the package with one circle adde
 
 from __future__ import annotations
 
-import os
 import shutil
 import subprocess
 import sys
@@ -19,6 +18,8 @@ import grimp
 import networkx as nx
 import pytest
 
+from pycinder.util.environ import path_first
+
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "src" / "pycinder"
 
@@ -26,14 +27,6 @@ MOST_LINES = 800
 """Most lines of one module of the package."""
 MOST_TOP_MODULES = 15
 """Most modules directly in ``src/pycinder/`` (the rest live in subpackages)."""
-
-
-def path_first(*first: Path) -> dict[str, str]:
-    """This process's environment with ``first`` ahead of its own ``PYTHONPATH`` entries: a
-    package found there wins, and what this process imports from its ``PYTHONPATH`` (such as
-    import-linter, where it was installed there) is still found."""
-    kept = [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
-    return {**os.environ, "PYTHONPATH": os.pathsep.join([*map(str, first), *kept])}
 
 
 def lint_imports(cwd: Path, pythonpath: Path | None = None) -> subprocess.CompletedProcess:

@@ -40,6 +40,8 @@ from typing import Any
 
 import numpy as np
 
+from ..util.environ import path_first
+
 D = 0.01
 """``min_depth`` of the hard-clash queries (1% of the spheres' radius)."""
 C = 0.1
@@ -201,7 +203,7 @@ def before(cases: list[Case], source: str, timeout: float) -> list[dict[str, Any
             arrays[f"t{k}"] = case.transforms
         data, out = Path(folder) / "cases.npz", Path(folder) / "out.json"
         np.savez(data, **arrays)
-        env = {**os.environ, "PYTHONPATH": str(Path(source) / "src")}
+        env = path_first(Path(source) / "src")
         subprocess.run([sys.executable, "-c", _BEFORE, str(data), str(out)], env=env,
                        check=True, timeout=timeout)
         return json.loads(out.read_text())

@@ -39,7 +39,6 @@ import contextlib
 import importlib
 import importlib.util
 import json
-import os
 import statistics
 import subprocess
 import sys
@@ -52,6 +51,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from ..util.environ import path_first
 
 # -- clocks -------------------------------------------------------------------------------------
 
@@ -480,7 +481,7 @@ def run_fresh(names: Sequence[str] | None = None, planners: Sequence[str] = PLAN
             "--planners", *planners, "--scenes", *(names or list(CASES))]
     if not stages:
         args.append("--no-stages")
-    env = {**os.environ, "PYTHONPATH": src}
+    env = path_first(src)
     out = subprocess.run([sys.executable, "-c", _BOOT, src, str(Path(__file__).resolve()),
                           *args], capture_output=True, text=True, env=env, check=False)
     if out.returncode != 0:
