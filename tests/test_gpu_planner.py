@@ -327,6 +327,7 @@ def test_auto_plans_on_the_gpu_from_its_pair_count(monkeypatch):
     gpu = get_gpu()
     key = "cpu" if gpu.cpu_adapter else "gpu"
     meshes, transforms = random_scene(24, 4)
+    truth = ground_truth(meshes, transforms)
     reference = pycinder.Detector(planner="numpy").find_collisions(meshes, transforms)
     pairs = reference.stats.candidates
     assert pairs >= 4
@@ -334,13 +335,16 @@ def test_auto_plans_on_the_gpu_from_its_pair_count(monkeypatch):
         monkeypatch.setitem(request.GPU_PLANNER_PAIRS, key, threshold)
         result = pycinder.Detector().find_collisions(meshes, transforms)
         assert result.stats.planner == where
-        assert result.pairs.tolist() == reference.pairs.tolist()
+        # The planners may round a close decision differently: only in the contract's band.
+        assert {tuple(p) for p in result.pairs.tolist()} ^ \
+            {tuple(p) for p in reference.pairs.tolist()} <= \
+            {tuple(p) for p in truth.ambiguous.tolist()}
     assert reference.stats.planner == "numpy"
     assert pycinder.Detector(planner="gpu").find_collisions(meshes, transforms).stats.planner \
         == "gpu"
     monkeypatch.setitem(request.GPU_PLANNER_PAIRS, key, 0)  # stops at its first: the host's
     assert pycinder.Detector().in_collision(meshes, transforms) == (len(reference.pairs) > 0)
-    assert_matches_truth(reference.pairs, ground_truth(meshes, transforms))
+    assert_matches_truth(reference.pairs, truth)
     with pytest.raises(ValueError, match="planner applies to strategy='focused'"):
         pycinder.Detector(strategy="scene", planner="gpu")
     assert pycinder.Detector(strategy="scene").request.planner == "auto"
