@@ -90,13 +90,19 @@ def test_the_floor_skeleton_runs_its_shader_and_is_measured():
     from pycinder.gpu.device import get_gpu
 
     skeleton = hostfloor.Skeleton(get_gpu().device, 300, 3, True, 64)
-    answer = skeleton.query()
-    assert answer[0] == 0 and answer[1] == 299
+    for direct in (False, True, False):
+        answer = skeleton.query(direct=direct)
+        assert answer[0] == 0 and answer[1] == 299
     watched = hostfloor.measure(2, 2, False, 64, True, batches=2, per_batch=3)
     bare = hostfloor.measure(2, 2, False, 64, False, batches=2, per_batch=3)
-    assert watched["cpu_ms"] > 0 and bare["cpu_ms"] > 0
+    direct = hostfloor.measure(2, 2, False, 64, True, True, batches=2, per_batch=3)
+    assert watched["cpu_ms"] > 0 and bare["cpu_ms"] > 0 and direct["cpu_ms"] > 0
     assert watched["calls"] > bare["calls"] >= 13
-    assert "| 2 | 2 | no | 64 | yes |" in "\n".join(hostfloor.markdown_lines([watched], "x"))
+    # the watch copies its marker through the C functions: five calls a submission
+    assert bare["direct_calls"] == 0 < watched["direct_calls"] < direct["direct_calls"]
+    assert watched["direct_calls"] % 5 == 0
+    lines = "\n".join(hostfloor.markdown_lines([watched, direct], "x"))
+    assert "| 2 | 2 | no | 64 | yes | no |" in lines and "| 2 | 2 | no | 64 | yes | yes |" in lines
 
 
 def test_a_child_process_finds_this_ones_python_path_after_the_tree(monkeypatch):

@@ -130,7 +130,10 @@ def count_wgpu_calls(device: Any) -> Iterator[dict[str, int]]:
     for name, fn in native:
         setattr(lib, name, _counted_native(fn, counts, threading.get_ident()))
     try:
-        yield counts
+        with _direct_calls() as direct:
+            yield counts
+        for name, n in direct.items():
+            counts[f"C {name}"] = counts.get(f"C {name}", 0) + n
     finally:
         for cls, name, old in patched:
             if old is None:
@@ -139,6 +142,16 @@ def count_wgpu_calls(device: Any) -> Iterator[dict[str, int]]:
                 setattr(cls, name, old)
         for name, fn in native:
             setattr(lib, name, fn)
+
+
+def _direct_calls() -> contextlib.AbstractContextManager:
+    """Counts of the C functions pycinder calls itself (:func:`pycinder.gpu.native.counting`);
+    nothing in a checkout without them (measured with ``--against``)."""
+    try:
+        from ..gpu import native
+    except ImportError:
+        return contextlib.nullcontext({})
+    return native.counting()
 
 
 def _counted(fn: Callable, key: str, counts: dict[str, int]) -> Callable:
@@ -160,12 +173,17 @@ def _counted_native(fn: Callable, counts: dict[str, int], thread: int) -> Callab
 
 
 def summarise_calls(counts: dict[str, int], queries: int) -> dict[str, Any]:
-    """Per query: API calls, native calls, submissions, maps, and the calls by method."""
+    """Per query: GPU API calls (wgpu-py's methods and the C functions pycinder calls itself,
+    ``"C name"``), the latter alone, native calls, submissions, maps, and the calls by method."""
     api = {k: v for k, v in counts.items() if k != "native"}
+    direct = sum(v for k, v in api.items() if k.startswith("C "))
+    maps = sum(v for k, v in api.items()
+               if k.startswith("GPUBuffer.map") or k == "C wgpuBufferMapAsync")
     return {"wgpu_calls": sum(api.values()) / queries,
+            "direct_calls": direct / queries,
             "native_calls": counts.get("native", 0) / queries,
             "submissions": sum(v for k, v in api.items() if k == "GPUQueue.submit") / queries,
-            "maps": sum(v for k, v in api.items() if k.startswith("GPUBuffer.map")) / queries,
+            "maps": maps / queries,
             "by_method": {k: v / queries for k, v in sorted(api.items(), key=lambda kv: -kv[1])}}
 
 
@@ -521,7 +539,8 @@ def _merge(runs: list[list[dict[str, Any]]]) -> list[dict[str, Any]]:
     merged = []
     for i, row in enumerate(runs[0]):
         out = dict(row)
-        for key in ("host_cpu_ms", "wall_ms", "wgpu_calls", "native_calls", "copy_ms"):
+        for key in ("host_cpu_ms", "wall_ms", "wgpu_calls", "direct_calls", "native_calls",
+                    "copy_ms"):
             if key not in row:
                 continue
             values = [rows[i][key] for rows in runs]
@@ -540,9 +559,10 @@ HOW = ("Host CPU per query: the CPU time of every Python thread of the process (
        "thread, pycinder's worker pool, wgpu-py's poll thread), each read on its own CPU clock "
        "before and after each query, summed; the GPU driver's threads are not Python threads, "
        "and a thread that waits uses no CPU, so neither counts. The median over batches of the "
-       "batch's mean; frame wall: the median query's wall time. wgpu-py calls: public methods "
-       "of wgpu-py's objects called from outside wgpu-py, per query; native calls: the C "
-       "functions wgpu-py calls for them on the calling thread. Stages: the same clocks read "
+       "batch's mean; frame wall: the median query's wall time. GPU API calls: public methods "
+       "of wgpu-py's objects called from outside wgpu-py, and the C functions of wgpu-native "
+       "pycinder calls itself (`pycinder.gpu.native`; in brackets), per query; native calls: "
+       "the C functions wgpu-py calls for its methods on the calling thread. Stages: the same clocks read "
        "at the entry and exit of the query's stages, each moment charged to the innermost "
        "(`pycinder.benchmarks.hostcpu.STAGES`). The targets are those of the GPU-resident "
        "query.")
@@ -556,12 +576,13 @@ def _ms(x: float) -> str:
 def markdown_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
     """The table of :func:`run`'s rows, then each row's stages, as Markdown lines."""
     out = [("| scene | planner | host CPU ms/query | target | met | frame wall ms | "
-            "wgpu-py calls/query | native calls/query | submissions | maps | candidates | "
-            "tiles |"), "|" + "---|" * 12]
+            "GPU API calls/query (C direct) | native calls/query | submissions | maps | "
+            "candidates | tiles |"), "|" + "---|" * 12]
     for r in rows:
         out.append(f"| {r['scene']} | {r['planner']} | {_ms(r['host_cpu_ms'])} | "
                    f"{r['target_ms']:g} | {'yes' if r['host_cpu_ms'] <= r['target_ms'] else 'no'}"
-                   f" | {_ms(r['wall_ms'])} | {r['wgpu_calls']:.0f} | {r['native_calls']:.0f} | "
+                   f" | {_ms(r['wall_ms'])} | {r['wgpu_calls']:.0f} "
+                   f"({r.get('direct_calls', 0):.0f}) | {r['native_calls']:.0f} | "
                    f"{r['submissions']:g} | {r['maps']:g} | {r['candidates']} | {r['tiles']} |")
     staged_rows = [r for r in rows if r.get("stages_ms")]
     if staged_rows:
@@ -606,7 +627,7 @@ def validation_lines(rows: Sequence[dict[str, Any]],
 def comparison_lines(result: dict[str, list[dict[str, Any]]]) -> list[str]:
     """Before and after (:func:`compare`) side by side, as Markdown lines."""
     out = [("| scene | planner | host CPU ms before | after | frame wall ms before | after | "
-            "wgpu-py calls before | after |"), "|" + "---|" * 8]
+            "GPU API calls before | after |"), "|" + "---|" * 8]
     for b, a in zip(result["before"], result["after"]):
         out.append(f"| {a['scene']} | {a['planner']} | {_ms(b['host_cpu_ms'])} | "
                    f"{_ms(a['host_cpu_ms'])} | {_ms(b['wall_ms'])} | {_ms(a['wall_ms'])} | "

@@ -31,7 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from .hostcpu import count_wgpu_calls, cpu_by_group, cpu_ms, python_thread_clocks
+from .hostcpu import (count_wgpu_calls, cpu_by_group, cpu_ms, python_thread_clocks,
+                      summarise_calls)
 
 SHADER = """
 struct Params { count: u32, pad0: u32, pad1: u32, pad2: u32 }
@@ -56,13 +57,18 @@ DRAW = """
 @fragment fn fs() -> @location(0) vec4<u32> { return vec4<u32>(1u, 2u, 3u, 4u); }
 """
 
-CONFIGS = ((2, 1, False, 64, True), (2, 1, False, 64, False), (2, 8, False, 64, True),
-           (2, 32, False, 64, True), (2, 32, False, 64, False), (1000, 32, False, 64, True),
-           (1000, 32, True, 64, True), (1000, 32, True, 65536, True))
-"""(bodies, dispatches, bundle, answer bytes, watched): a two-body query of the fewest passes,
-fixed frames of 8 and 32 compute passes, then 1000 bodies' transforms, a render pass replaying a
-bundle, and a 64 KiB answer; on pycinder's device (watched: every submission noted and followed
-by a marker copy, :mod:`pycinder.gpu.watch`) or on a device of the same adapter without it."""
+CONFIGS = ((2, 1, False, 64, True, False), (2, 1, False, 64, False, False),
+           (2, 8, False, 64, True, False), (2, 32, False, 64, True, False),
+           (2, 32, False, 64, False, False), (1000, 32, False, 64, True, False),
+           (1000, 32, True, 64, True, False), (1000, 32, True, 65536, True, False),
+           (2, 1, False, 64, True, True), (2, 8, False, 64, True, True),
+           (2, 32, False, 64, True, True), (1000, 32, True, 65536, True, True))
+"""(bodies, dispatches, bundle, answer bytes, watched, direct): a two-body query of the fewest
+passes, fixed frames of 8 and 32 compute passes, then 1000 bodies' transforms, a render pass
+replaying a bundle, and a 64 KiB answer; on pycinder's device (watched: every submission noted
+and followed by a marker copy, :mod:`pycinder.gpu.watch`) or on a device of the same adapter
+without it; through wgpu-py, or (direct) with the compute pass, the copy and the map recorded
+through wgpu-native's C functions as pycinder records them (:mod:`pycinder.gpu.native`)."""
 
 
 class Skeleton:
@@ -124,14 +130,17 @@ class Skeleton:
             recorder.draw(4)
             self.render = (target.create_view(), recorder.finish())
 
-    def query(self, timeout: float = 10.0) -> np.ndarray:
-        """One query: upload, encode, submit, map and read the answer (uint32)."""
+    def query(self, timeout: float = 10.0, direct: bool = False) -> np.ndarray:
+        """One query: upload, encode, submit, map and read the answer (uint32); ``direct``:
+        the compute pass, the copy and the map through wgpu-native's C functions, as pycinder
+        records them (:mod:`pycinder.gpu.native`)."""
         import wgpu
 
+        from ..gpu import native
         from ..gpu.watch import wait_for
 
         self.queue.write_buffer(self.upload, 0, self.transforms)
-        encoder = self.device.create_command_encoder()
+        encoder = native.encoder(self.device) if direct else self.device.create_command_encoder()
         compute = encoder.begin_compute_pass()
         for group in self.bind_groups:
             compute.set_pipeline(self.pipeline)
@@ -147,6 +156,13 @@ class Skeleton:
             draw.end()
         encoder.copy_buffer_to_buffer(self.answer, 0, self.staging, 0, self.answer_bytes)
         self.queue.submit([encoder.finish()])
+        pending = native.map_read(self.device, self.staging, self.answer_bytes) if direct \
+            else None
+        if pending is not None:
+            if not wait_for(pending, timeout):
+                pending.abandon()
+                raise TimeoutError(f"the GPU did not answer within {timeout} s")
+            return pending.read(np.uint32)
         promise = self.staging.map_async(wgpu.MapMode.READ, 0, self.answer_bytes)
         if not wait_for(promise, timeout):
             raise TimeoutError(f"the GPU did not answer within {timeout} s")
@@ -169,29 +185,33 @@ def _raw_device() -> Any:
 
 
 def measure(bodies: int, dispatches: int, bundle: bool, answer_bytes: int,
-            watched: bool = True, *, batches: int = 9, per_batch: int = 20) -> dict[str, Any]:
+            watched: bool = True, direct: bool = False, *, batches: int = 9,
+            per_batch: int = 20) -> dict[str, Any]:
     """Host CPU per query of a :class:`Skeleton` (median over ``batches`` of ``per_batch``
     queries' mean, after a warm-up), by thread group, with its wall time and wgpu-py calls
-    (pycinder's device where ``watched``, else one of its adapter without the watch).
+    (pycinder's device where ``watched``, else one of its adapter without the watch; through
+    the C functions where ``direct``).
 
     Returns
     -------
     dict
-        ``bodies``, ``dispatches``, ``bundle``, ``answer_bytes``, ``watched``, ``cpu_ms``,
-        ``main_ms``, ``other_ms`` (Python threads other than the calling one: wgpu-py's poll
-        thread), ``wall_ms`` and ``calls`` (wgpu-py calls per query, the watch's own included).
+        ``bodies``, ``dispatches``, ``bundle``, ``answer_bytes``, ``watched``, ``direct``,
+        ``cpu_ms``, ``main_ms``, ``other_ms`` (Python threads other than the calling one:
+        wgpu-py's poll thread), ``wall_ms``, ``calls`` (GPU API calls per query: wgpu-py's
+        methods and the C functions called directly, the watch's own included) and
+        ``direct_calls`` (the latter alone).
     """
     from ..gpu.device import get_gpu
 
     device = get_gpu().device if watched else _raw_device()
     skeleton = Skeleton(device, bodies, dispatches, bundle, answer_bytes)
     for _ in range(5):
-        skeleton.query()
+        skeleton.query(direct=direct)
     cpu, main, other, wall = [], [], [], []
     for _ in range(batches):
         before, t0 = python_thread_clocks(), time.perf_counter()
         for _ in range(per_batch):
-            skeleton.query()
+            skeleton.query(direct=direct)
         after, t1 = python_thread_clocks(), time.perf_counter()
         groups = cpu_by_group(before, after)
         cpu.append(cpu_ms(before, after) / per_batch)
@@ -199,26 +219,29 @@ def measure(bodies: int, dispatches: int, bundle: bool, answer_bytes: int,
         other.append(groups.get("other Python threads", 0.0) / per_batch)
         wall.append((t1 - t0) * 1e3 / per_batch)
     with count_wgpu_calls(device) as counts:
-        skeleton.query()
+        skeleton.query(direct=direct)
+    calls = summarise_calls(counts, 1)
     return {"bodies": bodies, "dispatches": dispatches, "bundle": bundle,
-            "answer_bytes": answer_bytes, "watched": watched, "cpu_ms": statistics.median(cpu),
+            "answer_bytes": answer_bytes, "watched": watched, "direct": direct,
+            "cpu_ms": statistics.median(cpu),
             "main_ms": statistics.median(main), "other_ms": statistics.median(other),
-            "wall_ms": statistics.median(wall), "calls": sum(counts.values())}
+            "wall_ms": statistics.median(wall), "calls": calls["wgpu_calls"],
+            "direct_calls": calls["direct_calls"]}
 
 
 def markdown_lines(rows: Sequence[dict[str, Any]], adapter: str) -> list[str]:
     """The rows as a Markdown table, with the adapter."""
     lines = [f"Adapter: {adapter}.", "",
              "| bodies | compute dispatches | render bundle | answer bytes | watched device | "
-             "host CPU ms/query | calling thread ms | other Python threads ms | wall ms | "
-             "wgpu-py calls |",
-             "|---:|---:|---|---:|---|---:|---:|---:|---:|---:|"]
+             "C functions direct | host CPU ms/query | calling thread ms | "
+             "other Python threads ms | wall ms | GPU API calls (C direct) |",
+             "|---:|---:|---|---:|---|---|---:|---:|---:|---:|---:|"]
     for r in rows:
         yes = {True: "yes", False: "no"}
         lines.append(f"| {r['bodies']:,} | {r['dispatches']} | {yes[r['bundle']]} | "
-                     f"{r['answer_bytes']:,} | {yes[r['watched']]} | {r['cpu_ms']:.3f} | "
-                     f"{r['main_ms']:.3f} | {r['other_ms']:.3f} | {r['wall_ms']:.3f} | "
-                     f"{r['calls']} |")
+                     f"{r['answer_bytes']:,} | {yes[r['watched']]} | {yes[r['direct']]} | "
+                     f"{r['cpu_ms']:.3f} | {r['main_ms']:.3f} | {r['other_ms']:.3f} | "
+                     f"{r['wall_ms']:.3f} | {r['calls']:g} ({r['direct_calls']:g}) |")
     return lines
 
 

@@ -185,10 +185,12 @@ def host_per_query(stats: Any, update_ms: float = 0.0) -> float:
 @contextlib.contextmanager
 def _round_trips(detector: Any) -> Iterator[dict[str, int]]:
     """Count the queue submissions and buffer maps pycinder makes while the block runs (not the
-    empty submission wgpu-py makes before some maps)."""
+    empty submission wgpu-py makes before some maps); every map of pycinder's is asked for by
+    :meth:`pycinder.gpu.buffers.Readback.start`."""
+    from ..gpu.buffers import Readback
+
     queue_type = type(detector.gpu.device.queue)
-    buffer_type = type(detector.strategy.frames.buffers.counters)
-    submit, map_async = queue_type.submit, buffer_type.map_async
+    submit, start = queue_type.submit, Readback.start
     trips = {"submissions": 0, "maps": 0}
 
     def counted_submit(queue: Any, *args: Any, **kwargs: Any) -> Any:
@@ -196,15 +198,15 @@ def _round_trips(detector: Any) -> Iterator[dict[str, int]]:
             trips["submissions"] += 1
         return submit(queue, *args, **kwargs)
 
-    def counted_map(buffer: Any, *args: Any, **kwargs: Any) -> Any:
+    def counted_start(readback: Any, *args: Any, **kwargs: Any) -> Any:
         trips["maps"] += 1
-        return map_async(buffer, *args, **kwargs)
+        return start(readback, *args, **kwargs)
 
-    queue_type.submit, buffer_type.map_async = counted_submit, counted_map
+    queue_type.submit, Readback.start = counted_submit, counted_start
     try:
         yield trips
     finally:
-        queue_type.submit, buffer_type.map_async = submit, map_async
+        queue_type.submit, Readback.start = submit, start
 
 
 def run_tolerance_sweep(frames: int, peers: Sequence[System]) -> list[dict[str, Any]]:

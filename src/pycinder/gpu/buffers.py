@@ -15,6 +15,7 @@ import wgpu
 from ..errors import GpuMemoryError, GpuTimeoutError
 from ..request import DEFAULT_TIMEOUT
 from ..scene.pack import PackedScene
+from . import native
 from .watch import wait_for, watch_of
 
 STORAGE = wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_DST
@@ -200,31 +201,39 @@ class Readback:
                          waiting_for=waiting_for)
 
     def start(self, nbytes: int) -> object:
-        """Ask for the first ``nbytes`` to be mapped once the GPU has written them; returns the
-        wgpu promise that :meth:`wait` takes.
+        """Ask for the first ``nbytes`` to be mapped once the GPU has written them; returns what
+        :meth:`wait` takes (a :class:`~pycinder.gpu.native.PendingMap`, or wgpu-py's promise
+        where the map cannot go through wgpu-native's C function).
 
         The staging buffer is only ever written by copy commands of a command buffer already
         submitted, so the empty submission wgpu-py makes before mapping for reading (for data
         written by ``queue.write_buffer`` and not yet flushed) is skipped: it costs a round trip
         of its own (see the benchmarks' README, "Measurements behind the constants")."""
         buffer = self.buf.buffer
-        try:
+        pending = native.map_read(self.buf.device, buffer, nbytes)
+        if pending is not None:
+            return pending
+        try:  # pragma: no cover - another wgpu-py backend
             return buffer.map_async(_READ_NOSYNC, 0, nbytes)
         except (KeyError, ValueError, TypeError):  # pragma: no cover - a wgpu-py without it
             return buffer.map_async(wgpu.MapMode.READ, 0, nbytes)
 
     @staticmethod
-    def ready(promise: object) -> bool:
+    def ready(pending: object) -> bool:
         """Whether a mapping asked for with :meth:`start` is done (reading will not wait)."""
-        return wait_for(promise, 0.0)
+        return wait_for(pending, 0.0)
 
-    def wait(self, promise: object, nbytes: int, dtype: np.dtype = np.uint32, *,
+    def wait(self, pending: object, nbytes: int, dtype: np.dtype = np.uint32, *,
              timeout: float = DEFAULT_TIMEOUT, waiting_for: str = "") -> np.ndarray:
         """Wait at most ``timeout`` seconds for a mapping asked for with :meth:`start`, copy out
         the first ``nbytes`` and unmap."""
-        if not wait_for(promise, timeout):
+        if not wait_for(pending, timeout):
+            if isinstance(pending, native.PendingMap):
+                pending.abandon()
             raise timeout_error(self.buf.device, waiting_for or self.buf.label, timeout)
-        promise.sync_wait()
+        if isinstance(pending, native.PendingMap):
+            return pending.read(dtype)
+        pending.sync_wait()  # pragma: no cover - another wgpu-py backend
         b = self.buf.buffer
         try:
             data = np.frombuffer(b.read_mapped(0, nbytes), dtype=dtype).copy()

@@ -21,7 +21,7 @@ to every signal wgpu-py 0.32 gives of a device's trouble:
 * **passes**: the labels of the compute and render passes of each submission's command buffers.
 
 The cost per submission is one 4-byte ``queue.write_buffer`` and one command buffer of one
-4-byte copy.
+4-byte copy, recorded through wgpu-native's C functions (:mod:`pycinder.gpu.native`).
 """
 
 from __future__ import annotations
@@ -37,6 +37,8 @@ from typing import Any
 
 import numpy as np
 import wgpu
+
+from . import native
 
 PROGRESS_DEADLINE = 0.5
 """Seconds each progress marker's map may take after a timeout before progress is "unknown"."""
@@ -81,6 +83,8 @@ class DeviceWatch:
                                          | wgpu.BufferUsage.COPY_DST)
         self._markers = self._new_markers()
         self._queue = device.queue
+        self._seq_data = np.zeros(1, np.uint32)
+        self._seq_pointer = native.pointer(self._seq_data)
 
     def _create_encoder(self, *args: Any, **kwargs: Any) -> wgpu.GPUCommandEncoder:
         """The class's ``create_command_encoder``, looked up at each call (so that a patch of
@@ -111,6 +115,8 @@ class DeviceWatch:
                 return _begin(*a, **kw)
 
             setattr(encoder, name, noting)
+        # Passes recorded through the C functions (pycinder.gpu.native) note theirs here.
+        encoder._pycinder_labels = labels
         finish = encoder.finish
 
         def finishing(*a: Any, **kw: Any) -> Any:
@@ -130,12 +136,29 @@ class DeviceWatch:
         with self._lock:
             self.submissions += 1
             n = self.submissions
-            self._queue.write_buffer(self._seq, 0, np.array([n], np.uint32))
-            encoder = self._create_encoder(label="progress marker")
-            encoder.copy_buffer_to_buffer(self._seq, 0, self._markers[n % 2], 0, 4)
             passes = [p for b in buffers for p in getattr(b, "_pycinder_passes", ())]
             self.last = Submission(n, passes)
-            self._submit([*buffers, encoder.finish()])
+            self._submit([*buffers, self._marker_copy(n)])
+
+    def _marker_copy(self, n: int) -> wgpu.GPUCommandBuffer:
+        """The command buffer that copies sequence number ``n`` into its marker (recorded
+        through wgpu-native's C functions where the device is wgpu-native's: five calls)."""
+        marker = self._markers[n % 2]
+        if not native.available(self.device):  # pragma: no cover - another wgpu-py backend
+            self._queue.write_buffer(self._seq, 0, np.array([n], np.uint32))
+            encoder = self._create_encoder(label="progress marker")
+            encoder.copy_buffer_to_buffer(self._seq, 0, marker, 0, 4)
+            return encoder.finish()
+        self._seq_data[0] = n
+        lib = native.LIB
+        lib.wgpuQueueWriteBuffer(self._queue._internal, self._seq._internal, 0,
+                                 self._seq_pointer, 4)
+        encoder = lib.wgpuDeviceCreateCommandEncoder(self.device._internal, native.NULL)
+        lib.wgpuCommandEncoderCopyBufferToBuffer(encoder, self._seq._internal, 0,
+                                                 marker._internal, 0, 4)
+        buffer = lib.wgpuCommandEncoderFinish(encoder, native.NULL)
+        lib.wgpuCommandEncoderRelease(encoder)
+        return native.command_buffer(buffer, self.device, "progress marker")
 
     # -- signals ----------------------------------------------------------------------------
 
@@ -304,9 +327,12 @@ def wait_for(promise: object, timeout: float) -> bool:
     """Wait for a wgpu promise for at most ``timeout`` seconds; False when it is still pending.
 
     wgpu-native resolves promises on a polling thread that sets an event; waiting on that event
-    with a timeout is the only bounded wait wgpu-py offers. Other backends fall back to an
-    unbounded wait.
+    with a timeout is the only bounded wait wgpu-py offers. A map asked for through the C
+    function (:class:`~pycinder.gpu.native.PendingMap`) is answered on the same thread. Other
+    backends fall back to an unbounded wait.
     """
+    if isinstance(promise, native.PendingMap):
+        return promise.wait(timeout)
     event = getattr(promise, "_thread_event", None)
     if event is None:  # pragma: no cover - another wgpu backend
         return True

@@ -12,6 +12,7 @@ import wgpu
 
 from ...gpu.bindings import PARAM_STRIDE
 from ...gpu.buffers import DEFAULT_TIMEOUT, Readback
+from ...gpu import native
 from ...gpu.device import Gpu, get_gpu
 from .boxes import Columns, GridSetup, WorldBoxes
 from .common import (COUNTS, FIRST_PAIRS, GRID, ORIGIN_PAD_SCALE, PARAMS, PARAMS_BINDING, READBACK,
@@ -182,7 +183,7 @@ class GpuBroadPhase:
         """A command encoder with every pass of the frame in order (B1-B8; with ``sweep_only``,
         B7 and B8 alone, over the boxes a previous submission sorted)."""
         b = self.buffers
-        encoder = self.gpu.device.create_command_encoder(label="broad phase")
+        encoder = native.encoder(self.gpu.device, "broad phase")
         encoder.clear_buffer(b.counts)
         if not sweep_only:
             encoder.clear_buffer(b.grid)
@@ -226,7 +227,7 @@ class GpuBroadPhase:
                        parts: list[tuple[wgpu.GPUBuffer, int, int]], waiting: str) -> np.ndarray:
         """Copy ``(buffer, offset, nbytes)`` parts one after the other into ``staging``, submit
         (``encoder``, or a new one) and map them; returns the words (uint32)."""
-        encoder = encoder or self.gpu.device.create_command_encoder(label="broad phase readback")
+        encoder = encoder or native.encoder(self.gpu.device, "broad phase readback")
         nbytes = sum(size for _, _, size in parts)
         target, at = staging.ensure(nbytes), 0
         for buf, offset, size in parts:

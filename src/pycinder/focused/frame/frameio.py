@@ -12,6 +12,7 @@ import wgpu
 
 from ...gpu.bindings import Profiler
 from ...gpu.buffers import Readback
+from ...gpu import native
 from ...gpu.device import Gpu
 from ...gpu.layout import C_AGAIN, C_RECORDS, C_RETRY_TILES, C_UNDECIDED, COUNTERS, RECORD, TILE
 from ...request import RecordMode
@@ -214,7 +215,7 @@ class FrameReadback:
     def _more(self, s: FrameState, tiles: int, more: int, n_records: int) -> np.ndarray:
         """The second map: ``tiles`` bytes of per-tile counts, then ``more`` bytes of records."""
         b = self.buffers
-        encoder = self.gpu.device.create_command_encoder()
+        encoder = native.encoder(self.gpu.device, "focused readback")
         readback = b.readbacks_more[s.slot]
         staging = readback.ensure(tiles + more)
         if tiles:

@@ -23,6 +23,7 @@ import wgpu
 
 from ...gpu.bindings import Profiler
 from ...gpu.buffers import DEFAULT_TIMEOUT
+from ...gpu import native
 from ...gpu.device import Gpu
 from ...gpu.layout import C_AGAIN, C_CUTS, C_EDGES, C_RECORDS, FLAG_OPEN, ROUND_COUNTERS, TILE
 from ...scene.pack import ShapePack
@@ -296,7 +297,7 @@ class FocusedFrames:
         """Encode the frame, submit it and start mapping its readback."""
         s, b = e.state, e.buffers
         self.profiler.begin(3 + len(TIMED_PASSES) * s.rounds * (1 + s.retry))
-        encoder = self.gpu.device.create_command_encoder()
+        encoder = native.encoder(self.gpu.device, "focused frame")
         if sub.gpu_tiles is not None:
             encoder.copy_buffer_to_buffer(sub.gpu_tiles, 0, b.tiles.buffer, 0,
                                           TILE.size * s.tiles)

@@ -19,6 +19,7 @@ import wgpu
 
 from ...gpu.bindings import Stage, dispatch
 from ...gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
+from ...gpu import native
 from ...gpu.device import Gpu
 from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
@@ -194,7 +195,7 @@ class ClusterPairPass:
         params = PARAMS.zeros()
         params["items"], params["split"] = len(items), split
         self.gpu.device.queue.write_buffer(self.params, 0, params)
-        encoder = self.gpu.device.create_command_encoder()
+        encoder = native.encoder(self.gpu.device, self.INFO.title)
         if len(items):
             cpass = encoder.begin_compute_pass(label=self.INFO.title)
             for stage, count in zip(self.stages, (split, len(items) - split)):

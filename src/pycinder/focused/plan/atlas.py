@@ -96,6 +96,7 @@ import wgpu
 from ...errors import GpuMemoryError
 from ...gpu.bindings import Resource, Stage, dispatch
 from ...gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
+from ...gpu import native
 from ...gpu.device import Gpu, get_gpu
 from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
@@ -515,7 +516,7 @@ class AtlasPlanner:
         self.windows.ensure(max(windows.nbytes, WINDOW.size))
         self.windows.write(windows)
         for _ in range(3):
-            encoder = self.gpu.device.create_command_encoder()
+            encoder = native.encoder(self.gpu.device, self.INFO.title)
             self.encode(encoder, self.windows, k, budget_pixels=budget_pixels, probe=probe,
                         faces=faces)
             nbytes = self.copy_out(encoder)

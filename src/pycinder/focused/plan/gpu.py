@@ -36,6 +36,7 @@ import numpy as np
 import wgpu
 
 from ...gpu.buffers import DEFAULT_TIMEOUT, Readback
+from ...gpu import native
 from ...gpu.device import Gpu
 from ...gpu.layout import TILE
 from ...util.text import plural
@@ -152,7 +153,7 @@ class GpuPlanner:
         (K,) and the bytes of P2's plan (see :meth:`AtlasPlanner.parse`); P3's tile words stay on
         the GPU."""
         p1, p2 = self.windows, self.atlas
-        encoder = self.gpu.device.create_command_encoder(label="tile planner")
+        encoder = native.encoder(self.gpu.device, "tile planner")
         p1.encode(encoder, k)
         p2.encode(encoder, p1.atlas, k, budget_pixels=budget_pixels, probe=probe, faces=faces)
         self.words.encode(encoder, windows=p1.buffer, pairs=p1.pairs, atlas_tiles=p2.tiles,

@@ -78,6 +78,7 @@ import wgpu
 
 from ...gpu.bindings import Resource, Stage, dispatch
 from ...gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
+from ...gpu import native
 from ...gpu.device import Gpu, get_gpu
 from ...gpu.layout import ROW, TILE, WORKGROUP
 from ...gpu.structs import Struct
@@ -262,7 +263,7 @@ class TileWords:
             return TILE.zeros(0)
         nbytes = count * TILE.size
         staging = self.readback.ensure(nbytes)
-        encoder = self.gpu.device.create_command_encoder(label=f"{self.INFO.title} readback")
+        encoder = native.encoder(self.gpu.device, f"{self.INFO.title} readback")
         self.copy_into(encoder, staging, 0, count)
         self.gpu.device.queue.submit([encoder.finish()])
         data = self.readback.read(nbytes, np.uint8, timeout=self.timeout,

@@ -58,6 +58,7 @@ import wgpu
 
 from ...gpu.bindings import Resource, Stage, dispatch
 from ...gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
+from ...gpu import native
 from ...gpu.device import Gpu, get_gpu
 from ...gpu.layout import FLAG_COUNT_BACK, ROW, WORKGROUP
 from ...gpu.structs import Struct
@@ -357,7 +358,7 @@ class GpuWindows:
         k = len(pairs)
         if k == 0:
             return WINDOW.zeros(0)
-        encoder = self.gpu.device.create_command_encoder(label=self.INFO.title)
+        encoder = native.encoder(self.gpu.device, self.INFO.title)
         self.encode(encoder, k)
         nbytes = k * WINDOW.size
         staging = self.readback.ensure(nbytes)

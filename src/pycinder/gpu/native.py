@@ -1,0 +1,316 @@
+"""The commands a frame records many times, straight through wgpu-native's C functions.
+
+wgpu-py wraps each C function of wgpu-native in Python: checking arguments, building descriptor
+structs and capturing errors around the call. A compute dispatch (``set_pipeline``,
+``set_bind_group``, ``dispatch_workgroups``) costs about 20 µs of host CPU that way, and the C
+functions themselves about a fifth of it (``python -m pycinder.benchmarks.hostfloor``). A frame
+makes dozens, so :class:`Encoder` records compute passes, buffer clears and copies with the C
+functions themselves, on the command encoder wgpu-py made; everything else (render passes,
+timestamp queries, ``finish``, which raises the encoder's validation errors) stays wgpu-py's.
+
+* Objects (pipelines, bind groups, buffers) are wgpu-py's: their handles are read from them, and
+  wgpu-py still owns and releases them. A compute pass made here is released when it ends.
+* Errors: a command recorded wrongly makes wgpu-core mark the encoder invalid, and wgpu-py's
+  ``finish`` raises the error, as it does for commands recorded through wgpu-py.
+* The device watch (:mod:`pycinder.gpu.watch`) still notes the label of every pass.
+* Where the device is not wgpu-native's (another wgpu-py backend), :func:`encoder` hands back
+  wgpu-py's own command encoder, whose methods these are.
+
+The C functions are looked up through :data:`LIB` at each call, so that the benchmarks can count
+them (:func:`counting`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import threading
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import wgpu
+
+try:  # pragma: no cover - wgpu-py's only desktop backend
+    from wgpu.backends.wgpu_native import GPUCommandBuffer as _CommandBuffer
+    from wgpu.backends.wgpu_native import ffi as _ffi
+    from wgpu.backends.wgpu_native import lib as _lib
+except ImportError:  # pragma: no cover
+    _CommandBuffer = _ffi = _lib = None
+
+WHOLE_SIZE = 0xFFFF_FFFF_FFFF_FFFF
+"""``WGPU_WHOLE_SIZE``: a clear to the end of the buffer."""
+_LABELS_KEPT = 512
+"""Compute pass descriptors kept (one per label; the labels of a frame repeat)."""
+
+
+class _Lib:
+    """wgpu-native's C functions (the module's :data:`LIB`; :func:`counting` swaps it)."""
+
+    def __init__(self, lib: Any) -> None:
+        self.lib = lib
+
+    def __getattr__(self, name: str) -> Any:
+        fn = getattr(self.lib, name)
+        setattr(self, name, fn)  # looked up once
+        return fn
+
+
+LIB = _Lib(_lib) if _lib is not None else None
+"""The C functions this module calls."""
+
+
+NULL = _ffi.NULL if _ffi is not None else None
+"""The C null pointer."""
+
+
+def pointer(array: Any) -> Any:
+    """A C pointer to a NumPy array's data (valid while the array lives)."""
+    return _ffi.cast("void *", array.ctypes.data)
+
+
+def command_buffer(handle: Any, device: wgpu.GPUDevice, label: str = "") -> Any:
+    """wgpu-py's command buffer of a C handle (wgpu-py releases it), to submit with wgpu-py's
+    ``queue.submit``."""
+    return _CommandBuffer(label, handle, device)
+
+
+def available(device: Any) -> bool:
+    """Whether ``device`` is wgpu-native's (its objects have C handles)."""
+    return LIB is not None and type(device).__module__.startswith("wgpu.backends.wgpu_native")
+
+
+def encoder(device: wgpu.GPUDevice, label: str = "") -> Any:
+    """A command encoder of ``device`` that records compute passes, clears and copies through the
+    C functions (:class:`Encoder`), or wgpu-py's own where :func:`available` is False."""
+    wrapped = device.create_command_encoder(label=label)
+    return Encoder(wrapped) if available(device) else wrapped
+
+
+class Encoder:
+    """wgpu-py's command encoder ``wrapped``, with compute passes, ``clear_buffer`` and
+    ``copy_buffer_to_buffer`` recorded through the C functions; every other method is
+    ``wrapped``'s."""
+
+    __slots__ = ("wrapped", "_handle", "_labels")
+
+    def __init__(self, wrapped: wgpu.GPUCommandEncoder) -> None:
+        self.wrapped = wrapped
+        self._handle = wrapped._internal
+        self._labels: list[str] | None = getattr(wrapped, "_pycinder_labels", None)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.wrapped, name)
+
+    def begin_compute_pass(self, *, label: str = "",
+                           timestamp_writes: Any = None) -> Any:
+        """A compute pass (:class:`ComputePass`); a timed one (``timestamp_writes``) is
+        wgpu-py's."""
+        if timestamp_writes is not None:
+            return self.wrapped.begin_compute_pass(label=label, timestamp_writes=timestamp_writes)
+        if self._labels is not None:
+            self._labels.append(label or "compute pass")
+        return ComputePass(LIB.wgpuCommandEncoderBeginComputePass(self._handle,
+                                                                  _pass_descriptor(label)))
+
+    def clear_buffer(self, buffer: wgpu.GPUBuffer, offset: int = 0,
+                     size: int | None = None) -> None:
+        LIB.wgpuCommandEncoderClearBuffer(self._handle, buffer._internal, int(offset),
+                                          WHOLE_SIZE if size is None else int(size))
+
+    def copy_buffer_to_buffer(self, source: wgpu.GPUBuffer, source_offset: int,
+                              destination: wgpu.GPUBuffer, destination_offset: int,
+                              size: int) -> None:
+        LIB.wgpuCommandEncoderCopyBufferToBuffer(self._handle, source._internal,
+                                                 int(source_offset), destination._internal,
+                                                 int(destination_offset), int(size))
+
+    def finish(self, **kwargs: Any) -> wgpu.GPUCommandBuffer:
+        """wgpu-py's ``finish``: it raises what was recorded wrongly."""
+        return self.wrapped.finish(**kwargs)
+
+
+class ComputePass:
+    """A compute pass recorded through the C functions (the methods wgpu-py's pass has, as a
+    frame uses them); released by :meth:`end`."""
+
+    __slots__ = ("_handle",)
+
+    def __init__(self, handle: Any) -> None:
+        self._handle = handle
+
+    def set_pipeline(self, pipeline: wgpu.GPUComputePipeline) -> None:
+        LIB.wgpuComputePassEncoderSetPipeline(self._handle, pipeline._internal)
+
+    def set_bind_group(self, index: int, group: wgpu.GPUBindGroup) -> None:
+        LIB.wgpuComputePassEncoderSetBindGroup(self._handle, index, group._internal, 0,
+                                               _ffi.NULL)
+
+    def dispatch_workgroups(self, x: int, y: int = 1, z: int = 1) -> None:
+        LIB.wgpuComputePassEncoderDispatchWorkgroups(self._handle, x, y, z)
+
+    def dispatch_workgroups_indirect(self, buffer: wgpu.GPUBuffer, offset: int) -> None:
+        LIB.wgpuComputePassEncoderDispatchWorkgroupsIndirect(self._handle, buffer._internal,
+                                                             int(offset))
+
+    def end(self) -> None:
+        handle, self._handle = self._handle, None
+        LIB.wgpuComputePassEncoderEnd(handle)
+        LIB.wgpuComputePassEncoderRelease(handle)
+
+
+class PendingMap:
+    """A buffer's first ``nbytes`` asked to be mapped for reading through the C function
+    (:func:`map_read`); wgpu-py's poll thread polls the device until the map is answered, and
+    the answer sets :attr:`event`.
+
+    Attributes
+    ----------
+    buffer : wgpu.GPUBuffer
+    nbytes : int
+    event : threading.Event
+        Set once the map was answered (:attr:`status` says how).
+    status : int or None
+        ``WGPUMapAsyncStatus`` (1: success).
+    """
+
+    __slots__ = ("buffer", "nbytes", "key", "event", "status", "token")
+
+    def __init__(self, buffer: wgpu.GPUBuffer, nbytes: int, key: int) -> None:
+        self.buffer, self.nbytes, self.key = buffer, nbytes, key
+        self.event = threading.Event()
+        self.status: int | None = None
+        self.token: Any = None
+
+    def ready(self) -> bool:
+        """Whether the map was answered (reading will not wait)."""
+        return self.event.is_set()
+
+    def wait(self, timeout: float) -> bool:
+        """Wait at most ``timeout`` seconds for the answer; False when it has not come."""
+        return self.event.wait(timeout)
+
+    def abandon(self) -> None:
+        """Give up on the answer (after a wait passed its deadline): the poll thread stops
+        polling for it, and a map that comes anyway is undone (by the next :func:`map_read`)."""
+        if _maps.pop(self.key, None) is not None:
+            _abandoned[self.key] = self
+            self.token.set_done()
+        elif self.status == _MAP_SUCCESS:
+            self.status = None
+            LIB.wgpuBufferUnmap(self.buffer._internal)
+
+    def read(self, dtype: Any) -> np.ndarray:
+        """Copy out the mapped bytes as ``dtype`` and unmap (after :meth:`wait` said True).
+
+        Raises
+        ------
+        RuntimeError
+            The map failed (a lost device, a destroyed buffer).
+        """
+        handle = self.buffer._internal
+        if self.status != _MAP_SUCCESS:
+            raise RuntimeError(f"could not map the {self.buffer.label or 'staging'} buffer "
+                               f"(status {self.status})")
+        try:
+            data = LIB.wgpuBufferGetConstMappedRange(handle, 0, self.nbytes)
+            return np.frombuffer(_ffi.buffer(data, self.nbytes), dtype=dtype).copy()
+        finally:
+            LIB.wgpuBufferUnmap(handle)
+
+
+_MAP_SUCCESS = _lib.WGPUMapAsyncStatus_Success if _lib is not None else 1
+_maps: dict[int, PendingMap] = {}
+"""Maps asked for and not yet answered, by key (the callback's user data)."""
+_abandoned: dict[int, PendingMap] = {}
+"""Maps given up on and not yet answered."""
+_late: list[wgpu.GPUBuffer] = []
+"""Buffers whose map was answered after it was given up on: the next map undoes theirs."""
+_map_keys = itertools.count(1)
+
+
+def _map_answered(status: int, message: Any, key: Any, _unused: Any) -> None:
+    """wgpu-native's answer to a map (on the thread that polled the device)."""
+    key = int(_ffi.cast("uintptr_t", key))
+    pending = _maps.pop(key, None)
+    if pending is not None:
+        pending.status = int(status)
+        pending.token.set_done()
+        pending.event.set()
+        return
+    given_up = _abandoned.pop(key, None)
+    if given_up is not None and status == _MAP_SUCCESS:
+        _late.append(given_up.buffer)
+
+
+if _ffi is not None:  # pragma: no branch
+    _map_callback = _ffi.callback("void(WGPUMapAsyncStatus, WGPUStringView, void *, void *)",
+                                  _map_answered)
+
+
+def map_read(device: wgpu.GPUDevice, buffer: wgpu.GPUBuffer, nbytes: int) -> PendingMap | None:
+    """Ask for the first ``nbytes`` of a MAP_READ ``buffer`` to be mapped once the GPU has
+    written them (without the empty submission wgpu-py makes before mapping for reading); None
+    where this module cannot (another backend, or a wgpu-py without its poll thread): map with
+    wgpu-py then."""
+    poller = getattr(device, "_poller", None)
+    if not available(device) or poller is None:
+        return None
+    while _late:
+        LIB.wgpuBufferUnmap(_late.pop()._internal)
+    key = next(_map_keys)
+    pending = PendingMap(buffer, nbytes, key)
+    pending.token = poller.get_token()  # the poll thread polls until the answer
+    _maps[key] = pending
+    info = _ffi.new("WGPUBufferMapCallbackInfo *")
+    info.mode = _lib.WGPUCallbackMode_AllowProcessEvents
+    info.callback = _map_callback
+    info.userdata1 = _ffi.cast("void *", key)
+    LIB.wgpuBufferMapAsync(buffer._internal, _lib.WGPUMapMode_Read, 0, nbytes, info[0])
+    return pending
+
+
+_descriptors: dict[str, Any] = {}
+
+
+def _pass_descriptor(label: str) -> Any:
+    """The compute pass descriptor of ``label`` (made once; its label's bytes kept with it)."""
+    found = _descriptors.get(label)
+    if found is None:
+        if len(_descriptors) >= _LABELS_KEPT:
+            _descriptors.clear()
+        text = _ffi.new("char[]", label.encode())
+        desc = _ffi.new("WGPUComputePassDescriptor *")
+        desc.label.data = text
+        desc.label.length = len(text) - 1
+        desc.timestampWrites = _ffi.NULL
+        found = _descriptors[label] = (desc, text)
+    return found[0]
+
+
+@contextlib.contextmanager
+def counting() -> Iterator[dict[str, int]]:
+    """Count the C functions this module calls while the block runs, by name."""
+    global LIB
+    counts: dict[str, int] = {}
+    real = LIB
+
+    class Counted:
+        def __getattr__(self, name: str) -> Any:
+            fn = getattr(real, name)
+
+            def call(*args: Any) -> Any:
+                counts[name] = counts.get(name, 0) + 1
+                return fn(*args)
+
+            return call
+
+    LIB = Counted()
+    try:
+        yield counts
+    finally:
+        LIB = real
+
+
+__all__ = ["LIB", "NULL", "ComputePass", "Encoder", "PendingMap", "available", "command_buffer",
+           "counting", "encoder", "map_read", "pointer"]
