@@ -147,3 +147,36 @@ def test_undecided_tiles_are_retried_inside_the_submission(monkeypatch, records,
             # Lists of 8 still overflow: the host cuts the boxes, in frames of their own.
             assert stats.retries > 1 and count.submits > 1
         monkeypatch.undo()
+
+
+@pytest.mark.parametrize("planner,submissions", [("numpy", 1), ("gpu", 2)])
+def test_wgpu_py_calls_per_query_do_not_grow_with_bodies_pairs_or_rounds(planner, submissions):
+    """Prepared bodies, new transforms: from 2 bodies to 1,500 (1 pair to 1,665, 1 tile to
+    3,267, 1 round to 3) a query makes the same wgpu-py calls, submissions and maps. The frame's
+    compute and render passes are recorded through wgpu-native's C functions
+    (pycinder.gpu.native): those grow with the rounds only, by a fixed number a round."""
+    from pycinder.benchmarks import hostcpu
+
+    rng = np.random.default_rng(3)
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.5)
+    rows = []
+    for n in (2, 40, 300, 1500):
+        det = pycinder.Detector(planner=planner, broad_phase="numpy")
+        bodies = det.prepare([ball] * n)
+        poses = np.tile(np.eye(4), (n, 1, 1))
+        poses[:, :3, 3] = rng.uniform(0, (n / 0.3) ** (1 / 3), (n, 3))
+        poses[1, :3, 3] = poses[0, :3, 3] + 0.9  # at least one pair
+        for _ in range(3):  # buffers grow to the scene, and both frame slots are made
+            det.find_collisions(bodies, poses)
+        with hostcpu.count_wgpu_calls(det.gpu.device) as counts:
+            result = det.find_collisions(bodies, poses)
+        calls = hostcpu.summarise_calls(counts, 1)
+        assert (calls["submissions"], calls["maps"]) == (submissions, submissions)
+        rows.append((calls["wgpu_calls"] - calls["direct_calls"], calls["direct_calls"],
+                     result.stats.rounds, result.stats.candidates))
+    wgpu_py, direct, rounds, pairs = zip(*rows)
+    assert len(set(wgpu_py)) == 1 and wgpu_py[0] <= 8 * submissions, rows
+    assert pairs[0] == 1 and pairs[-1] > 1000 and rounds[-1] >= 3, rows
+    per_round = (direct[-1] - direct[0]) / (rounds[-1] - rounds[0])
+    for d, r in zip(direct, rounds):
+        assert d == direct[0] + per_round * (r - rounds[0]) and per_round <= 64, rows

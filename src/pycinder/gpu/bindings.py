@@ -190,13 +190,13 @@ class Stage:
 
         Every binding the pipeline uses must be given; names the shader does not declare are an
         error (a renamed binding is caught at once)."""
-        resolved = [r.buffer if isinstance(r, GrowableBuffer) else r for r in resources.values()]
-        ident = tuple((r[0], r[1]) if isinstance(r, tuple) else (r, 0) for r in resolved)
+        resolved = tuple(r.buffer if type(r) is GrowableBuffer else r
+                         for r in resources.values())
         cached = self._groups.get(key)
-        # The key holds the buffers themselves: an id alone can be reused by a new buffer once a
-        # grown one is freed.
-        if cached is not None and len(cached[0]) == len(ident) and all(
-                a[0] is b[0] and a[1] == b[1] for a, b in zip(cached[0], ident)):
+        # The cache holds the resources themselves (an id alone can be reused by a new buffer
+        # once a grown one is freed), compared as a tuple: wgpu-py's objects by identity, a
+        # binding's (buffer, offset, size) by its buffer's identity and its numbers.
+        if cached is not None and cached[0] == resolved:
             return cached[1]
         unknown = set(resources) - set(self.numbers)
         if unknown:
@@ -212,7 +212,7 @@ class Stage:
                 entry = {"buffer": resource}
             entries.append({"binding": self.numbers[name], "resource": entry})
         group = self.device.create_bind_group(layout=self.bind_layout, entries=entries)
-        self._groups[key] = (ident, group)
+        self._groups[key] = (resolved, group)
         return group
 
 

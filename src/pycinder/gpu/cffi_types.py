@@ -51,7 +51,7 @@ TYPES = (
     "WGPURenderPassDepthStencilAttachment *", "WGPUColor *", "WGPURenderBundleDescriptor *",
     "WGPURenderBundleEncoderDescriptor *", "WGPURenderBundle[]",
     # Plain C types.
-    "char []", "uint8_t *", "uint8_t []", "uint32_t []", "intptr_t", "uintptr_t",
+    "char []", "uint8_t *", "uint8_t []", "uint32_t []", "intptr_t", "uintptr_t", "void *",
 )
 """The C types wgpu-py names on pycinder's paths (device, focused and scene strategies,
 profiling, the GPU broad phase, the manager), as wgpu-py 0.32 spells them."""

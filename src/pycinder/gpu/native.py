@@ -4,9 +4,10 @@ wgpu-py wraps each C function of wgpu-native in Python: checking arguments, buil
 structs and capturing errors around the call. A compute dispatch (``set_pipeline``,
 ``set_bind_group``, ``dispatch_workgroups``) costs about 20 µs of host CPU that way, and the C
 functions themselves about a fifth of it (``python -m pycinder.benchmarks.hostfloor``). A frame
-makes dozens, so :class:`Encoder` records compute passes, buffer clears and copies with the C
-functions themselves, on the command encoder wgpu-py made; everything else (render passes,
-timestamp queries, ``finish``, which raises the encoder's validation errors) stays wgpu-py's.
+makes dozens, so :class:`Encoder` records compute passes, render passes of one colour
+attachment, buffer clears and copies with the C functions themselves, on the command encoder
+wgpu-py made; everything else (other render passes, timed passes, ``finish``, which raises the
+encoder's validation errors) stays wgpu-py's.
 
 * Objects (pipelines, bind groups, buffers) are wgpu-py's: their handles are read from them, and
   wgpu-py still owns and releases them. A compute pass made here is released when it ends.
@@ -88,9 +89,9 @@ def encoder(device: wgpu.GPUDevice, label: str = "") -> Any:
 
 
 class Encoder:
-    """wgpu-py's command encoder ``wrapped``, with compute passes, ``clear_buffer`` and
-    ``copy_buffer_to_buffer`` recorded through the C functions; every other method is
-    ``wrapped``'s."""
+    """wgpu-py's command encoder ``wrapped``, with compute passes, render passes of one colour
+    attachment, ``clear_buffer`` and ``copy_buffer_to_buffer`` recorded through the C
+    functions; every other method is ``wrapped``'s."""
 
     __slots__ = ("wrapped", "_handle", "_labels")
 
@@ -112,6 +113,20 @@ class Encoder:
             self._labels.append(label or "compute pass")
         return ComputePass(LIB.wgpuCommandEncoderBeginComputePass(self._handle,
                                                                   _pass_descriptor(label)))
+
+    def begin_render_pass(self, *, label: str = "", color_attachments: Any,
+                          **options: Any) -> Any:
+        """A render pass of one colour attachment (view, ``load_op``, ``store_op``, optionally
+        ``clear_value``) and nothing else (:class:`RenderPass`); any other is wgpu-py's."""
+        if options or len(color_attachments) != 1 \
+                or not set(color_attachments[0]) <= {"view", "load_op", "store_op",
+                                                     "clear_value"}:
+            return self.wrapped.begin_render_pass(label=label,
+                                                  color_attachments=color_attachments, **options)
+        if self._labels is not None:
+            self._labels.append(label or "render pass")
+        return RenderPass(LIB.wgpuCommandEncoderBeginRenderPass(
+            self._handle, _render_pass_descriptor(label, color_attachments[0])))
 
     def clear_buffer(self, buffer: wgpu.GPUBuffer, offset: int = 0,
                      size: int | None = None) -> None:
@@ -159,6 +174,36 @@ class ComputePass:
         LIB.wgpuComputePassEncoderRelease(handle)
 
 
+class RenderPass:
+    """A render pass recorded through the C functions (the methods wgpu-py's pass has, as a
+    frame uses them); released by :meth:`end`."""
+
+    __slots__ = ("_handle",)
+
+    def __init__(self, handle: Any) -> None:
+        self._handle = handle
+
+    def set_pipeline(self, pipeline: wgpu.GPURenderPipeline) -> None:
+        LIB.wgpuRenderPassEncoderSetPipeline(self._handle, pipeline._internal)
+
+    def set_bind_group(self, index: int, group: wgpu.GPUBindGroup) -> None:
+        LIB.wgpuRenderPassEncoderSetBindGroup(self._handle, index, group._internal, 0,
+                                              _ffi.NULL)
+
+    def draw(self, vertices: int, instances: int = 1, first_vertex: int = 0,
+             first_instance: int = 0) -> None:
+        LIB.wgpuRenderPassEncoderDraw(self._handle, vertices, instances, first_vertex,
+                                      first_instance)
+
+    def draw_indirect(self, buffer: wgpu.GPUBuffer, offset: int) -> None:
+        LIB.wgpuRenderPassEncoderDrawIndirect(self._handle, buffer._internal, int(offset))
+
+    def end(self) -> None:
+        handle, self._handle = self._handle, None
+        LIB.wgpuRenderPassEncoderEnd(handle)
+        LIB.wgpuRenderPassEncoderRelease(handle)
+
+
 class PendingMap:
     """A buffer's first ``nbytes`` asked to be mapped for reading through the C function
     (:func:`map_read`); wgpu-py's poll thread polls the device until the map is answered, and
@@ -192,11 +237,15 @@ class PendingMap:
 
     def abandon(self) -> None:
         """Give up on the answer (after a wait passed its deadline): the poll thread stops
-        polling for it, and a map that comes anyway is undone (by the next :func:`map_read`)."""
+        polling for it. A map that came is undone; one that comes later is ignored and leaves
+        the buffer mapped, as a timeout leaves it pending: whoever timed out makes its buffers
+        again (the detector is reset), and the device they belong to may be gone by then."""
         if _maps.pop(self.key, None) is not None:
-            _abandoned[self.key] = self
             self.token.set_done()
-        elif self.status == _MAP_SUCCESS:
+            return
+        # The answer took it first: it is set at once (the poll thread may be setting it now).
+        self.event.wait(1.0)
+        if self.status == _MAP_SUCCESS:
             self.status = None
             LIB.wgpuBufferUnmap(self.buffer._internal)
 
@@ -222,10 +271,6 @@ class PendingMap:
 _MAP_SUCCESS = _lib.WGPUMapAsyncStatus_Success if _lib is not None else 1
 _maps: dict[int, PendingMap] = {}
 """Maps asked for and not yet answered, by key (the callback's user data)."""
-_abandoned: dict[int, PendingMap] = {}
-"""Maps given up on and not yet answered."""
-_late: list[wgpu.GPUBuffer] = []
-"""Buffers whose map was answered after it was given up on: the next map undoes theirs."""
 _map_keys = itertools.count(1)
 
 
@@ -235,17 +280,13 @@ def _map_answered(status: int, message: Any, key: Any, _unused: Any) -> None:
     pending = _maps.pop(key, None)
     if pending is not None:
         pending.status = int(status)
-        pending.token.set_done()
+        if pending.token is not None:
+            pending.token.set_done()
         pending.event.set()
-        return
-    given_up = _abandoned.pop(key, None)
-    if given_up is not None and status == _MAP_SUCCESS:
-        _late.append(given_up.buffer)
 
 
-if _ffi is not None:  # pragma: no branch
-    _map_callback = _ffi.callback("void(WGPUMapAsyncStatus, WGPUStringView, void *, void *)",
-                                  _map_answered)
+_map_callback: list[Any] = []
+"""The C callback of every map (made on the first, once the device parsed its C types)."""
 
 
 def map_read(device: wgpu.GPUDevice, buffer: wgpu.GPUBuffer, nbytes: int) -> PendingMap | None:
@@ -256,17 +297,28 @@ def map_read(device: wgpu.GPUDevice, buffer: wgpu.GPUBuffer, nbytes: int) -> Pen
     poller = getattr(device, "_poller", None)
     if not available(device) or poller is None:
         return None
-    while _late:
-        LIB.wgpuBufferUnmap(_late.pop()._internal)
+    # wgpu-py's checks of a map's range: a range wgpu-native refuses would abort the process
+    # when read.
+    if not 0 < nbytes <= buffer.size or nbytes % 4:
+        raise ValueError(f"cannot map {nbytes} bytes of the {buffer.label or 'staging'} buffer "
+                         f"({buffer.size} bytes): a multiple of 4, at least 4, within it")
     key = next(_map_keys)
     pending = PendingMap(buffer, nbytes, key)
-    pending.token = poller.get_token()  # the poll thread polls until the answer
     _maps[key] = pending
     info = _ffi.new("WGPUBufferMapCallbackInfo *")
     info.mode = _lib.WGPUCallbackMode_AllowProcessEvents
-    info.callback = _map_callback
+    if not _map_callback:
+        _map_callback.append(_ffi.callback(
+            "void(WGPUMapAsyncStatus, WGPUStringView, void *, void *)", _map_answered))
+    info.callback = _map_callback[0]
     info.userdata1 = _ffi.cast("void *", key)
     LIB.wgpuBufferMapAsync(buffer._internal, _lib.WGPUMapMode_Read, 0, nbytes, info[0])
+    # The poll thread polls until the answer. Woken after the map is asked for, so that its
+    # blocking poll does not hold the device while the map is asked for; an answer that came
+    # meanwhile (another map's polling) ends the token at once.
+    pending.token = poller.get_token()
+    if pending.event.is_set():
+        pending.token.set_done()
     return pending
 
 
@@ -279,12 +331,47 @@ def _pass_descriptor(label: str) -> Any:
     if found is None:
         if len(_descriptors) >= _LABELS_KEPT:
             _descriptors.clear()
-        text = _ffi.new("char[]", label.encode())
+        text = _ffi.new("char []", label.encode())
         desc = _ffi.new("WGPUComputePassDescriptor *")
         desc.label.data = text
         desc.label.length = len(text) - 1
         desc.timestampWrites = _ffi.NULL
         found = _descriptors[label] = (desc, text)
+    return found[0]
+
+
+_LOAD = {"load": "WGPULoadOp_Load", "clear": "WGPULoadOp_Clear"}
+_STORE = {"store": "WGPUStoreOp_Store", "discard": "WGPUStoreOp_Discard"}
+_render_descriptors: dict[tuple, Any] = {}
+
+
+def _render_pass_descriptor(label: str, attachment: dict) -> Any:
+    """The render pass descriptor of ``label`` and one colour attachment (made once per
+    label, view and operations; the view is kept with it, so that its id stays its own)."""
+    view = attachment["view"]
+    clear = tuple(attachment.get("clear_value", (0, 0, 0, 0)))
+    key = (label, id(view), attachment["load_op"], attachment["store_op"], clear)
+    found = _render_descriptors.get(key)
+    if found is None:
+        if len(_render_descriptors) >= _LABELS_KEPT:
+            _render_descriptors.clear()
+        colour = _ffi.new("WGPURenderPassColorAttachment *")
+        colour.view = view._internal
+        colour.depthSlice = _lib.WGPU_DEPTH_SLICE_UNDEFINED
+        colour.resolveTarget = _ffi.NULL
+        colour.loadOp = getattr(_lib, _LOAD[attachment["load_op"]])
+        colour.storeOp = getattr(_lib, _STORE[attachment["store_op"]])
+        colour.clearValue.r, colour.clearValue.g, colour.clearValue.b, colour.clearValue.a = clear
+        text = _ffi.new("char []", label.encode())
+        desc = _ffi.new("WGPURenderPassDescriptor *")
+        desc.label.data = text
+        desc.label.length = len(text) - 1
+        desc.colorAttachmentCount = 1
+        desc.colorAttachments = colour
+        desc.depthStencilAttachment = _ffi.NULL
+        desc.occlusionQuerySet = _ffi.NULL
+        desc.timestampWrites = _ffi.NULL
+        found = _render_descriptors[key] = (desc, colour, text, view)
     return found[0]
 
 
@@ -312,5 +399,5 @@ def counting() -> Iterator[dict[str, int]]:
         LIB = real
 
 
-__all__ = ["LIB", "NULL", "ComputePass", "Encoder", "PendingMap", "available", "command_buffer",
-           "counting", "encoder", "map_read", "pointer"]
+__all__ = ["LIB", "NULL", "ComputePass", "Encoder", "PendingMap", "RenderPass", "available",
+           "command_buffer", "counting", "encoder", "map_read", "pointer"]
