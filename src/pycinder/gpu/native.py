@@ -198,6 +198,10 @@ class RenderPass:
     def draw_indirect(self, buffer: wgpu.GPUBuffer, offset: int) -> None:
         LIB.wgpuRenderPassEncoderDrawIndirect(self._handle, buffer._internal, int(offset))
 
+    def execute_bundles(self, bundles: list) -> None:
+        handles = _ffi.new("WGPURenderBundle[]", [b._internal for b in bundles])
+        LIB.wgpuRenderPassEncoderExecuteBundles(self._handle, len(bundles), handles)
+
     def end(self) -> None:
         handle, self._handle = self._handle, None
         LIB.wgpuRenderPassEncoderEnd(handle)
