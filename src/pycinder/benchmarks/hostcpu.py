@@ -562,8 +562,9 @@ HOW = ("Host CPU per query: the CPU time of every Python thread of the process (
        "batch's mean; frame wall: the median query's wall time. GPU API calls: public methods "
        "of wgpu-py's objects called from outside wgpu-py, and the C functions of wgpu-native "
        "pycinder calls itself (`pycinder.gpu.native`; in brackets), per query; native calls: "
-       "the C functions wgpu-py calls for its methods on the calling thread. Stages: the same clocks read "
-       "at the entry and exit of the query's stages, each moment charged to the innermost "
+       "the C functions wgpu-py calls for its methods on the calling thread. Stages: the same "
+       "clocks read at the entry and exit of the query's stages, each moment charged to the "
+       "innermost "
        "(`pycinder.benchmarks.hostcpu.STAGES`). The targets are those of the GPU-resident "
        "query.")
 """What the host CPU table measures, in a paragraph of the report."""

@@ -145,21 +145,41 @@ class Encoder:
         return self.wrapped.finish(**kwargs)
 
 
-class ComputePass:
-    """A compute pass recorded through the C functions (the methods wgpu-py's pass has, as a
-    frame uses them); released by :meth:`end`."""
+class _Pass:
+    """What compute and render passes recorded through the C functions share: a pipeline, a
+    bind group (no dynamic offsets), and :meth:`end`, which releases the pass. ``_KIND`` names
+    the C functions ("Compute" or "Render")."""
 
     __slots__ = ("_handle",)
+    _KIND = ""
+    _C: tuple[str, str, str, str] = ("", "", "", "")
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls._C = tuple(f"wgpu{cls._KIND}PassEncoder{name}"  # type: ignore[assignment]
+                       for name in ("SetPipeline", "SetBindGroup", "End", "Release"))
 
     def __init__(self, handle: Any) -> None:
         self._handle = handle
 
-    def set_pipeline(self, pipeline: wgpu.GPUComputePipeline) -> None:
-        LIB.wgpuComputePassEncoderSetPipeline(self._handle, pipeline._internal)
+    def set_pipeline(self, pipeline: Any) -> None:
+        getattr(LIB, self._C[0])(self._handle, pipeline._internal)
 
     def set_bind_group(self, index: int, group: wgpu.GPUBindGroup) -> None:
-        LIB.wgpuComputePassEncoderSetBindGroup(self._handle, index, group._internal, 0,
-                                               _ffi.NULL)
+        getattr(LIB, self._C[1])(self._handle, index, group._internal, 0, _ffi.NULL)
+
+    def end(self) -> None:
+        handle, self._handle = self._handle, None
+        getattr(LIB, self._C[2])(handle)
+        getattr(LIB, self._C[3])(handle)
+
+
+class ComputePass(_Pass):
+    """A compute pass recorded through the C functions (the methods wgpu-py's pass has, as a
+    frame uses them); released by :meth:`end`."""
+
+    __slots__ = ()
+    _KIND = "Compute"
 
     def dispatch_workgroups(self, x: int, y: int = 1, z: int = 1) -> None:
         LIB.wgpuComputePassEncoderDispatchWorkgroups(self._handle, x, y, z)
@@ -168,27 +188,13 @@ class ComputePass:
         LIB.wgpuComputePassEncoderDispatchWorkgroupsIndirect(self._handle, buffer._internal,
                                                              int(offset))
 
-    def end(self) -> None:
-        handle, self._handle = self._handle, None
-        LIB.wgpuComputePassEncoderEnd(handle)
-        LIB.wgpuComputePassEncoderRelease(handle)
 
-
-class RenderPass:
+class RenderPass(_Pass):
     """A render pass recorded through the C functions (the methods wgpu-py's pass has, as a
     frame uses them); released by :meth:`end`."""
 
-    __slots__ = ("_handle",)
-
-    def __init__(self, handle: Any) -> None:
-        self._handle = handle
-
-    def set_pipeline(self, pipeline: wgpu.GPURenderPipeline) -> None:
-        LIB.wgpuRenderPassEncoderSetPipeline(self._handle, pipeline._internal)
-
-    def set_bind_group(self, index: int, group: wgpu.GPUBindGroup) -> None:
-        LIB.wgpuRenderPassEncoderSetBindGroup(self._handle, index, group._internal, 0,
-                                              _ffi.NULL)
+    __slots__ = ()
+    _KIND = "Render"
 
     def draw(self, vertices: int, instances: int = 1, first_vertex: int = 0,
              first_instance: int = 0) -> None:
@@ -201,11 +207,6 @@ class RenderPass:
     def execute_bundles(self, bundles: list) -> None:
         handles = _ffi.new("WGPURenderBundle[]", [b._internal for b in bundles])
         LIB.wgpuRenderPassEncoderExecuteBundles(self._handle, len(bundles), handles)
-
-    def end(self) -> None:
-        handle, self._handle = self._handle, None
-        LIB.wgpuRenderPassEncoderEnd(handle)
-        LIB.wgpuRenderPassEncoderRelease(handle)
 
 
 class PendingMap:
