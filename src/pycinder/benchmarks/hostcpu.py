@@ -18,9 +18,11 @@ What is measured, per scene and planner:
   counted only when the caller is outside wgpu-py, so a call wgpu-py makes for itself (the empty
   submission before some maps) is not one. Beside it, the native calls wgpu-py makes through its
   checked library functions (``_helpers.proxy_func``: one per ``wgpu...`` C function called that
-  way). **Submissions** and **maps** are the calls of ``GPUQueue.submit`` and of
-  ``GPUBuffer.map...``. They are counted on queries of their own, after the timed ones (the
-  counting wrappers cost time).
+  way), and the C functions pycinder calls itself (:mod:`pycinder.gpu.native`: its frames'
+  passes, clears, copies and maps), counted as ``"C name"`` and, in the report, in brackets
+  after the API calls they are part of. **Submissions** and **maps** are the calls of
+  ``GPUQueue.submit`` and of ``GPUBuffer.map...`` or ``wgpuBufferMapAsync``. They are counted on
+  queries of their own, after the timed ones (the counting wrappers cost time).
 * **Stages**: where the host CPU goes, on further queries: the same clocks read at the entry and
   exit of the query's stages (:data:`STAGES`), each moment charged to the innermost stage
   running ("other": the query's code outside every stage, waits excluded as above).
@@ -374,17 +376,19 @@ PLANNERS = ("numpy", "gpu")
 
 
 def measure(case: Case, planners: Sequence[str] = PLANNERS, *, repeats: int = 7,
-            batch: int = 5, warmup: int = 3, stages: bool = True, counted: int = 2
-            ) -> list[dict[str, Any]]:
+            batch: int = 5, warmup: int = 3, stages: bool = True, counted: int = 2,
+            records: str = "none") -> list[dict[str, Any]]:
     """One row per planner: host CPU per query, frame wall, wgpu-py calls, stages.
 
     The planners' detectors share the process and alternate batch by batch; each batch is
-    ``batch`` queries, after ``warmup`` untimed ones per planner."""
+    ``batch`` queries, after ``warmup`` untimed ones per planner. ``records``: the detectors'
+    (``"none"``, pairs only, is how the targets are stated; ``"found"`` is the default of
+    :class:`~pycinder.Detector`)."""
     from ..detector import Detector
 
     loops = {}
     for planner in planners:
-        det = Detector(records="none", planner=planner)
+        det = Detector(records=records, planner=planner)
         next_input, query, extra = case.make(det)
         for k in range(warmup):
             query(det, next_input(k))
@@ -419,7 +423,7 @@ def measure(case: Case, planners: Sequence[str] = PLANNERS, *, repeats: int = 7,
                 query(det, next_input(k))
                 k += 1
         row = {"scene": case.name, "description": case.description, "planner": planner,
-               "target_ms": case.target_ms, "host_cpu_ms": statistics.median(cpu[planner]),
+               "records": records, "target_ms": case.target_ms, "host_cpu_ms": statistics.median(cpu[planner]),
                "host_cpu_ms_batches": cpu[planner], "wall_ms": statistics.median(wall[planner]),
                "queries": len(wall[planner]),
                "cpu_by_thread_ms": {g: ms / len(wall[planner])
@@ -477,26 +481,31 @@ def profile(case: Case, planner: str = "numpy", queries: int = 10, top: int = 20
 
 def run(names: Sequence[str] | None = None, planners: Sequence[str] = PLANNERS, *,
         repeats: int = 7, batch: int = 5, stages: bool = True,
-        progress: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
-    """Every named case (default: all of :data:`CASES`), in this process."""
+        progress: Callable[[str], None] | None = None, records: str = "none"
+        ) -> list[dict[str, Any]]:
+    """Every named case (default: all of :data:`CASES`), in this process (``records``: see
+    :func:`measure`)."""
     rows = []
     for name in names or list(CASES):
         if name not in CASES:
             raise ValueError(f"unknown scene {name!r}; choose from {', '.join(CASES)}")
         if progress:
             progress(f"hostcpu: {name}")
-        rows += measure(CASES[name], planners, repeats=repeats, batch=batch, stages=stages)
+        rows += measure(CASES[name], planners, repeats=repeats, batch=batch, stages=stages,
+                        records=records)
     return rows
 
 
 def run_fresh(names: Sequence[str] | None = None, planners: Sequence[str] = PLANNERS, *,
-              repeats: int = 7, batch: int = 5, stages: bool = True, src: str | None = None
-              ) -> list[dict[str, Any]]:
+              repeats: int = 7, batch: int = 5, stages: bool = True, src: str | None = None,
+              records: str = "none") -> list[dict[str, Any]]:
     """:func:`run` in a fresh process, on the package under ``src`` (default: this one's), with
     this module loaded into it (so an older checkout is measured the same way)."""
     src = src or str(Path(__file__).resolve().parents[2])
     args = ["--json", "-", "--repeats", str(repeats), "--batch", str(batch),
             "--planners", *planners, "--scenes", *(names or list(CASES))]
+    if records != "none":
+        args += ["--records", records]
     if not stages:
         args.append("--no-stages")
     env = path_first(src)
@@ -520,8 +529,8 @@ module.main(sys.argv[3:])
 
 def compare(against: str, names: Sequence[str] | None = None,
             planners: Sequence[str] = PLANNERS, *, rounds: int = 3, repeats: int = 5,
-            batch: int = 5, progress: Callable[[str], None] | None = None
-            ) -> dict[str, list[dict[str, Any]]]:
+            batch: int = 5, progress: Callable[[str], None] | None = None,
+            records: str = "none") -> dict[str, list[dict[str, Any]]]:
     """This checkout against the package under ``against`` (a ``src`` folder), in fresh
     processes alternating round by round; ``{"before": rows, "after": rows}``, a row's figures
     the median over the rounds' processes (each process's in ``..._runs``)."""
@@ -531,7 +540,7 @@ def compare(against: str, names: Sequence[str] | None = None,
             if progress:
                 progress(f"hostcpu: round {r + 1} of {rounds}, {which}")
             runs[which].append(run_fresh(names, planners, repeats=repeats, batch=batch,
-                                         src=src))
+                                         src=src, records=records))
     return {which: _merge(rows) for which, rows in runs.items()}
 
 
@@ -681,6 +690,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument("--repeats", type=int, default=7, help="timed batches per scene and planner")
     p.add_argument("--batch", type=int, default=5, help="queries per batch")
     p.add_argument("--no-stages", action="store_true", help="leave out the stage breakdown")
+    p.add_argument("--records", default="none", choices=("none", "found", "all"),
+                   help="the detectors' records (default none, as the targets are stated; "
+                        "found is the Detector's default)")
     p.add_argument("--profile", type=int, default=0, metavar="N",
                    help="print cProfile's N costliest functions (own CPU time of the calling "
                         "thread) per scene, with the NumPy planner")
@@ -701,7 +713,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         return
     if a.against:
         result = compare(a.against, a.scenes, a.planners, rounds=a.rounds, repeats=a.repeats,
-                         batch=a.batch, progress=say)
+                         batch=a.batch, progress=say, records=a.records)
         text = "\n".join(comparison_lines(result) + [""] + markdown_lines(result["after"]) + [""]
                          + validation_lines(result["after"], result["before"]))
         if a.json:
@@ -713,7 +725,8 @@ def main(argv: Sequence[str] | None = None) -> None:
             print(f"## {name}\n\n```\n{profile(CASES[name], top=a.profile)}```\n")
         return
     rows = run(a.scenes, a.planners, repeats=a.repeats, batch=a.batch,
-               stages=not a.no_stages, progress=say if a.json != "-" else None)
+               stages=not a.no_stages, progress=say if a.json != "-" else None,
+               records=a.records)
     if a.json == "-":
         print(json.dumps(rows))
         return

@@ -12,7 +12,10 @@ nothing of pycinder's around it, on the device pycinder would use:
   recorded once (``bundle``),
 * a copy of the answer (``answer_bytes``) into a staging buffer, ``finish``, one ``submit``,
 * ``map_async`` of the staging buffer, the wait (with a deadline, as pycinder waits), reading and
-  ``unmap``.
+  ``unmap``;
+
+through wgpu-py's methods, or (``direct``) with the passes, the copy and the map through
+wgpu-native's C functions, as pycinder records its frames (:mod:`pycinder.gpu.native`).
 
 Pipelines, bind groups, buffers and the bundle are made once, as the brief asks. The figure is
 the same as :mod:`pycinder.benchmarks.hostcpu`'s: the CPU time of every Python thread of the

@@ -40,6 +40,7 @@ from .broad.prune import sweep_and_prune
 from .frame.again import (LARGER_LISTS, RETRIES, RoundTooLarge, retry_on_gpu, smaller_rounds,
                           undecided_tiles)
 from .frame.atlas import ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS
+from .frame.frameio import sort_records
 from .frame.frames import FocusedFrames, FocusedOutput, FrameInputs, Submitted
 
 if TYPE_CHECKING:
@@ -431,10 +432,12 @@ def decode_records(rows: list[tuple[TilePlan, np.ndarray]], edge_original: np.nd
 
 def _decode(scene: Scene, plan: TilePlan, edge_original: np.ndarray, face_original: np.ndarray,
             rows: np.ndarray, first_tile: int, encode: str) -> np.ndarray:
-    """:func:`decode_records` of one plan's rows; a record's ``view`` is its tile's index in
-    ``plan`` plus ``first_tile``."""
+    """:func:`decode_records` of one plan's rows (in the order the GPU kept them; decoded in
+    :func:`~pycinder.focused.frame.frameio.sort_records`' order); a record's ``view`` is its
+    tile's index in ``plan`` plus ``first_tile``."""
     if len(rows) == 0:
         return empty_records()
+    rows = sort_records(rows)
     tile = rows["tile"].astype(np.int64)
     u = (rows["uv"] & 0xFFFF).astype(np.int64)
     v = (rows["uv"] >> 16).astype(np.int64)

@@ -40,7 +40,8 @@ class FocusedOutput:
         budget). Read only when some tile is left undecided and its answer could still change;
         None otherwise.
     records : (R,) structured array of :data:`~pycinder.gpu.layout.RECORD`
-        Sorted by (tile, uv, z_bits, ident).
+        In the order the GPU kept them (:func:`sort_records` orders them when they are
+        decoded: most queries never read them).
     counters : (COUNTERS,) int64
     bytes_read : int
     reruns : int
@@ -204,8 +205,6 @@ class FrameReadback:
             if more:
                 recs = second[tiles // 4:]
         recs = np.ascontiguousarray(recs).view(RECORD.dtype)
-        if len(recs):
-            recs = recs[np.lexsort((recs["ident"], recs["z_bits"], recs["uv"], recs["tile"]))]
         retried = int(counters[C_RETRY_TILES])
         return FocusedOutput(pair_found, tile_counts, recs, counters,
                              lay.nbytes + tiles + more, gpu_ms,
@@ -226,6 +225,26 @@ class FrameReadback:
         return readback.read(tiles + more, timeout=self.timeout,
                              waiting_for=f"the counts of {s.tiles} tiles and {n_records} "
                                          "records")
+
+
+def sort_records(recs: np.ndarray) -> np.ndarray:
+    """Records in one order whatever order the GPU's atomics kept them in: by (tile, uv, z_bits,
+    ident), as two 64-bit keys.
+
+    Parameters
+    ----------
+    recs : (R,) structured array of :data:`~pycinder.gpu.layout.RECORD`
+
+    Returns
+    -------
+    (R,) structured array of :data:`~pycinder.gpu.layout.RECORD`
+    """
+    if len(recs) < 2:
+        return recs
+    words = np.ascontiguousarray(recs).view(np.uint32).reshape(len(recs), 4).astype(np.uint64)
+    first = (words[:, 0] << np.uint64(32)) | words[:, 1]     # tile, uv
+    second = (words[:, 2] << np.uint64(32)) | words[:, 3]    # z_bits, ident
+    return recs[np.lexsort((second, first))]
 
 
 _TILE_WORD = {name: TILE.dtype.fields[name][1] // 4 for name in TILE.dtype.names}
@@ -263,4 +282,4 @@ def tile_words(plan: TilePlan, matrices: np.ndarray) -> np.ndarray:
 
 
 __all__ = ["FocusedOutput", "FrameInputs", "FrameReadback", "ReadLayout", "SPECULATIVE_RECORDS",
-           "Submitted", "tile_words"]
+           "Submitted", "sort_records", "tile_words"]
