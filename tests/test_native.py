@@ -106,3 +106,20 @@ def test_a_map_of_a_range_wgpu_refuses_raises_instead_of_aborting():
     for nbytes in (0, 6, readback.buf.buffer.size + 4):
         with pytest.raises(ValueError, match="multiple of 4"):
             native.map_read(device, readback.buf.buffer, nbytes)
+
+
+def test_render_passes_of_one_plain_attachment_go_through_the_c_functions_others_wgpu_py():
+    device = get_gpu().device
+    target = device.create_texture(size=(8, 8, 1), format="r8unorm",
+                                   usage=wgpu.TextureUsage.RENDER_ATTACHMENT)
+    view = target.create_view()
+    plain = {"view": view, "load_op": "clear", "store_op": "store", "clear_value": (0, 0, 0, 1)}
+    others = [dict(plain, clear_value={"r": 0, "g": 0, "b": 0, "a": 1}),
+              dict(plain, resolve_target=None)]
+    encoder = native.encoder(device, "render passes")
+    for attachment, kind in [(plain, native.RenderPass)] + [(o, wgpu.GPURenderPassEncoder)
+                                                             for o in others]:
+        rpass = encoder.begin_render_pass(label="one", color_attachments=[attachment])
+        assert isinstance(rpass, kind), attachment
+        rpass.end()
+    device.queue.submit([encoder.finish()])

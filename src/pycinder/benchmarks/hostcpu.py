@@ -423,7 +423,8 @@ def measure(case: Case, planners: Sequence[str] = PLANNERS, *, repeats: int = 7,
                 query(det, next_input(k))
                 k += 1
         row = {"scene": case.name, "description": case.description, "planner": planner,
-               "records": records, "target_ms": case.target_ms, "host_cpu_ms": statistics.median(cpu[planner]),
+               "records": records, "target_ms": case.target_ms,
+               "host_cpu_ms": statistics.median(cpu[planner]),
                "host_cpu_ms_batches": cpu[planner], "wall_ms": statistics.median(wall[planner]),
                "queries": len(wall[planner]),
                "cpu_by_thread_ms": {g: ms / len(wall[planner])

@@ -42,7 +42,7 @@ except ImportError:  # pragma: no cover
 WHOLE_SIZE = 0xFFFF_FFFF_FFFF_FFFF
 """``WGPU_WHOLE_SIZE``: a clear to the end of the buffer."""
 _LABELS_KEPT = 512
-"""Compute pass descriptors kept (one per label; the labels of a frame repeat)."""
+"""Pass descriptors kept of each kind (one per label and attachment; a frame's repeat)."""
 
 
 class _Lib:
@@ -82,8 +82,9 @@ def available(device: Any) -> bool:
 
 
 def encoder(device: wgpu.GPUDevice, label: str = "") -> Any:
-    """A command encoder of ``device`` that records compute passes, clears and copies through the
-    C functions (:class:`Encoder`), or wgpu-py's own where :func:`available` is False."""
+    """A command encoder of ``device`` that records compute passes, render passes of one colour
+    attachment, clears and copies through the C functions (:class:`Encoder`), or wgpu-py's own
+    where :func:`available` is False."""
     wrapped = device.create_command_encoder(label=label)
     return Encoder(wrapped) if available(device) else wrapped
 
@@ -118,9 +119,7 @@ class Encoder:
                           **options: Any) -> Any:
         """A render pass of one colour attachment (view, ``load_op``, ``store_op``, optionally
         ``clear_value``) and nothing else (:class:`RenderPass`); any other is wgpu-py's."""
-        if options or len(color_attachments) != 1 \
-                or not set(color_attachments[0]) <= {"view", "load_op", "store_op",
-                                                     "clear_value"}:
+        if options or len(color_attachments) != 1 or not _plain(color_attachments[0]):
             return self.wrapped.begin_render_pass(label=label,
                                                   color_attachments=color_attachments, **options)
         if self._labels is not None:
@@ -347,6 +346,15 @@ def _pass_descriptor(label: str) -> Any:
 
 _LOAD = {"load": "WGPULoadOp_Load", "clear": "WGPULoadOp_Clear"}
 _STORE = {"store": "WGPUStoreOp_Store", "discard": "WGPUStoreOp_Discard"}
+
+
+def _plain(attachment: dict) -> bool:
+    """Whether a colour attachment is one :func:`_render_pass_descriptor` makes: a view, known
+    load and store operations, and a clear value of four numbers if any."""
+    clear = attachment.get("clear_value", (0, 0, 0, 0))
+    return (set(attachment) <= {"view", "load_op", "store_op", "clear_value"}
+            and attachment.get("load_op") in _LOAD and attachment.get("store_op") in _STORE
+            and isinstance(clear, (tuple, list)) and len(clear) == 4)
 _render_descriptors: dict[tuple, Any] = {}
 
 
