@@ -42,7 +42,7 @@ except ImportError:  # pragma: no cover
 WHOLE_SIZE = 0xFFFF_FFFF_FFFF_FFFF
 """``WGPU_WHOLE_SIZE``: a clear to the end of the buffer."""
 _LABELS_KEPT = 512
-"""Pass descriptors kept of each kind (one per label and attachment; a frame's repeat)."""
+"""Pass descriptors kept (one per label, and attachment for a render pass; a frame's repeat)."""
 
 
 class _Lib:
@@ -326,22 +326,35 @@ def map_read(device: wgpu.GPUDevice, buffer: wgpu.GPUBuffer, nbytes: int) -> Pen
     return pending
 
 
-_descriptors: dict[str, Any] = {}
+_descriptors: dict[Any, tuple] = {}
+"""Pass descriptors made, by label (compute) or by label and attachment (render), each with the
+C objects and views it points to (kept alive with it, so that a view's id stays its own)."""
 
 
-def _pass_descriptor(label: str) -> Any:
-    """The compute pass descriptor of ``label`` (made once; its label's bytes kept with it)."""
-    found = _descriptors.get(label)
+def _kept(key: Any, make: Any) -> Any:
+    """The descriptor kept under ``key``, made by ``make()`` (a tuple: the descriptor first,
+    then what it points to) the first time; at most :data:`_LABELS_KEPT` are kept."""
+    found = _descriptors.get(key)
     if found is None:
         if len(_descriptors) >= _LABELS_KEPT:
             _descriptors.clear()
-        text = _ffi.new("char []", label.encode())
-        desc = _ffi.new("WGPUComputePassDescriptor *")
-        desc.label.data = text
-        desc.label.length = len(text) - 1
-        desc.timestampWrites = _ffi.NULL
-        found = _descriptors[label] = (desc, text)
+        found = _descriptors[key] = make()
     return found[0]
+
+
+def _labelled(ctype: str, label: str) -> tuple[Any, Any]:
+    """A new pass descriptor of ``ctype`` named ``label``, untimed, and its label's bytes."""
+    text = _ffi.new("char []", label.encode())
+    desc = _ffi.new(ctype)
+    desc.label.data = text
+    desc.label.length = len(text) - 1
+    desc.timestampWrites = _ffi.NULL
+    return desc, text
+
+
+def _pass_descriptor(label: str) -> Any:
+    """The compute pass descriptor of ``label`` (made once)."""
+    return _kept(label, lambda: _labelled("WGPUComputePassDescriptor *", label))
 
 
 _LOAD = {"load": "WGPULoadOp_Load", "clear": "WGPULoadOp_Clear"}
@@ -355,37 +368,31 @@ def _plain(attachment: dict) -> bool:
     return (set(attachment) <= {"view", "load_op", "store_op", "clear_value"}
             and attachment.get("load_op") in _LOAD and attachment.get("store_op") in _STORE
             and isinstance(clear, (tuple, list)) and len(clear) == 4)
-_render_descriptors: dict[tuple, Any] = {}
 
 
 def _render_pass_descriptor(label: str, attachment: dict) -> Any:
-    """The render pass descriptor of ``label`` and one colour attachment (made once per
-    label, view and operations; the view is kept with it, so that its id stays its own)."""
+    """The render pass descriptor of ``label`` and one colour attachment (made once per label,
+    view and operations)."""
     view = attachment["view"]
     clear = tuple(attachment.get("clear_value", (0, 0, 0, 0)))
-    key = (label, id(view), attachment["load_op"], attachment["store_op"], clear)
-    found = _render_descriptors.get(key)
-    if found is None:
-        if len(_render_descriptors) >= _LABELS_KEPT:
-            _render_descriptors.clear()
+    load, store = attachment["load_op"], attachment["store_op"]
+
+    def make() -> tuple:
         colour = _ffi.new("WGPURenderPassColorAttachment *")
         colour.view = view._internal
         colour.depthSlice = _lib.WGPU_DEPTH_SLICE_UNDEFINED
         colour.resolveTarget = _ffi.NULL
-        colour.loadOp = getattr(_lib, _LOAD[attachment["load_op"]])
-        colour.storeOp = getattr(_lib, _STORE[attachment["store_op"]])
+        colour.loadOp = getattr(_lib, _LOAD[load])
+        colour.storeOp = getattr(_lib, _STORE[store])
         colour.clearValue.r, colour.clearValue.g, colour.clearValue.b, colour.clearValue.a = clear
-        text = _ffi.new("char []", label.encode())
-        desc = _ffi.new("WGPURenderPassDescriptor *")
-        desc.label.data = text
-        desc.label.length = len(text) - 1
+        desc, text = _labelled("WGPURenderPassDescriptor *", label)
         desc.colorAttachmentCount = 1
         desc.colorAttachments = colour
         desc.depthStencilAttachment = _ffi.NULL
         desc.occlusionQuerySet = _ffi.NULL
-        desc.timestampWrites = _ffi.NULL
-        found = _render_descriptors[key] = (desc, colour, text, view)
-    return found[0]
+        return desc, colour, text, view
+
+    return _kept(("render", label, id(view), load, store, clear), make)
 
 
 @contextlib.contextmanager
