@@ -55,6 +55,44 @@ def test_few_boxes_are_tested_pair_by_pair_exactly(n):
         assert [tuple(p) for p in pairs.tolist()] == [p for p in truth if keep(p)], kw
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_banded_sweep_matches_brute_force_on_band_edges_and_wide_boxes(seed, monkeypatch):
+    """Many boxes are swept band by band across a second axis: every pair is found once,
+    with boxes that start, end or touch exactly on the bands' edges, flat and wide boxes (a
+    box in every band), keys and groups; the answer is the brute force's whether the bands are
+    used or refused (too many copies)."""
+    rng = np.random.default_rng(seed)
+    n = 400
+    lo = rng.uniform(0, 1, (n, 3)) * [12, 6, 3]  # swept along x, in bands across y
+    hi = lo + rng.uniform(0.1, 0.8, (n, 3))
+    y = 1
+    box, band, width = broadphase._bands(lo[:, y], hi[:, y])
+    assert width > 0 and band.max() > 3 and len(box) < broadphase.MAX_COPIES * n
+    edges = lo[:, y].min() + width * rng.integers(1, int(band.max()), 60)
+    lo[:30, y] = edges[:30]                      # starting on an edge
+    hi[:30, y] = edges[:30] + 0.3
+    lo[30:60, y] = edges[30:] - 0.3
+    hi[30:60, y] = edges[30:]                    # ending on one
+    lo[60:90] = hi[30:60]                        # touching those exactly
+    hi[60:90] = lo[60:90] + 0.2
+    hi[90:100, y] = lo[90:100, y]                # flat across
+    lo[100:104, y], hi[100:104, y] = -1.0, 8.0   # wide: in every band
+    bands = []
+    real = broadphase._bands
+    monkeypatch.setattr(broadphase, "_bands",
+                        lambda a, b: bands.append(real(a, b)) or bands[-1])
+    truth = brute(lo, hi)
+    within = rng.integers(0, 3, n)
+    groups = rng.integers(0, 2, n)
+    for max_copies in (broadphase.MAX_COPIES, 1):
+        monkeypatch.setattr(broadphase, "MAX_COPIES", max_copies)
+        bands.clear()
+        assert [tuple(p) for p in sweep_and_prune(lo, hi).tolist()] == truth
+        assert (bands[0][2] > 0) == (max_copies > 1)
+        assert [tuple(p) for p in sweep_and_prune(lo, hi, within, groups).tolist()] == \
+            [p for p in truth if within[p[0]] == within[p[1]] and groups[p[0]] != groups[p[1]]]
+
+
 def test_sweep_in_chunks(monkeypatch):
     rng = np.random.default_rng(9)
     lo = rng.uniform(0, 3, (400, 3))
