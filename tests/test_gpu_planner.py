@@ -240,6 +240,35 @@ def test_ManyBodies_and_Stairs_answer_as_with_the_numpy_planner(gpu_detector):
             assert differ <= {tuple(p) for p in truth.ambiguous.tolist()}, scene.name
 
 
+def test_tile_views_are_gathered_only_when_read(monkeypatch):
+    """A GPU plan gathers its tiles' views on the host only when they are read: a query of
+    pairs only never does, one whose records are decoded does, and the views are those gathered
+    at once (the plan compares with the NumPy planner's packing above either way)."""
+    from pycinder.focused.plan import gpu as gpu_plan
+
+    gathered = []
+    real = gpu_plan._Views.gather
+    monkeypatch.setattr(gpu_plan._Views, "gather",
+                        lambda self: gathered.append(1) or real(self))
+    scene = ManyBodies(120, 1, seed=4)
+    verts, transforms = scene.frame(0)
+    bodies = list(zip(verts, scene.faces))
+    pairs_only = pycinder.Detector(planner="gpu", records="none")
+    found = pairs_only.find_collisions(bodies, transforms)
+    assert found.stats.planner == "gpu" and len(found.pairs) and not gathered
+    with_records = pycinder.Detector(planner="gpu", records="found")
+    result = with_records.find_collisions(bodies, transforms)
+    assert not gathered  # decoded only when read
+    assert len(result.records) and gathered
+    np.testing.assert_array_equal(result.pairs, found.pairs)
+    inputs = random_boxes(40, 3)
+    plan, _ = GpuPlanner(get_gpu()).plan(*_inputs_args(inputs), budget_pixels=2**20)
+    assert plan._gathered is None
+    views = real(plan._views)
+    for k, name in enumerate(("axes", "origin", "pixel", "slab")):
+        np.testing.assert_array_equal(getattr(plan, name), views[k], err_msg=name)
+
+
 def test_the_option_is_checked():
     with pytest.raises(ValueError, match="planner"):
         pycinder.Detector(planner="cuda")

@@ -173,22 +173,67 @@ class GpuPlanner:
     def _tiles(self, raw: np.ndarray, atlas: AtlasPlan, pairs: np.ndarray,
                tolerance: np.ndarray) -> TilePlan:
         """The :class:`TilePlan` of P2's tiles, each with its pair's window from P1 (``raw``,
-        one per pair), its origin moved to its part of the window as
-        :func:`pycinder.focused.plan.tiles._place` moves it."""
+        one per pair). The frame needs only the tiles' pairs, places and flags (its tile words
+        are P3's); their views are gathered when first read (:class:`GpuTilePlan`)."""
         if len(atlas) == 0:
             return empty_plan(atlas.separated)
         k = atlas.pair
-        r = raw.take(k)
+        flags = raw["flags"].take(k).astype(np.int64) | atlas.flags
+        return GpuTilePlan(k, np.take(pairs, k, axis=0).astype(np.int64), atlas.window, flags,
+                           atlas.round, atlas.round_rows, atlas.atlas_width, atlas.separated,
+                           _Views(raw, atlas, tolerance, self.windows.anchor))
+
+
+class _Views:
+    """What the views of a :class:`GpuTilePlan`'s tiles are gathered from: P1's windows
+    ``raw`` (one per pair), P2's tiles, the pairs' tolerances and the bodies' anchors."""
+
+    def __init__(self, raw: np.ndarray, atlas: AtlasPlan, tolerance: np.ndarray,
+                 anchor: np.ndarray) -> None:
+        self.raw, self.atlas, self.anchor = raw, atlas, anchor
+        self.tolerance = np.asarray(tolerance, np.float64)
+
+    def gather(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``axes`` (T, 3, 3), ``origin`` (T, 3), ``pixel`` (T,) and ``slab`` (T, 2), float64:
+        each tile's pair's window, its origin moved to its part of the window as
+        :func:`pycinder.focused.plan.tiles._place` moves it."""
+        atlas = self.atlas
+        k = atlas.pair
+        r = self.raw.take(k)
         axes = r["axes"][:, :, :3].astype(np.float64)
-        pixel = np.asarray(tolerance, np.float64).take(k)
-        origin = self.windows.anchor.take(r["anchor"], axis=0) + r["origin"]
+        pixel = self.tolerance.take(k)
+        origin = self.anchor.take(r["anchor"], axis=0) + r["origin"]
         u = np.where(atlas.moved, atlas.u0, 0) + atlas.shift
         v = np.where(atlas.moved, atlas.v0, 0)
         origin += (u * pixel)[:, None] * axes[:, 0] + (v * pixel)[:, None] * axes[:, 1]
-        flags = r["flags"].astype(np.int64) | atlas.flags
-        return TilePlan(k, np.take(pairs, k, axis=0).astype(np.int64), axes, origin, pixel,
-                        atlas.window, r["slab"].astype(np.float64), flags, atlas.round,
-                        atlas.round_rows, atlas.atlas_width, atlas.separated)
+        return axes, origin, pixel, r["slab"].astype(np.float64)
 
 
-__all__ = ["PASSES", "GpuPlanner"]
+class GpuTilePlan(TilePlan):
+    """A :class:`TilePlan` made by the GPU planner, whose tiles' views (``axes``, ``origin``,
+    ``pixel``, ``slab``) are gathered on the host only when first read: to decode records, to
+    cut tiles again, or to compare plans. A query that reads none of them (pairs only, or
+    records left undecoded) skips that work."""
+
+    def __init__(self, pair: np.ndarray, bodies: np.ndarray, window: np.ndarray,
+                 flags: np.ndarray, round: np.ndarray, round_rows: list[int], atlas_width: int,
+                 separated: int, views: _Views) -> None:
+        self.pair, self.bodies, self.window, self.flags, self.round = \
+            pair, bodies, window, flags, round
+        self.round_rows, self.atlas_width, self.separated = round_rows, atlas_width, separated
+        self._views: _Views | None = views
+        self._gathered: tuple | None = None
+
+    def _view(self, k: int) -> np.ndarray:
+        if self._gathered is None:
+            self._gathered = self._views.gather()
+            self._views = None
+        return self._gathered[k]
+
+    axes = property(lambda self: self._view(0), doc="(T, 3, 3) float64, see TilePlan")
+    origin = property(lambda self: self._view(1), doc="(T, 3) float64, see TilePlan")
+    pixel = property(lambda self: self._view(2), doc="(T,) float64, see TilePlan")
+    slab = property(lambda self: self._view(3), doc="(T, 2) float64, see TilePlan")
+
+
+__all__ = ["PASSES", "GpuPlanner", "GpuTilePlan"]
