@@ -326,3 +326,23 @@ def test_a_warning_comes_once_per_cause_not_per_frame(fresh_arrays):
             det.find_collisions([body, ball])
     about = [w for w in caught if issubclass(w.category, pycinder.OpenMeshWarning)]
     assert len(about) == 1, [str(w.message) for w in about]
+
+
+def test_unique_pairs_sorts_and_dedups_whatever_the_order():
+    """Pairs come back unique, ``i < j`` and sorted, whether given sorted and unique already
+    (the candidate pairs, kept as they are), shuffled, repeated or reversed."""
+    from pycinder.records import unique_pairs
+
+    rng = np.random.default_rng(5)
+    a, b = rng.integers(0, 50, 400), rng.integers(0, 50, 400)
+    keep = a != b
+    a, b = a[keep], b[keep]
+    truth = sorted({(min(i, j), max(i, j)) for i, j in zip(a.tolist(), b.tolist())})
+    assert unique_pairs(a, b).tolist() == [list(p) for p in truth]
+    first, second = np.array(truth).T
+    assert unique_pairs(first, second).tolist() == [list(p) for p in truth]
+    assert unique_pairs(second, first).tolist() == [list(p) for p in truth]
+    assert unique_pairs(first[:1], second[:1]).tolist() == [list(truth[0])]
+    assert unique_pairs(np.r_[first, first[:3]], np.r_[second, second[:3]]).tolist() == \
+        [list(p) for p in truth]
+    assert unique_pairs(np.zeros(0, int), np.zeros(0, int)).shape == (0, 2)

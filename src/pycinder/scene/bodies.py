@@ -199,7 +199,7 @@ def check_transforms(transforms: Any, n: int, names: Sequence[str | None]) -> np
         raise ValueError(
             f"{body_label(i, names[i])}: transform is not affine (last row must be [0, 0, 0, 1])"
         )
-    det = np.linalg.det(t[:, :3, :3])
+    det = _det3(t)
     if (np.abs(det) < 1e-300).any() or not np.isfinite(det).all():
         i = int(np.flatnonzero((np.abs(det) < 1e-300) | ~np.isfinite(det))[0])
         raise ValueError(f"{body_label(i, names[i])}: transform is singular (it flattens the body)")
@@ -209,6 +209,17 @@ def check_transforms(transforms: Any, n: int, names: Sequence[str | None]) -> np
         raise ValueError(f"{body_label(i, names[i])}: transform moves or scales the body beyond "
                          f"{MAX_EXTENT:g} units; rescale the scene")
     return t
+
+
+def _det3(t: np.ndarray) -> np.ndarray:
+    """(N,) determinants of the linear parts of (N, 4, 4) matrices, by cofactors along the
+    first row (a few element-wise products of columns: many times faster than an LU per
+    3 x 3 matrix)."""
+    m = t[:, :3, :3]
+    a, b, c = m[:, 0, 0], m[:, 0, 1], m[:, 0, 2]
+    d, e, f = m[:, 1, 0], m[:, 1, 1], m[:, 1, 2]
+    g, h, i = m[:, 2, 0], m[:, 2, 1], m[:, 2, 2]
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
 
 
 _SEED = secrets.randbits(64)
