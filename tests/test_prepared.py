@@ -57,6 +57,26 @@ def test_updated_vertices_are_seen_and_other_bodies_keep_theirs(detector):
     assert len(bodies.shapes) == 2 and b[1] == b[2] != b[0]
 
 
+def test_the_scenes_of_prepared_bodies_share_their_per_body_arrays_until_an_update(detector):
+    """Every query's scene of prepared bodies shares one set of per-body arrays (boxes, face
+    counts, ...), read-only; an update makes new ones that see the new vertices."""
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.5)
+    box = trimesh.creation.box((1.0, 2.0, 3.0))
+    bodies = detector.prepare([ball, box, ball])
+    first, second = bodies.scene(None), bodies.scene(np.stack([np.eye(4)] * 3))
+    for name in ("local_lo", "local_hi", "face_counts", "open", "radius"):
+        assert getattr(first, name) is getattr(second, name), name
+        assert not getattr(first, name).flags.writeable, name
+    np.testing.assert_allclose(first.local_hi[1] - first.local_lo[1], [1.0, 2.0, 3.0])
+    assert first.face_counts.tolist() == [320, 12, 320]
+    bodies.update(0, np.asarray(ball.vertices) * 2.0)
+    after = bodies.scene(None)
+    assert after.local_lo is not first.local_lo
+    np.testing.assert_allclose(after.local_hi[0] - after.local_lo[0], 2.0 * (
+        first.local_hi[0] - first.local_lo[0]))
+    np.testing.assert_array_equal(after.local_hi[1:], first.local_hi[1:])
+
+
 def test_an_update_uploads_only_the_vertices_it_changed_and_ages_no_cached_shape(monkeypatch):
     """A body with a shape of its own keeps its slot (the GPU's index buffers stay, only its
     vertices are written), and updates between list queries do not push the list's shapes out

@@ -553,6 +553,10 @@ class Scene:
     transforms: np.ndarray
     names: list[str | None]
     _radii: np.ndarray | None = field(default=None, repr=False)
+    per_body: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    """Per-body arrays taken from the shapes (:attr:`local_lo`, :attr:`face_counts`, ...), made
+    on first use; prepared bodies share one dict across the scenes of their queries (the shapes
+    and ``body_shape`` of a scene never change)."""
 
     def __len__(self) -> int:
         return len(self.body_shape)
@@ -563,34 +567,41 @@ class Scene:
     def shape_of(self, i: int) -> Shape:
         return self.shapes[int(self.body_shape[i])]
 
-    def _per_shape(self, values: list[np.ndarray]) -> np.ndarray:
-        return np.asarray(values)[self.body_shape]
+    def _per_shape(self, name: str, value: Callable[[Shape], Any]) -> np.ndarray:
+        """``value`` of every body's shape (N, ...), kept in :attr:`per_body` under ``name``.
+        Read-only: the arrays are shared."""
+        out = self.per_body.get(name)
+        if out is None:
+            out = np.asarray([value(s) for s in self.shapes])[self.body_shape]
+            out.flags.writeable = False
+            self.per_body[name] = out
+        return out
 
     @property
     def local_lo(self) -> np.ndarray:
         """(N, 3) body-space box minimum of every body."""
-        return self._per_shape([s.lo for s in self.shapes])
+        return self._per_shape("local_lo", lambda s: s.lo)
 
     @property
     def local_hi(self) -> np.ndarray:
         """(N, 3) body-space box maximum of every body."""
-        return self._per_shape([s.hi for s in self.shapes])
+        return self._per_shape("local_hi", lambda s: s.hi)
 
     @property
     def face_counts(self) -> np.ndarray:
         """(N,) faces of every body (as tested: faces repeating a vertex left out)."""
-        return self._per_shape([len(s.topology.faces) for s in self.shapes])
+        return self._per_shape("face_counts", lambda s: len(s.topology.faces))
 
     @property
     def open(self) -> np.ndarray:
         """(N,) whether each body is not a solid (tested as a surface, see
         :attr:`~pycinder.scene.Topology.solid`)."""
-        return self._per_shape([not s.topology.solid for s in self.shapes])
+        return self._per_shape("open", lambda s: not s.topology.solid)
 
     @property
     def radius(self) -> np.ndarray:
         """(N,) radius of every body's body-space bounding sphere about its box's centre."""
-        return self._per_shape([s.radius for s in self.shapes])
+        return self._per_shape("radius", lambda s: s.radius)
 
     def bounding_radii(self) -> np.ndarray:
         """(N,) a radius about every body's box centre that holds the body, as its world box

@@ -140,17 +140,18 @@ class PreparedBodies(Sequence):
 
     def _scene(self, checked: np.ndarray) -> Scene:
         with self._lock:
-            shapes, body_shape, offsets = self._state
+            shapes, body_shape, offsets, per_body = self._state
         # The stored vertices are relative to each shape's offset: fold it into the transforms
         # (a copy of the caller's, made by check_transforms).
         checked[:, :3, 3] += np.einsum("nij,nj->ni", checked[:, :3, :3], offsets)
-        return Scene(shapes, body_shape, checked, list(self.names))
+        return Scene(shapes, body_shape, checked, list(self.names), per_body=per_body)
 
 
 def _state(shapes: list[Shape], body_shape: np.ndarray
-           ) -> tuple[list[Shape], np.ndarray, np.ndarray]:
+           ) -> tuple[list[Shape], np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     """The shapes some body uses, each once (by identity), in their first order; each body's
-    index among them; each body's offset (see :class:`Scene`): one tuple, replaced whole."""
+    index among them; each body's offset (see :class:`Scene`); and the per-body arrays every
+    query's scene shares (:attr:`Scene.per_body`): one tuple, replaced whole."""
     index: dict[int, int] = {}
     kept: list[Shape] = []
     remap = np.empty(len(shapes), dtype=np.int64)
@@ -163,7 +164,7 @@ def _state(shapes: list[Shape], body_shape: np.ndarray
                 kept.append(shape)
     body_shape = remap[body_shape]
     offsets = np.array([s.offset for s in kept]).reshape(-1, 3)[body_shape]
-    return kept, body_shape, offsets
+    return kept, body_shape, offsets, {}
 
 
 def prepare_scene(bodies: Sequence[Any], transforms: Any = None, *,
