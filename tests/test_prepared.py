@@ -77,6 +77,40 @@ def test_the_scenes_of_prepared_bodies_share_their_per_body_arrays_until_an_upda
     np.testing.assert_array_equal(after.local_hi[1:], first.local_hi[1:])
 
 
+def test_copies_of_prepared_bodies_answer_as_a_batch_of_their_scenes(detector):
+    """Copies of prepared bodies in many small scenes (one query, pairs only within a scene)
+    give each scene the pairs the batch of the same scenes gives; copies' transforms are
+    checked and named; indices out of range are refused."""
+    rng = np.random.default_rng(4)
+    meshes = [trimesh.creation.icosphere(subdivisions=1, radius=0.3),
+              trimesh.creation.box((0.5, 0.2, 0.4)), trimesh.creation.cylinder(0.1, 0.8)]
+    bodies = detector.prepare(meshes, names=["ball", "box", "rod"])
+    scenes, index, transforms, within = [], [], [], []
+    for s in range(12):
+        which = rng.choice(3, size=rng.integers(2, 4), replace=False)
+        poses = np.stack([random_rotation(rng) for _ in which])
+        poses[:, :3, 3] = rng.uniform(-0.4, 0.4, (len(which), 3))
+        scenes.append(([meshes[k] for k in which], poses))
+        index += which.tolist()
+        transforms.append(poses)
+        within += [s] * len(which)
+    scene = bodies.copies(np.array(index), np.concatenate(transforms))
+    mine = detector._find_within(scene, np.array(within), None)
+    first = np.cumsum([0] + [len(t) for t in transforms])
+    batch = detector.find_collisions_batch(scenes)
+    assert sum(len(r.pairs) for r in batch) == len(mine.pairs) > 0
+    for s, result in enumerate(batch):
+        inside = (mine.pairs[:, 0] >= first[s]) & (mine.pairs[:, 0] < first[s + 1])
+        assert (mine.pairs[inside] - first[s]).tolist() == result.pairs.tolist(), s
+    bad = np.concatenate(transforms)
+    bad[4, 0, 0] = np.nan
+    names = [f"copy {k}" for k in range(len(bad))]
+    with pytest.raises(ValueError, match=r"body 4 \('copy 4'\): transform contains NaN"):
+        bodies.copies(np.array(index), bad, names)
+    with pytest.raises(ValueError, match="index must be"):
+        bodies.copies(np.array([0, 3]), np.stack([np.eye(4)] * 2))
+
+
 def test_an_update_uploads_only_the_vertices_it_changed_and_ages_no_cached_shape(monkeypatch):
     """A body with a shape of its own keeps its slot (the GPU's index buffers stay, only its
     vertices are written), and updates between list queries do not push the list's shapes out

@@ -271,6 +271,39 @@ def test_padding_against_exact_distances(robots):
     assert padded_only, "no pair was reported for its padding alone: the test shows nothing"
 
 
+def test_a_batch_too_large_for_the_device_is_split_and_answers_the_same(robots, monkeypatch):
+    """A batch whose one query the device refuses (GpuMemoryError) is checked in halves, down
+    to single configurations, with the same verdicts and pairs as one query of them all (its
+    bodies copied once per configuration from bodies prepared once); the copies are named by
+    their configuration for messages."""
+    from pycinder.errors import GpuMemoryError
+    from pycinder.robot.robot import _CopyNames
+
+    panda = robots["panda"]
+    panda.allowed = adjacent_only(panda)
+    env = R.environment("panda")
+    q = panda.random_configurations(12, seed=21)
+    whole, whole_pairs = panda.check(q, environment=env, return_pairs=True, batch=12)
+    assert whole.any() and not whole.all()
+    real = type(panda.detector)._find_within
+    queries = []
+
+    def refuse_large(det, scene, within, tolerance):
+        configurations = len(np.unique(within)) // max(1, len(panda._plan(env, True)[0].scenes))
+        queries.append(configurations)
+        if configurations > 3:
+            raise GpuMemoryError("too large for this test's device")
+        return real(det, scene, within, tolerance)
+
+    monkeypatch.setattr(type(panda.detector), "_find_within", refuse_large)
+    split, split_pairs = panda.check(q, environment=env, return_pairs=True, batch=12)
+    assert queries == [12, 6, 3, 3, 6, 3, 3]  # refused, refused, answered in four quarters
+    assert split.tolist() == whole.tolist() and split_pairs == whole_pairs
+    names = _CopyNames(panda.bodies, np.array([2, 0]), 40, 3)
+    assert len(names) == 6 and names[3] == f"configuration 41: {panda.bodies[0].name}"
+    assert names[-1] == names[5] and names[:2] == [names[0], names[1]]
+
+
 def test_check_path_finds_the_first_colliding_index(robots):
     """A scripted path from above the table down into it: the index check_path returns is where
     the exact checks say the contact starts, up to the tolerance band: no configuration before

@@ -299,6 +299,21 @@ class Detector:
             result = self._finish(pending, t0, records)
         return split(result, joined)
 
+    def _find_within(self, scene: Scene, within: np.ndarray, tolerance: np.ndarray | None
+                     ) -> CollisionResult:
+        """One query of a validated scene holding many small ones (``within`` (N,): each body's
+        scene; pairs only inside one), each body's scene's tolerance in ``tolerance`` (N,), NaN
+        for the request's: :meth:`find_collisions_batch` without joining and splitting scenes
+        (for callers that make the scene themselves, from :meth:`PreparedBodies.copies`, and
+        read its pairs with the bodies' global indices)."""
+        check_body_count(len(scene), self.request.max_bodies)
+        records = self.request.call_records(None, None)
+        with self._device_lock():
+            t0 = time.perf_counter()
+            pending = self._submit(scene, t0, records=records, within=within,
+                                   tolerance=tolerance)
+            return self._finish(pending, t0, records)
+
     def _scene(self, bodies: Sequence[Any], transforms: Any,
                names: Sequence[str | None] | None) -> Scene:
         """The validated scene of bodies (or prepared bodies) and their transforms."""

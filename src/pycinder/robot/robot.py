@@ -17,6 +17,7 @@ from .model import Body, Environment, RobotModel
 
 if TYPE_CHECKING:
     from ..detector import Detector
+    from ..scene import PreparedBodies
 
 DEFAULT_BODIES_PER_QUERY = 12_000
 """Most bodies one batched query holds by default (configurations per query: this divided by
@@ -45,6 +46,35 @@ class _Plan:
     to test and left out of the answers)."""
     exact: bool
     """Whether the scenes hold checked pairs only."""
+    prepared: PreparedBodies | None = None
+    """The check's bodies, prepared once (made by the first batch)."""
+
+    @property
+    def layout(self) -> np.ndarray:
+        """(S,) the body of each copy a configuration's scenes hold, scene after scene."""
+        return np.concatenate(self.scenes)
+
+    @property
+    def scene_of(self) -> np.ndarray:
+        """(S,) the scene of each copy of :attr:`layout`."""
+        return np.repeat(np.arange(len(self.scenes)), [len(s) for s in self.scenes])
+
+
+class _CopyNames(Sequence):
+    """The names of a batch's copies of the bodies, made when read (a message names one):
+    ``configuration C: body``."""
+
+    def __init__(self, bodies: list[Body], layout: np.ndarray, first: int, count: int) -> None:
+        self.bodies, self.layout, self.first, self.count = bodies, layout, first, count
+
+    def __len__(self) -> int:
+        return self.count * len(self.layout)
+
+    def __getitem__(self, i: Any) -> Any:
+        if isinstance(i, slice):
+            return [self[k] for k in range(*i.indices(len(self)))]
+        c, k = divmod(int(i) % len(self), len(self.layout))
+        return f"configuration {self.first + c}: {self.bodies[int(self.layout[k])].name}"
 
 
 class Robot(RobotModel):
@@ -285,14 +315,8 @@ class Robot(RobotModel):
         if environment is not None and len(environment):
             env = np.array([b.origin for b in environment.bodies])
             poses = np.concatenate([poses, np.broadcast_to(env, (len(qs), *env.shape))], axis=1)
-        meshes = [b.mesh for b in bodies]
-        names = [b.name for b in bodies]
-        scene_meshes = [[meshes[i] for i in s] for s in plan.scenes]
-        scene_names = [[names[i] for i in s] for s in plan.scenes]
-        scenes = [(scene_meshes[k], poses[c, s], scene_names[k])
-                  for c in range(len(qs)) for k, s in enumerate(plan.scenes)]
         try:
-            results = self._query(scenes, plan, pads)
+            config, a, b = self._query(poses, start, plan, bodies, pads)
         except GpuMemoryError:
             if len(qs) == 1:
                 raise
@@ -302,45 +326,54 @@ class Robot(RobotModel):
             self._check_batch(qs[half:], start + half, plan, bodies, environment, collides,
                               pairs, pads)
             return
-        k = len(plan.scenes)
-        if plan.exact:
-            hit = np.array([len(r.pairs) > 0 for r in results]).reshape(len(qs), k)
-        else:
-            hit = np.array([bool(plan.checked[sc[r.pairs[:, 0]], sc[r.pairs[:, 1]]].any())
-                            for r, sc in zip(results, plan.scenes * len(qs))]
-                           ).reshape(len(qs), k)
-        collides[start:start + len(qs)] = hit.any(axis=1)
+        collides[start + config] = True
         if pairs is not None:
-            for c in np.flatnonzero(hit.any(axis=1)):
-                found = set()
-                for s in np.flatnonzero(hit[c]):
-                    scene = plan.scenes[s]
-                    for a, b in results[c * k + s].pairs.tolist():
-                        if not plan.checked[scene[a], scene[b]]:
-                            continue
-                        found.add(tuple(sorted((_owner(bodies[scene[a]]),
-                                                _owner(bodies[scene[b]])))))
-                pairs[start + c] = sorted(found)
+            owners = [_owner(body) for body in bodies]
+            found: dict[int, set[tuple[str, str]]] = {}
+            for c, i, j in zip(config.tolist(), a.tolist(), b.tolist()):
+                found.setdefault(c, set()).add(tuple(sorted((owners[i], owners[j]))))
+            for c, names in found.items():
+                pairs[start + c] = sorted(names)
 
-    def _query(self, scenes: list, plan: _Plan, pads: np.ndarray | None) -> list:
-        """The batch's results; with padding, each scene's pairs kept by their own padding
-        (environment pairs by the robot body's, the robot's own pairs by none)."""
+    def _query(self, poses: np.ndarray, start: int, plan: _Plan, bodies: list[Body],
+               pads: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One query of a batch of configurations (``poses`` (C, B, 4, 4): each body's pose in
+        each): a copy of each scene's bodies per configuration, prepared once, in one scene
+        whose copies pair only within their configuration's scene. Returns the checked pairs
+        found: each one's configuration (index into the batch) and bodies ``a``, ``b``
+        (indices into ``bodies``), (P,) each; with padding, each pair kept by its own padding
+        (environment pairs by the robot body's, the robot's own pairs by none: MoveIt's)."""
+        if plan.prepared is None:
+            plan.prepared = self.detector.prepare([body.mesh for body in bodies],
+                                                  names=[body.name for body in bodies])
+        layout, per = plan.layout, plan.bodies
+        count = len(poses)
+        scene = plan.prepared.copies(np.tile(layout, count),
+                                     poses[:, layout].reshape(-1, 4, 4),
+                                     _CopyNames(bodies, layout, start, count))
+        within = (np.arange(count)[:, None] * len(plan.scenes) + plan.scene_of).reshape(-1)
+        tolerance = np.full(len(within), self._tolerance_value)
         if pads is None:
-            return self.detector.find_collisions_batch(scenes, tolerance=self.tolerance)
-        robot = len(self.bodies) + len(self._attached)
-        clearance = max(float(pads.max()), 1e-12)
-        results = self._padded_detector(clearance).find_collisions_batch(
-            scenes, tolerance=self.tolerance)
-        for k, result in enumerate(results):
-            scene = np.asarray(plan.scenes[k % len(plan.scenes)])
-            a, b = scene[result.pairs[:, 0]], scene[result.pairs[:, 1]]
-            # Against the environment the padded robot; its own pairs unpadded (MoveIt's).
+            result = self.detector._find_within(scene, within, tolerance)
+        else:
+            clearance = max(float(pads.max()), 1e-12)
+            result = self._padded_detector(clearance)._find_within(scene, within, tolerance)
+        found = result.pairs
+        config = found[:, 0] // per
+        a, b = layout[found[:, 0] % per], layout[found[:, 1] % per]
+        keep = np.ones(len(found), dtype=bool) if plan.exact else plan.checked[a, b]
+        if pads is not None:
+            robot = len(self.bodies) + len(self._attached)
             limit = np.where((a >= robot) | (b >= robot), pads[a] + pads[b], 0.0)
-            keep = result.distances < limit + result.distance_errors
-            result.pairs = result.pairs[keep]
-            result.distances = result.distances[keep]
-            result.distance_errors = result.distance_errors[keep]
-        return results
+            keep &= result.distances < limit + result.distance_errors
+        return config[keep], a[keep], b[keep]
+
+    @property
+    def _tolerance_value(self) -> float:
+        """The checks' tolerance in world units; NaN for the detector's own (per pair)."""
+        from ..batching import scene_tolerances
+
+        return float(scene_tolerances(self.tolerance, 1, [self.name])[0])
 
     def interpolate(self, qs: Any, resolution: float) -> np.ndarray:
         """A path through waypoints ``qs`` (W, J), linearly interpolated so that no joint moves

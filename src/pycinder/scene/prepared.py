@@ -138,6 +138,34 @@ class PreparedBodies(Sequence):
         checked like any query's."""
         return self._scene(check_transforms(transforms, len(self), self.names))
 
+    def copies(self, index: np.ndarray, transforms: np.ndarray,
+               names: Sequence[str | None] | None = None) -> Scene:
+        """The validated scene of copies of these bodies (many small scenes in one query: a
+        robot's configurations), with no mesh checked again.
+
+        Parameters
+        ----------
+        index : (M,) int
+            The body each copy is of.
+        transforms : (M, 4, 4) float
+            Each copy's world-from-body matrix (checked as a query's).
+        names : sequence of str or None, optional
+            Each copy's name, for messages (any sequence: it is read only for the copy named).
+
+        Returns
+        -------
+        Scene
+        """
+        index = np.asarray(index, dtype=np.int64)
+        if index.ndim != 1 or (len(index) and (index.min() < 0 or index.max() >= len(self))):
+            raise ValueError(f"index must be (M,) body indices below {len(self)}")
+        names = [None] * len(index) if names is None else names
+        checked = check_transforms(transforms, len(index), names)
+        with self._lock:
+            shapes, body_shape, offsets, _ = self._state
+        checked[:, :3, 3] += np.einsum("nij,nj->ni", checked[:, :3, :3], offsets[index])
+        return Scene(shapes, body_shape[index], checked, names)  # type: ignore[arg-type]
+
     def _scene(self, checked: np.ndarray) -> Scene:
         with self._lock:
             shapes, body_shape, offsets, per_body = self._state
