@@ -123,3 +123,88 @@ def test_render_passes_of_one_plain_attachment_go_through_the_c_functions_others
         assert isinstance(rpass, kind), attachment
         rpass.end()
     device.queue.submit([encoder.finish()])
+
+
+def test_a_recording_replays_its_commands_on_another_encoder():
+    """Commands noted while recorded (a pass, a dispatch, a clear, a copy) replay on a new
+    encoder with the same effect and the watch's labels; a recording that saw a call through
+    wgpu-py refuses to replay."""
+    from pycinder.focused.frame.cull import PARAMS  # the clear's parameters: the cull's
+    from pycinder.gpu.bindings import Stage, dispatch
+
+    gpu = get_gpu()
+    device = gpu.device
+    usage = wgpu.BufferUsage
+    stage = Stage(gpu, "clearpixels", "clear_pixels", structs=(PARAMS,))
+    block = PARAMS.zeros(1)
+    block["pixel_words"], block["clear_x"], block["clear_y"], block["clear_z"] = 100, 2, 1, 1
+    size = -(-PARAMS.size // 16) * 16
+    uniform = device.create_buffer_with_data(data=block.tobytes().ljust(size, b"\0"),
+                                             usage=usage.UNIFORM | usage.INDIRECT)
+    pixels = device.create_buffer(size=4 * 256, usage=usage.STORAGE | usage.COPY_DST
+                                  | usage.COPY_SRC)
+    out = device.create_buffer(size=4 * 256, usage=usage.COPY_DST | usage.MAP_READ)
+    group = stage.group(pixels=pixels, params=(uniform, 0, size))
+
+    def fill() -> None:
+        device.queue.write_buffer(pixels, 0, np.full(256, 7, np.uint32))
+
+    fill()
+    first = native.encoder(device, "recorded")
+    recording = first.record()
+    first.clear_buffer(pixels, 4 * 200, 16)                       # words 200-203
+    cpass = first.begin_compute_pass(label="clear, recorded")
+    dispatch(cpass, stage, group, indirect=(uniform, PARAMS.offset("clear_x")))  # words 0-99
+    cpass.end()
+    first.copy_buffer_to_buffer(pixels, 0, out, 0, 4 * 256)
+    first.stop()
+    assert recording.complete and len(recording.ops) == 7
+    device.queue.submit([first.finish()])
+    expected = np.full(256, 7, np.uint32)
+    expected[:100] = 0
+    expected[200:204] = 0
+    out.map_sync(wgpu.MapMode.READ)
+    assert np.array_equal(np.frombuffer(out.read_mapped(), np.uint32), expected)
+    out.unmap()
+    fill()
+    again = native.encoder(device, "replayed")
+    again.replay(recording)
+    device.queue.submit([again.finish()])
+    assert "clear, recorded" in watch_of(device).last.passes
+    out.map_sync(wgpu.MapMode.READ)
+    assert np.array_equal(np.frombuffer(out.read_mapped(), np.uint32), expected)
+    out.unmap()
+    mixed = native.encoder(device, "mixed")
+    partial = mixed.record()
+    mixed.insert_debug_marker("through wgpu-py")
+    mixed.stop()
+    mixed.finish()
+    assert not partial.complete
+    with pytest.raises(RuntimeError, match="cannot be replayed"):
+        native.encoder(device, "refused").replay(partial)
+
+
+def test_rounds_replayed_from_earlier_frames_give_the_answers_of_rounds_encoded_anew(monkeypatch):
+    """A detector's frames replay the rounds of earlier frames whatever their sizes (their
+    clears and culls are indirect), across scenes of different sizes, buffers grown between
+    them (new recordings), mirrored, scaled and tiny bodies: the pairs equal those of frames
+    whose every round is encoded anew."""
+    from pycinder.focused.frame import frames
+
+    replayed = []
+    real = native.Encoder.replay
+    monkeypatch.setattr(native.Encoder, "replay",
+                        lambda self, rec: replayed.append(rec) or real(self, rec))
+    det = pycinder.Detector(records="all")  # every record: the same ones each run
+    answers = []
+    for n, seed in ((150, 1), (20, 2), (60, 3), (20, 4), (150, 5), (60, 6), (20, 7)):
+        meshes, poses = _scene(n, seed)
+        answers.append((meshes, poses, det.find_collisions(meshes, poses)))
+    assert len(replayed) >= 3
+    monkeypatch.setattr(frames.FocusedFrames, "_round_key", lambda *args: None)
+    fresh = pycinder.Detector(records="all")
+    for meshes, poses, result in answers:
+        anew = fresh.find_collisions(meshes, poses)
+        assert len(result.pairs) and result.pairs.tolist() == anew.pairs.tolist()
+        for field in ("penetrating", "penetrated", "view", "pixel_x", "pixel_y", "pixel_z"):
+            np.testing.assert_array_equal(result.records[field], anew.records[field], field)

@@ -94,50 +94,81 @@ class Encoder:
     attachment, ``clear_buffer`` and ``copy_buffer_to_buffer`` recorded through the C
     functions; every other method is ``wrapped``'s."""
 
-    __slots__ = ("wrapped", "_handle", "_labels")
+    __slots__ = ("wrapped", "_handle", "_labels", "_log")
 
     def __init__(self, wrapped: wgpu.GPUCommandEncoder) -> None:
         self.wrapped = wrapped
         self._handle = wrapped._internal
         self._labels: list[str] | None = getattr(wrapped, "_pycinder_labels", None)
+        self._log: Recording | None = None
 
     def __getattr__(self, name: str) -> Any:
+        if self._log is not None:  # a call through wgpu-py is not recorded: nothing replays it
+            self._log.complete = False
         return getattr(self.wrapped, name)
+
+    def record(self) -> Recording:
+        """Start noting the commands recorded through the C functions (they are recorded as
+        ever) in a :class:`Recording`, until :meth:`stop`."""
+        self._log = Recording()
+        return self._log
+
+    def stop(self) -> None:
+        """Stop noting commands (see :meth:`record`)."""
+        self._log = None
+
+    def replay(self, recording: Recording) -> None:
+        """Record a :class:`Recording`'s commands again, as they were noted."""
+        recording.replay(self)
 
     def begin_compute_pass(self, *, label: str = "",
                            timestamp_writes: Any = None) -> Any:
         """A compute pass (:class:`ComputePass`); a timed one (``timestamp_writes``) is
         wgpu-py's."""
         if timestamp_writes is not None:
-            return self.wrapped.begin_compute_pass(label=label, timestamp_writes=timestamp_writes)
+            return self.__getattr__("begin_compute_pass")(label=label,
+                                                          timestamp_writes=timestamp_writes)
+        label = label or "compute pass"
         if self._labels is not None:
-            self._labels.append(label or "compute pass")
-        return ComputePass(LIB.wgpuCommandEncoderBeginComputePass(self._handle,
-                                                                  _pass_descriptor(label)))
+            self._labels.append(label)
+        kept = _pass_descriptor(label)
+        if self._log is not None:
+            self._log.add(_BEGIN, "wgpuCommandEncoderBeginComputePass", (kept[0], label), kept)
+        return ComputePass(LIB.wgpuCommandEncoderBeginComputePass(self._handle, kept[0]),
+                           self._log)
 
     def begin_render_pass(self, *, label: str = "", color_attachments: Any,
                           **options: Any) -> Any:
         """A render pass of one colour attachment (view, ``load_op``, ``store_op``, optionally
         ``clear_value``) and nothing else (:class:`RenderPass`); any other is wgpu-py's."""
         if options or len(color_attachments) != 1 or not _plain(color_attachments[0]):
-            return self.wrapped.begin_render_pass(label=label,
-                                                  color_attachments=color_attachments, **options)
+            return self.__getattr__("begin_render_pass")(
+                label=label, color_attachments=color_attachments, **options)
+        label = label or "render pass"
         if self._labels is not None:
-            self._labels.append(label or "render pass")
-        return RenderPass(LIB.wgpuCommandEncoderBeginRenderPass(
-            self._handle, _render_pass_descriptor(label, color_attachments[0])))
+            self._labels.append(label)
+        kept = _render_pass_descriptor(label, color_attachments[0])
+        if self._log is not None:
+            self._log.add(_BEGIN, "wgpuCommandEncoderBeginRenderPass", (kept[0], label), kept)
+        return RenderPass(LIB.wgpuCommandEncoderBeginRenderPass(self._handle, kept[0]),
+                          self._log)
 
     def clear_buffer(self, buffer: wgpu.GPUBuffer, offset: int = 0,
                      size: int | None = None) -> None:
-        LIB.wgpuCommandEncoderClearBuffer(self._handle, buffer._internal, int(offset),
-                                          WHOLE_SIZE if size is None else int(size))
+        args = (buffer._internal, int(offset), WHOLE_SIZE if size is None else int(size))
+        if self._log is not None:
+            self._log.add(_ENCODER, "wgpuCommandEncoderClearBuffer", args, buffer)
+        LIB.wgpuCommandEncoderClearBuffer(self._handle, *args)
 
     def copy_buffer_to_buffer(self, source: wgpu.GPUBuffer, source_offset: int,
                               destination: wgpu.GPUBuffer, destination_offset: int,
                               size: int) -> None:
-        LIB.wgpuCommandEncoderCopyBufferToBuffer(self._handle, source._internal,
-                                                 int(source_offset), destination._internal,
-                                                 int(destination_offset), int(size))
+        args = (source._internal, int(source_offset), destination._internal,
+                int(destination_offset), int(size))
+        if self._log is not None:
+            self._log.add(_ENCODER, "wgpuCommandEncoderCopyBufferToBuffer", args, source,
+                          destination)
+        LIB.wgpuCommandEncoderCopyBufferToBuffer(self._handle, *args)
 
     def finish(self, **kwargs: Any) -> wgpu.GPUCommandBuffer:
         """wgpu-py's ``finish``: it raises what was recorded wrongly."""
@@ -149,7 +180,7 @@ class _Pass:
     bind group (no dynamic offsets), and :meth:`end`, which releases the pass. ``_KIND`` names
     the C functions ("Compute" or "Render")."""
 
-    __slots__ = ("_handle",)
+    __slots__ = ("_handle", "_log")
     _KIND = ""
     _C: tuple[str, str, str, str] = ("", "", "", "")
 
@@ -158,17 +189,27 @@ class _Pass:
         cls._C = tuple(f"wgpu{cls._KIND}PassEncoder{name}"  # type: ignore[assignment]
                        for name in ("SetPipeline", "SetBindGroup", "End", "Release"))
 
-    def __init__(self, handle: Any) -> None:
+    def __init__(self, handle: Any, log: Recording | None = None) -> None:
         self._handle = handle
+        self._log = log
+
+    def _call(self, name: str, args: tuple, *objects: Any) -> None:
+        """C function ``name`` on this pass (noted when the encoder records, with the
+        ``objects`` whose handles ``args`` hold)."""
+        if self._log is not None:
+            self._log.add(_PASS, name, args, *objects)
+        getattr(LIB, name)(self._handle, *args)
 
     def set_pipeline(self, pipeline: Any) -> None:
-        getattr(LIB, self._C[0])(self._handle, pipeline._internal)
+        self._call(self._C[0], (pipeline._internal,), pipeline)
 
     def set_bind_group(self, index: int, group: wgpu.GPUBindGroup) -> None:
-        getattr(LIB, self._C[1])(self._handle, index, group._internal, 0, _ffi.NULL)
+        self._call(self._C[1], (index, group._internal, 0, _ffi.NULL), group)
 
     def end(self) -> None:
         handle, self._handle = self._handle, None
+        if self._log is not None:
+            self._log.add(_END, self._C[2], (self._C[3],))
         getattr(LIB, self._C[2])(handle)
         getattr(LIB, self._C[3])(handle)
 
@@ -181,11 +222,11 @@ class ComputePass(_Pass):
     _KIND = "Compute"
 
     def dispatch_workgroups(self, x: int, y: int = 1, z: int = 1) -> None:
-        LIB.wgpuComputePassEncoderDispatchWorkgroups(self._handle, x, y, z)
+        self._call("wgpuComputePassEncoderDispatchWorkgroups", (int(x), int(y), int(z)))
 
     def dispatch_workgroups_indirect(self, buffer: wgpu.GPUBuffer, offset: int) -> None:
-        LIB.wgpuComputePassEncoderDispatchWorkgroupsIndirect(self._handle, buffer._internal,
-                                                             int(offset))
+        self._call("wgpuComputePassEncoderDispatchWorkgroupsIndirect",
+                   (buffer._internal, int(offset)), buffer)
 
 
 class RenderPass(_Pass):
@@ -197,15 +238,64 @@ class RenderPass(_Pass):
 
     def draw(self, vertices: int, instances: int = 1, first_vertex: int = 0,
              first_instance: int = 0) -> None:
-        LIB.wgpuRenderPassEncoderDraw(self._handle, vertices, instances, first_vertex,
-                                      first_instance)
+        self._call("wgpuRenderPassEncoderDraw",
+                   (int(vertices), int(instances), int(first_vertex), int(first_instance)))
 
     def draw_indirect(self, buffer: wgpu.GPUBuffer, offset: int) -> None:
-        LIB.wgpuRenderPassEncoderDrawIndirect(self._handle, buffer._internal, int(offset))
+        self._call("wgpuRenderPassEncoderDrawIndirect", (buffer._internal, int(offset)), buffer)
 
     def execute_bundles(self, bundles: list) -> None:
         handles = _ffi.new("WGPURenderBundle[]", [b._internal for b in bundles])
-        LIB.wgpuRenderPassEncoderExecuteBundles(self._handle, len(bundles), handles)
+        self._call("wgpuRenderPassEncoderExecuteBundles", (len(bundles), handles), handles,
+                   *bundles)
+
+
+_PASS, _ENCODER, _BEGIN, _END = range(4)
+"""What a noted command is recorded on (see :class:`Recording`)."""
+
+
+class Recording:
+    """Commands noted while an :class:`Encoder` recorded them (:meth:`Encoder.record`), to record
+    again on another encoder with no Python between the C calls but this loop's: a frame's round
+    whose buffers, pipelines and sizes are those of an earlier round (its parameters are read
+    from buffers, written anew each frame).
+
+    It holds the objects whose handles its commands name (buffers, bind groups, pipelines,
+    views, descriptors), so none is released while it may be replayed. A recording that saw a
+    command recorded through wgpu-py (a timed pass, a render pass that is not plain, any other
+    method) is not :attr:`complete` and must not be replayed.
+    """
+
+    __slots__ = ("ops", "keep", "complete")
+
+    def __init__(self) -> None:
+        self.ops: list[tuple[int, Any, tuple]] = []
+        self.keep: list[Any] = []
+        self.complete = True
+
+    def add(self, kind: int, name: str, args: tuple, *objects: Any) -> None:
+        self.ops.append((kind, name, args))
+        self.keep.extend(objects)
+
+    def replay(self, encoder: Encoder) -> None:
+        """Record the noted commands on ``encoder`` (the watch notes each pass's label)."""
+        if not self.complete:
+            raise RuntimeError("a recording with commands recorded through wgpu-py cannot be "
+                               "replayed")
+        handle, labels, lib, current = encoder._handle, encoder._labels, LIB, None
+        for kind, name, args in self.ops:
+            if kind == _PASS:
+                getattr(lib, name)(current, *args)
+            elif kind == _ENCODER:
+                getattr(lib, name)(handle, *args)
+            elif kind == _BEGIN:
+                if labels is not None:
+                    labels.append(args[1])
+                current = getattr(lib, name)(handle, args[0])
+            else:
+                getattr(lib, name)(current)
+                getattr(lib, args[0])(current)
+                current = None
 
 
 class PendingMap:
@@ -331,15 +421,16 @@ _descriptors: dict[Any, tuple] = {}
 C objects and views it points to (kept alive with it, so that a view's id stays its own)."""
 
 
-def _kept(key: Any, make: Any) -> Any:
-    """The descriptor kept under ``key``, made by ``make()`` (a tuple: the descriptor first,
-    then what it points to) the first time; at most :data:`_LABELS_KEPT` are kept."""
+def _kept(key: Any, make: Any) -> tuple:
+    """The descriptor kept under ``key``, made by ``make()`` the first time: a tuple, the
+    descriptor first, then what it points to (hold the whole tuple while the descriptor is
+    used); at most :data:`_LABELS_KEPT` are kept."""
     found = _descriptors.get(key)
     if found is None:
         if len(_descriptors) >= _LABELS_KEPT:
             _descriptors.clear()
         found = _descriptors[key] = make()
-    return found[0]
+    return found
 
 
 def _labelled(ctype: str, label: str) -> tuple[Any, Any]:
@@ -352,8 +443,8 @@ def _labelled(ctype: str, label: str) -> tuple[Any, Any]:
     return desc, text
 
 
-def _pass_descriptor(label: str) -> Any:
-    """The compute pass descriptor of ``label`` (made once)."""
+def _pass_descriptor(label: str) -> tuple:
+    """The compute pass descriptor of ``label`` (made once; see :func:`_kept`)."""
     return _kept(label, lambda: _labelled("WGPUComputePassDescriptor *", label))
 
 
@@ -370,9 +461,9 @@ def _plain(attachment: dict) -> bool:
             and isinstance(clear, (tuple, list)) and len(clear) == 4)
 
 
-def _render_pass_descriptor(label: str, attachment: dict) -> Any:
+def _render_pass_descriptor(label: str, attachment: dict) -> tuple:
     """The render pass descriptor of ``label`` and one colour attachment (made once per label,
-    view and operations)."""
+    view and operations; see :func:`_kept`)."""
     view = attachment["view"]
     clear = tuple(attachment.get("clear_value", (0, 0, 0, 0)))
     load, store = attachment["load_op"], attachment["store_op"]

@@ -166,6 +166,9 @@ class AtlasBuffers:
         self.readbacks = [Readback(device, f"focused readback {k}") for k in range(SLOTS)]
         self.readbacks_more = [Readback(device, f"focused tiles and records {k}")
                                for k in range(SLOTS)]
+        # What the rounds bind (not the readback's copies, nor pass F0's list).
+        self._bound = [v for v in vars(self).values() if isinstance(v, GrowableBuffer)
+                       and v is not self.which] + self.records_slots
         self.caps = Caps()
         self.layout: tuple | None = None
         """The layout of the shapes uploaded (index buffers are rewritten when it changes)."""
@@ -228,6 +231,10 @@ class AtlasBuffers:
                 self.positions.write(data, offset=12 * int(pack.vertex_start[run_start]))
                 run = []
         return written
+
+    def version(self) -> tuple[int, ...]:
+        """Which buffers the rounds bind now: it changes whenever one is made anew (grown)."""
+        return tuple(g.generation for g in self._bound)
 
     def records(self, slot: int = 0) -> GrowableBuffer:
         """The records buffer of frame slot ``slot`` (its limit is every slot's)."""

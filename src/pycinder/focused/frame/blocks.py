@@ -26,9 +26,12 @@ class ParamBlocks:
     label : str
     structs : dict of str to Struct
         The blocks of one copy, by name.
+    indirect : bool
+        Blocks may hold indirect dispatch arguments (see :meth:`indirect`).
     """
 
-    def __init__(self, device: wgpu.GPUDevice, label: str, structs: dict[str, Struct]) -> None:
+    def __init__(self, device: wgpu.GPUDevice, label: str, structs: dict[str, Struct],
+                 indirect: bool = False) -> None:
         for name, struct in structs.items():
             if struct.size > PARAM_STRIDE:
                 raise ValueError(f"{label}: {name} ({struct.name}, {struct.size} bytes) is over "
@@ -36,8 +39,9 @@ class ParamBlocks:
         self.device = device
         self.structs = dict(structs)
         self._index = {name: k for k, name in enumerate(structs)}
-        self.buffer = GrowableBuffer(device, label, wgpu.BufferUsage.UNIFORM |
-                                     wgpu.BufferUsage.COPY_DST)
+        usage = wgpu.BufferUsage.UNIFORM | wgpu.BufferUsage.COPY_DST
+        self.buffer = GrowableBuffer(device, label, usage | wgpu.BufferUsage.INDIRECT
+                                     if indirect else usage)
         self.host = np.zeros((1, len(structs), PARAM_STRIDE), dtype=np.uint8)
         self._views: dict[tuple[str, int], np.ndarray] = {}
         """The structured views of :meth:`__call__`, made once per host copy."""
@@ -65,6 +69,12 @@ class ParamBlocks:
     def write(self) -> None:
         """Upload every block of the frame."""
         self.device.queue.write_buffer(self.buffer.buffer, 0, self.host)
+
+    def indirect(self, name: str, copy: int, field: str) -> tuple[wgpu.GPUBuffer, int]:
+        """``(buffer, offset)`` of the indirect dispatch arguments (three u32 fields, ``field``
+        the first) in block ``name`` of copy ``copy`` (blocks made with ``indirect=True``)."""
+        offset = (copy * len(self.structs) + self._index[name]) * PARAM_STRIDE
+        return self.buffer.buffer, offset + self.structs[name].offset(field)
 
     def binding(self, name: str, copy: int = 0) -> tuple[wgpu.GPUBuffer, int, int]:
         """``(buffer, offset, size)`` of one block, to bind as a uniform."""

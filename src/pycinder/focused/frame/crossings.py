@@ -46,6 +46,8 @@ class Crossings:
             label=self.INFO.title, structs=(ATLAS,))
         self.target: wgpu.GPUTexture | None = None
         self.view: wgpu.GPUTextureView | None = None
+        self.generation = 0
+        """Render targets made so far (the frames' recorded rounds name the latest)."""
 
     def ensure_target(self, width: int, rows: int) -> None:
         """A render target of at least ``width`` x ``rows`` pixels (raises ValueError over the
@@ -61,6 +63,7 @@ class Crossings:
             label="atlas", size=(width, height, 1), format="r8unorm",
             usage=wgpu.TextureUsage.RENDER_ATTACHMENT)
         self.view = self.target.create_view()
+        self.generation += 1
 
     def write_params(self, e: Encoding) -> None:
         for name, retry in (("atlas", False), ("atlas retry", True)):
