@@ -14,7 +14,7 @@ from ...gpu.layout import WORKGROUP
 from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
 from .arguments import Arguments
-from .atlas import PIXEL_BYTES, Encoding, Round
+from .atlas import Encoding, Round
 from .scope import ComputeScope
 
 RetryDispatch = Callable[[wgpu.GPUComputePassEncoder, Encoding, Round], None]
@@ -31,19 +31,15 @@ PARAMS = Struct("CullParams", [
     ("cull_x", "u32", "this round's cull workgroups (x, y, z: its indirect dispatch)"),
     ("cull_y", "u32", ""),
     ("cull_z", "u32", ""),
-    ("pixel_words", "u32", "32-bit words of this round's atlas pixels (cleared first)"),
-    ("clear_x", "u32", "workgroups of the clear (x, y, z: its indirect dispatch)"),
-    ("clear_y", "u32", ""),
-    ("clear_z", "u32", ""),
 ], uniform=True)
 
 
 class Cull:
     """F1: one thread per (tile, side, cluster of that side's body); a retry round culls only
     the tiles chosen for it, with a dispatch written on the GPU (``retry.wgsl``'s
-    ``retry_args``). Before it, the round's atlas pixels are cleared (``clearpixels.wgsl``).
-    Both dispatches are indirect, from the round's parameters: a round's commands do not depend
-    on its size (see :meth:`pycinder.focused.frame.frames.FocusedFrames._encode_round`)."""
+    ``retry_args``); the others with a dispatch read from the round's parameters, so that the
+    round's commands do not depend on its size (see
+    :meth:`pycinder.focused.frame.frames.FocusedFrames._encode_round`)."""
 
     INFO: ClassVar[PassInfo] = PassInfo(
         "F1", "cull", "clusters per tile: face and edge work items", when="every round")
@@ -51,8 +47,6 @@ class Cull:
 
     def __init__(self, gpu: Gpu, arguments: Arguments, retry_dispatch: RetryDispatch) -> None:
         self.stage = Stage(gpu, "cull", "cull", label=self.INFO.title, structs=(PARAMS,))
-        self.clear = Stage(gpu, "clearpixels", "clear_pixels", label="F1 cull: clear pixels",
-                           structs=(PARAMS,))
         self.arguments = arguments
         self.retry_dispatch = retry_dispatch
 
@@ -67,10 +61,6 @@ class Cull:
         p["retry_offset"] = s.retry_offset if r.retry else 0
         x, y = workgroup_grid(-(-int(s.round_threads[k]) // WORKGROUP))
         p["cull_x"], p["cull_y"], p["cull_z"] = x, y, 1
-        words = PIXEL_BYTES // 4 * s.atlas_width * s.round_rows[k]
-        x, y = workgroup_grid(-(-words // WORKGROUP))
-        p["pixel_words"] = words
-        p["clear_x"], p["clear_y"], p["clear_z"] = x, y, 1
 
     def encode(self, scope: ComputeScope, e: Encoding, r: Round) -> None:
         b = e.buffers
@@ -81,9 +71,6 @@ class Cull:
             counts=b.tile_counts)
         params = e.round_params
         cpass = scope.begin(self.INFO.title)
-        dispatch(cpass, self.clear, self.clear.group(
-            f"round {r.block}", pixels=b.pixels, params=params.binding("cull", r.block)),
-            indirect=params.indirect("cull", r.block, "clear_x"))
         if r.retry:
             self.retry_dispatch(cpass, e, r)
             dispatch(cpass, self.stage, group, indirect=b.args_at("retry_cull"))

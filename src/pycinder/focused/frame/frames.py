@@ -29,7 +29,7 @@ from ...gpu.layout import C_AGAIN, C_CUTS, C_EDGES, C_RECORDS, FLAG_OPEN, ROUND_
 from ...scene.pack import ShapePack
 from .again import grown_caps
 from .arguments import Arguments
-from .atlas import LIST_CAPACITY, SLOTS, AtlasBuffers, Encoding, FrameState, Round
+from .atlas import LIST_CAPACITY, PIXEL_BYTES, SLOTS, AtlasBuffers, Encoding, FrameState, Round
 from .blocks import ParamBlocks
 from .bounds import Bounds
 from .clip import Clip
@@ -284,16 +284,22 @@ class FocusedFrames:
 
     def _encode_round(self, encoder: wgpu.GPUCommandEncoder, e: Encoding, r: Round,
                       first: bool = False) -> None:
-        """Passes F1-F6 of round ``r``, in order (``first``: the frame's first round, right
-        after every counter was cleared).
+        """Passes F1-F6 of round ``r``, in order, after its clears (``first``: the frame's
+        first round, right after every counter was cleared).
 
-        A round's commands depend only on its buffers and a few flags (its sizes are read from
-        its parameters, written anew each frame): a round like one already encoded replays that
-        one's C calls (:class:`~pycinder.gpu.native.Recording`), with none of the Python that
-        chose them."""
-        key = self._round_key(encoder, e, r, first)
+        A round's passes depend only on its buffers and a few flags (its sizes are read from its
+        parameters, written anew each frame; its cull is an indirect dispatch): passes like
+        those of a round already encoded replay that round's C calls
+        (:class:`~pycinder.gpu.native.Recording`), with none of the Python that chose them.
+        The clears, whose sizes are the round's, are recorded each time."""
+        b = e.buffers
+        if not first:
+            for offset, size in ROUND_CLEARS:
+                encoder.clear_buffer(b.counters, offset, size)
+        encoder.clear_buffer(b.pixels.buffer, 0, PIXEL_BYTES * e.state.atlas_width * r.rows)
+        key = self._round_key(encoder, e, r)
         if key is None:
-            self._encode_round_passes(encoder, e, r, first)
+            self._encode_passes(encoder, e, r)
             return
         recording = self._recorded.get(key)
         if recording is not None:
@@ -301,7 +307,7 @@ class FocusedFrames:
             return
         recording = encoder.record()
         try:
-            self._encode_round_passes(encoder, e, r, first)
+            self._encode_passes(encoder, e, r)
         finally:
             encoder.stop()
         if recording.complete:
@@ -309,30 +315,23 @@ class FocusedFrames:
                 self._recorded.pop(next(iter(self._recorded)))
             self._recorded[key] = recording
 
-    def _round_key(self, encoder: wgpu.GPUCommandEncoder, e: Encoding, r: Round,
-                   first: bool) -> tuple | None:
-        """What round ``r``'s commands depend on: its block and slot, whether it is a retry
-        round or the frame's first, whether pass F6 runs, and which buffers, parameter blocks
-        and render target are bound (its sizes are read from its parameters: its pixel clear and
-        cull are indirect dispatches); None where it cannot be replayed (timed passes, or an
-        encoder that is not :class:`~pycinder.gpu.native.Encoder`)."""
+    def _round_key(self, encoder: wgpu.GPUCommandEncoder, e: Encoding, r: Round
+                   ) -> tuple | None:
+        """What round ``r``'s passes depend on: its block and slot, whether it is a retry
+        round, whether pass F6 runs, and which buffers, parameter blocks and render target are
+        bound; None where they cannot be replayed (timed passes, or an encoder that is not
+        :class:`~pycinder.gpu.native.Encoder`)."""
         if self.profiler.enabled or not isinstance(encoder, native.Encoder):
             return None
-        s = e.state
         version = (self.buffers.version(), e.frame_params.buffer.generation,
                    e.round_params.buffer.generation, self.crossings.generation)
         if version != self._recorded_version:
             self._recorded.clear()  # they name buffers no longer bound
             self._recorded_version = version
-        return r.block, r.slot, r.retry, first, s.any_open
+        return r.block, r.slot, r.retry, e.state.any_open
 
-    def _encode_round_passes(self, encoder: wgpu.GPUCommandEncoder, e: Encoding, r: Round,
-                             first: bool) -> None:
-        """:meth:`_encode_round`'s commands, chosen and recorded."""
-        b = e.buffers
-        if not first:
-            for offset, size in ROUND_CLEARS:
-                encoder.clear_buffer(b.counters, offset, size)
+    def _encode_passes(self, encoder: wgpu.GPUCommandEncoder, e: Encoding, r: Round) -> None:
+        """:meth:`_encode_round`'s passes, chosen and recorded."""
         scope = ComputeScope(encoder, self.profiler, f"round {r.block}")
         self.cull.encode(scope, e, r)
         self.clip.encode(scope, e)
