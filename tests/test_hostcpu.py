@@ -118,3 +118,20 @@ def test_a_child_process_finds_this_ones_python_path_after_the_tree(monkeypatch)
         ["/tree/src", "/opt/site", "/opt/more"]
     monkeypatch.delenv("PYTHONPATH")
     assert path_first("/a", "/b")["PYTHONPATH"] == os.pathsep.join(["/a", "/b"])
+
+
+def test_a_robots_host_cpu_per_configuration_is_measured(monkeypatch):
+    """``--robot``: host CPU per configuration of Robot.check in checks of a batch each, one
+    query a check (the batch's configurations in one scene of copies)."""
+    import pytest
+
+    pytest.importorskip("yourdfpy")
+    pytest.importorskip("pybullet_data")
+    queries = []
+    real = pycinder.Detector._find_within
+    monkeypatch.setattr(pycinder.Detector, "_find_within",
+                        lambda det, *a: queries.append(len(a[0])) or real(det, *a))
+    r = hostcpu.robot_configurations("xarm", batch=4, batches=1)
+    assert r["robot"] == "xarm" and r["batch"] == 4
+    assert r["host_cpu_us"] > 0 and r["wall_ms"] > 0
+    assert len(queries) == 2 and queries[0] == queries[1] > 4  # copies of 4 configurations' bodies

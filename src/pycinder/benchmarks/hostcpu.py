@@ -683,6 +683,32 @@ def sweep_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
     return out
 
 
+def robot_configurations(name: str = "panda", batch: int = 1024, batches: int = 2,
+                         seed: int = 3) -> dict[str, Any]:
+    """Host CPU per configuration of ``Robot.check`` (:mod:`pycinder.benchmarks.robots`' robot
+    ``name`` with its table (and tray), the allowed-collision matrix it loads with), summed over
+    the process's Python threads, in ``batches`` timed checks of ``batch`` configurations each
+    (one query each), after one untimed check of as many. Returns the median microseconds per
+    configuration and the wall milliseconds per configuration."""
+    import warnings
+
+    from .robots import environment, load
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # open meshes, yourdfpy's notes on the table's URDF
+        robot, env = load(name), environment(name)
+        q = robot.random_configurations(batch * (batches + 1), seed=seed)
+        robot.check(q[:batch], environment=env, batch=batch)
+        cpu, wall = [], []
+        for k in range(1, batches + 1):
+            before, t0 = python_thread_clocks(), time.perf_counter()
+            robot.check(q[k * batch:(k + 1) * batch], environment=env, batch=batch)
+            wall.append((time.perf_counter() - t0) * 1e3 / batch)
+            cpu.append(cpu_ms(before, python_thread_clocks()) * 1e3 / batch)
+    return {"robot": name, "batch": batch, "host_cpu_us": statistics.median(cpu),
+            "wall_ms": statistics.median(wall)}
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     p = argparse.ArgumentParser(prog="python -m pycinder.benchmarks.hostcpu",
                                 description=__doc__.split("\n\n")[0])
@@ -701,11 +727,19 @@ def main(argv: Sequence[str] | None = None) -> None:
                    "and this one in alternating fresh processes")
     p.add_argument("--rounds", type=int, default=3, help="processes per checkout (--against)")
     p.add_argument("--json", metavar="PATH", help="write the rows as JSON ('-': stdout)")
+    p.add_argument("--robot", metavar="NAME", help="instead: host CPU per configuration of "
+                   "Robot.check on robot NAME with its environment, in checks of --batch "
+                   "configurations (1,024 for the target)")
     p.add_argument("--planner-sweep", nargs="*", type=int, metavar="N",
                    help="instead: both planners' frame wall and host CPU on ManyBodies scenes of "
                         f"N bodies (default {' '.join(map(str, SWEEP_SIZES))})")
     a = p.parse_args(argv)
     say = (lambda msg: print(msg, file=sys.stderr, flush=True))
+    if a.robot:
+        r = robot_configurations(a.robot, a.batch)
+        print(f"{r['robot']}, batches of {r['batch']}: host CPU {r['host_cpu_us']:.0f} us a "
+              f"configuration, wall {r['wall_ms']:.3f} ms a configuration")
+        return
     if a.planner_sweep is not None:
         rows = planner_sweep(a.planner_sweep or SWEEP_SIZES)
         if a.json:
