@@ -302,6 +302,47 @@ def test_a_batch_too_large_for_the_device_is_split_and_answers_the_same(robots, 
     names = _CopyNames(panda.bodies, np.array([2, 0]), 40, 3)
     assert len(names) == 6 and names[3] == f"configuration 41: {panda.bodies[0].name}"
     assert names[-1] == names[5] and names[:2] == [names[0], names[1]]
+    assert list(names) == [names[k] for k in range(6)]  # iteration ends
+    with pytest.raises(IndexError):
+        names[6]
+
+
+def test_an_environment_of_new_bodies_is_checked_with_its_own_meshes(robots):
+    """Checks against one environment, then another of as many bodies (a box over the whole
+    arm in place of the table), then the first again: each answers with its own meshes (the
+    bodies a check prepares belong to its bodies, not to the environment's size), as a robot
+    that never saw the others answers."""
+    xarm = robots["xarm"]
+    xarm.allowed = adjacent_only(xarm)
+    table = R.environment("xarm")
+    engulf = Environment([(b.name, trimesh.creation.box((0.3, 0.3, 0.3)), np.eye(4))
+                          for b in table.bodies])
+    q = xarm.random_configurations(6, seed=2)
+    first = xarm.check(q, environment=table, self_collision=False)
+    inside = xarm.check(q, environment=engulf, self_collision=False)
+    again = xarm.check(q, environment=table, self_collision=False)
+    assert inside.all() and first.tolist() == again.tolist()
+    fresh = R.load("xarm")
+    fresh.allowed = adjacent_only(fresh)
+    assert fresh.check(q, environment=engulf, self_collision=False).tolist() == inside.tolist()
+    assert fresh.check(q, environment=table, self_collision=False).tolist() == first.tolist()
+    assert not first.all()
+    kept = list(table.bodies)
+    # The same environment object, its bodies replaced by as many far away, where they were.
+    far = Environment([(b.name, trimesh.creation.box((0.1, 0.1, 0.1)).apply_translation(
+        (100.0, 0.0, 0.0)), b.origin) for b in kept])
+    table.bodies[:] = far.bodies
+    try:
+        assert not xarm.check(q, environment=table, self_collision=False).any()
+    finally:
+        table.bodies[:] = kept
+
+
+def test_a_detector_of_the_scene_strategy_is_refused_for_a_batch(robots):
+    import pycinder
+
+    with pytest.raises(ValueError, match="strategy='focused'"):
+        pycinder.Detector(strategy="scene")._find_within(None, np.zeros(0), None)
 
 
 def test_check_path_finds_the_first_colliding_index(robots):

@@ -306,6 +306,9 @@ class Detector:
         for the request's: :meth:`find_collisions_batch` without joining and splitting scenes
         (for callers that make the scene themselves, from :meth:`PreparedBodies.copies`, and
         read its pairs with the bodies' global indices)."""
+        if self.request.strategy != "focused":
+            raise ValueError("many scenes in one query need strategy='focused': the scene "
+                             "strategy draws one image of everything")
         check_body_count(len(scene), self.request.max_bodies)
         records = self.request.call_records(None, None)
         with self._device_lock():

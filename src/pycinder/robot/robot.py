@@ -32,6 +32,10 @@ gets small batches, far from the GPU timeout, and a fast GPU large ones."""
 FIRST_BATCH = 8
 """Configurations of the first batched query of a check (see :data:`QUERY_SECONDS`)."""
 
+PLANS_KEPT = 8
+"""Check plans kept (one per environment, self-collision choice and matrix), each with its
+bodies prepared once it has run; the oldest is dropped first."""
+
 
 @dataclass
 class _Plan:
@@ -73,7 +77,10 @@ class _CopyNames(Sequence):
     def __getitem__(self, i: Any) -> Any:
         if isinstance(i, slice):
             return [self[k] for k in range(*i.indices(len(self)))]
-        c, k = divmod(int(i) % len(self), len(self.layout))
+        i = int(i)
+        if not -len(self) <= i < len(self):
+            raise IndexError(f"copy {i} of {len(self)}")
+        c, k = divmod(i % len(self), len(self.layout))
         return f"configuration {self.first + c}: {self.bodies[int(self.layout[k])].name}"
 
 
@@ -149,12 +156,15 @@ class Robot(RobotModel):
 
     def _plan(self, environment: Environment | None, self_collision: bool
               ) -> tuple[_Plan, list[Body]]:
-        key = (id(environment), len(environment) if environment is not None else 0,
-               self_collision, len(self.allowed), hash(tuple(self.allowed.pairs())),
-               self.share_never_pairs)
         bodies = self._all_bodies(environment)
+        # The bodies by name and mesh (a plan holds their meshes, prepared, once it has run:
+        # an environment whose bodies changed gets a plan of its own).
+        key = (tuple((b.name, id(b.mesh)) for b in bodies), self_collision, len(self.allowed),
+               hash(tuple(self.allowed.pairs())), self.share_never_pairs)
         plan = self._plans.get(key)
         if plan is None:
+            if len(self._plans) >= PLANS_KEPT:
+                self._plans.pop(next(iter(self._plans)))  # the oldest, and its prepared meshes
             pairs = self._pair_list(environment, self_collision)
             # Pairs MoveIt found never colliding may share a scene with checked ones: their
             # boxes seldom overlap, so they cost little, and they let far fewer scenes cover

@@ -200,6 +200,9 @@ def check_transforms(transforms: Any, n: int, names: Sequence[str | None]) -> np
             f"{body_label(i, names[i])}: transform is not affine (last row must be [0, 0, 0, 1])"
         )
     det = _det3(t)
+    odd = ~np.isfinite(det)  # a product overflowed (extreme scales): LU's determinant there
+    if odd.any():
+        det[odd] = np.linalg.det(t[odd, :3, :3])
     if (np.abs(det) < 1e-300).any() or not np.isfinite(det).all():
         i = int(np.flatnonzero((np.abs(det) < 1e-300) | ~np.isfinite(det))[0])
         raise ValueError(f"{body_label(i, names[i])}: transform is singular (it flattens the body)")

@@ -221,14 +221,14 @@ class GpuTilePlan(TilePlan):
         self.pair, self.bodies, self.window, self.flags, self.round = \
             pair, bodies, window, flags, round
         self.round_rows, self.atlas_width, self.separated = round_rows, atlas_width, separated
-        self._views: _Views | None = views
+        self._views = views
         self._gathered: tuple | None = None
 
     def _view(self, k: int) -> np.ndarray:
-        if self._gathered is None:
-            self._gathered = self._views.gather()
-            self._views = None
-        return self._gathered[k]
+        gathered = self._gathered
+        if gathered is None:  # two threads may both gather: the same arrays either way
+            gathered = self._gathered = self._views.gather()
+        return gathered[k]
 
     axes = property(lambda self: self._view(0), doc="(T, 3, 3) float64, see TilePlan")
     origin = property(lambda self: self._view(1), doc="(T, 3) float64, see TilePlan")
