@@ -67,8 +67,8 @@ def _counter_ranges(reset: set[int], idle: set[int]) -> list[tuple[int, int]]:
 
 
 RECORDED_ROUNDS = 64
-"""Rounds kept to replay (the oldest dropped first): a frame's rounds, and their retry rounds,
-in each slot, for a few sizes."""
+"""Rounds kept to replay (the oldest dropped first): a frame's rounds and retry rounds in each
+slot (their keys hold no sizes), with and without pass F6."""
 
 ROUND_CLEARS = _counter_ranges({*range(ROUND_COUNTERS), C_CUTS, C_EDGES}, {C_AGAIN})
 """The counters reset before every round but the frame's first (ROUND_COUNTERS, C_CUTS and
