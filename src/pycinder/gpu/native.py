@@ -256,9 +256,9 @@ _PASS, _ENCODER, _BEGIN, _END = range(4)
 
 class Recording:
     """Commands noted while an :class:`Encoder` recorded them (:meth:`Encoder.record`), to record
-    again on another encoder with no Python between the C calls but this loop's: a frame's round
-    whose buffers, pipelines and sizes are those of an earlier round (its parameters are read
-    from buffers, written anew each frame).
+    again on another encoder with no Python between the C calls but this loop's: the passes of
+    a frame's round whose buffers and pipelines are those of an earlier round (its sizes are
+    read from its parameters, written anew each frame).
 
     It holds the objects whose handles its commands name (buffers, bind groups, pipelines,
     views, descriptors), so none is released while it may be replayed. A recording that saw a
@@ -510,5 +510,5 @@ def counting() -> Iterator[dict[str, int]]:
         LIB = real
 
 
-__all__ = ["LIB", "NULL", "ComputePass", "Encoder", "PendingMap", "RenderPass", "available",
-           "command_buffer", "counting", "encoder", "map_read", "pointer"]
+__all__ = ["LIB", "NULL", "ComputePass", "Encoder", "PendingMap", "Recording", "RenderPass",
+           "available", "command_buffer", "counting", "encoder", "map_read", "pointer"]

@@ -160,19 +160,22 @@ class PreparedBodies(Sequence):
         if index.ndim != 1 or (len(index) and (index.min() < 0 or index.max() >= len(self))):
             raise ValueError(f"index must be (M,) body indices below {len(self)}")
         names = [None] * len(index) if names is None else names
-        checked = check_transforms(transforms, len(index), names)
-        with self._lock:
-            shapes, body_shape, offsets, _ = self._state
-        checked[:, :3, 3] += np.einsum("nij,nj->ni", checked[:, :3, :3], offsets[index])
-        return Scene(shapes, body_shape[index], checked, names)  # type: ignore[arg-type]
+        return self._scene(check_transforms(transforms, len(index), names), index, names)
 
-    def _scene(self, checked: np.ndarray) -> Scene:
+    def _scene(self, checked: np.ndarray, index: np.ndarray | None = None,
+               names: Sequence[str | None] | None = None) -> Scene:
+        """The scene of checked transforms: of every body, or of the copies ``index`` named
+        ``names``."""
         with self._lock:
             shapes, body_shape, offsets, per_body = self._state
+        if index is not None:  # copies: their own per-body arrays
+            body_shape, offsets, per_body = body_shape[index], offsets[index], {}
         # The stored vertices are relative to each shape's offset: fold it into the transforms
         # (a copy of the caller's, made by check_transforms).
         checked[:, :3, 3] += np.einsum("nij,nj->ni", checked[:, :3, :3], offsets)
-        return Scene(shapes, body_shape, checked, list(self.names), per_body=per_body)
+        return Scene(shapes, body_shape, checked,
+                     list(self.names) if names is None else names,  # type: ignore[arg-type]
+                     per_body=per_body)
 
 
 def _state(shapes: list[Shape], body_shape: np.ndarray

@@ -42,14 +42,12 @@ def side_by_side(lo: np.ndarray, hi: np.ndarray, keys: np.ndarray
     lo, hi : (N, 3) float64
     """
     n = len(lo)
-    # Ranks of all starts and ends along x, a start before an end of equal value (touching
-    # boxes meet): lo_i <= hi_j exactly when rank(lo_i) < rank(hi_j).
-    order = np.lexsort((np.repeat([0, 1], n), np.concatenate([lo[:, 0], hi[:, 0]])))
-    rank = np.empty(2 * n)
-    rank[order] = np.arange(2 * n)
-    base = np.unique(keys, return_inverse=True)[1].reshape(-1) * 2.0 * n
+    # Exact keys of all starts and ends along x (touching boxes meet, see _ranks), each key's
+    # boxes after the last key's.
+    start, end = _ranks(lo[:, 0], hi[:, 0])
+    base = np.unique(keys, return_inverse=True)[1].reshape(-1) * 4.0 * n
     lo, hi = np.array(lo, dtype=np.float64), np.array(hi, dtype=np.float64)
-    lo[:, 0], hi[:, 0] = base + rank[:n], base + rank[n:]
+    lo[:, 0], hi[:, 0] = base + start, base + end
     return lo, hi
 
 
@@ -80,7 +78,7 @@ def sweep_and_prune(lo: np.ndarray, hi: np.ndarray, within: np.ndarray | None = 
         lo, hi = side_by_side(lo, hi, within)
     centre = 0.5 * (lo + hi)
     sweep, across, last = (int(a) for a in np.argsort(-centre.var(axis=0), kind="stable"))
-    box, band, width = _bands(lo[:, across], hi[:, across])
+    box, band, base, width = _bands(lo[:, across], hi[:, across])
     if width:
         # Exact integer keys of the starts and ends along the sweep axis (see _ranks), the
         # copy's band first, so that copies of different bands never meet.
@@ -103,8 +101,7 @@ def sweep_and_prune(lo: np.ndarray, hi: np.ndarray, within: np.ndarray | None = 
         # A pair of boxes that share several bands is met in each: keep it in the band of the
         # larger of their starts across (both boxes were copied into it).
         start_across = others[1][0]
-        owner = _band_of(np.maximum(start_across.take(i), start_across.take(j)),
-                         float(lo[:, across].min()), width)
+        owner = _band_of(np.maximum(start_across.take(i), start_across.take(j)), base, width)
         keep = owner == band.take(i)
         i, j = i[keep], j[keep]
     a_, b_ = box.take(i), box.take(j)
@@ -159,10 +156,10 @@ def _band_of(x: np.ndarray, base: float, width: float) -> np.ndarray:
     return np.floor((x - base) / width).astype(np.int64)
 
 
-def _bands(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+def _bands(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float]:
     """The boxes' copies into the bands across the sweep that their extents ``lo``, ``hi``
-    (N,) meet: ``box`` and ``band`` (M,) int64, one row per copy, and the bands' width (0 for
-    one band).
+    (N,) meet: ``box`` and ``band`` (M,) int64, one row per copy, and where the bands start and
+    their width (0 for one band; :func:`_band_of` gives a value's band).
 
     Boxes are swept band by band: a pair that overlaps across the sweep shares a band, and
     the sweep expands only the pairs of one band that overlap along it, a few times fewer in a
@@ -171,7 +168,7 @@ def _bands(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, floa
     bands (one copy of each box, in band 0) for fewer than :data:`BANDS_FROM` boxes, or when
     the copies would be more than :data:`MAX_COPIES` per box."""
     n = len(lo)
-    one = (np.arange(n, dtype=np.int64), np.zeros(n, dtype=np.int64), 0.0)
+    one = (np.arange(n, dtype=np.int64), np.zeros(n, dtype=np.int64), 0.0, 0.0)
     width = _band_width(lo, hi)
     if width == 0.0:
         return one
@@ -183,7 +180,7 @@ def _bands(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, floa
     box = np.repeat(np.arange(n, dtype=np.int64), count)
     band = np.arange(len(box), dtype=np.int64) + np.repeat(first - (np.cumsum(count) - count),
                                                             count)
-    return box, band, width
+    return box, band, base, width
 
 
 def _sweep(end: np.ndarray, others: list[tuple[np.ndarray, np.ndarray]]
