@@ -69,13 +69,13 @@ class Cull:
             entries=b.entries, face_items=b.face_items, edge_items=b.edge_items,
             counters=b.counters, params=e.round_params.binding("cull", r.block),
             counts=b.tile_counts)
-        params = e.round_params
         cpass = scope.begin(self.INFO.title)
         if r.retry:
             self.retry_dispatch(cpass, e, r)
-            dispatch(cpass, self.stage, group, indirect=b.args_at("retry_cull"))
+            indirect = b.args_at("retry_cull")
         else:
-            dispatch(cpass, self.stage, group, indirect=params.indirect("cull", r.block, "cull_x"))
+            indirect = e.round_params.indirect("cull", r.block, "cull_x")
+        dispatch(cpass, self.stage, group, indirect=indirect)
         self.arguments.encode(cpass, e, "after_cull")
 
 

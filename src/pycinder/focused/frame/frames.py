@@ -323,12 +323,16 @@ class FocusedFrames:
         :class:`~pycinder.gpu.native.Encoder`)."""
         if self.profiler.enabled or not isinstance(encoder, native.Encoder):
             return None
+        return r.block, r.slot, r.retry, e.state.any_open
+
+    def _forget_stale_rounds(self, e: Encoding) -> None:
+        """Drop the recorded rounds when a buffer they bind was made anew (once a frame, after
+        its buffers are sized and before its rounds are encoded)."""
         version = (self.buffers.version(), e.frame_params.buffer.generation,
                    e.round_params.buffer.generation, self.crossings.generation)
         if version != self._recorded_version:
             self._recorded.clear()  # they name buffers no longer bound
             self._recorded_version = version
-        return r.block, r.slot, r.retry, e.state.any_open
 
     def _encode_passes(self, encoder: wgpu.GPUCommandEncoder, e: Encoding, r: Round) -> None:
         """:meth:`_encode_round`'s passes, chosen and recorded."""
@@ -351,6 +355,7 @@ class FocusedFrames:
             encoder.copy_buffer_to_buffer(sub.gpu_tiles, 0, b.tiles.buffer, 0,
                                           TILE.size * s.tiles)
         self.bounds.encode(encoder, self.profiler, e, b.bound_pending)
+        self._forget_stale_rounds(e)
         encoder.clear_buffer(b.counters)
         encoder.clear_buffer(b.tile_counts.buffer, 0, 8 * s.tiles + 4 * s.pairs)
         first = True
