@@ -25,7 +25,8 @@ from pycinder.focused.plan import hostwindows
 from pycinder.gpu.device import get_gpu
 from pycinder.gpu.layout import FLAG_COUNT_BACK, FLAG_MIRROR, FLAG_OPEN
 from pycinder.gpu.bindings import workgroup_grid
-from pycinder.focused.plan.windows import BODY, WINDOW, GpuWindows, anchors, plan_bodies
+from pycinder.focused.plan.bodies import BODY, anchors, plan_bodies
+from pycinder.focused.plan.windows import WINDOW, GpuWindows
 from pycinder.testing import box_world_bounds, random_box_bodies
 
 NOISE = 2.0 ** -49
@@ -132,10 +133,10 @@ def check(gw: GpuWindows, scene: dict, pairs: np.ndarray, tol: np.ndarray, *,
     """Plan ``pairs`` of ``scene`` on the GPU and compare with ``_plan_chunk`` (of
     ``reference``, default the scene itself, whose world is the scene's less ``shift``); returns
     counts of the pairs compared, near ties and pairs excused."""
-    bounds = gw.upload_bodies(**scene)
+    gw.upload_bodies(**scene)
     raw = gw.windows_of(pairs, tol)
     got = gw.to_plan(raw, pairs, tol)
-    rb = bounds if reference is None else hostwindows.body_bounds(**reference)
+    rb = hostwindows.body_bounds(**(scene if reference is None else reference))
     ref = hostwindows._plan_chunk(pairs, tol, rb, 0)
     k = len(pairs)
     a, b = pairs[:, 0], pairs[:, 1]
@@ -410,12 +411,12 @@ def test_buffers_are_reused(gw):
     big = random_scene(rng, 80)
     pairs = all_pairs(80)
     check(gw, big, pairs, tolerances(rng, big, pairs))
-    buffers = [b.buffer for b in (gw.bodies, gw.pairs, gw.tolerance, gw.windows)]
+    buffers = [b.buffer for b in (gw.p0.bodies, gw.pairs, gw.tolerance, gw.windows)]
     small = random_scene(rng, 25, spread=0.3)
     pairs = all_pairs(25)[::3]
     counts = check(gw, small, pairs, tolerances(rng, small, pairs))
     assert counts["kept"] > 20
-    assert all(b.buffer is old for b, old in zip((gw.bodies, gw.pairs, gw.tolerance, gw.windows),
+    assert all(b.buffer is old for b, old in zip((gw.p0.bodies, gw.pairs, gw.tolerance, gw.windows),
                                                  buffers))
     raw = gw.windows_of(pairs[:0], np.zeros(0))
     assert raw.dtype == WINDOW.dtype and len(raw) == 0
@@ -430,7 +431,8 @@ def test_encode_chains_into_a_callers_encoder(gw):
     scene = random_scene(rng, 30, spread=0.8)
     pairs = all_pairs(30)
     tol = tolerances(rng, scene, pairs)
-    bounds = gw.upload_bodies(**scene)
+    gw.upload_bodies(**scene)
+    bounds = hostwindows.body_bounds(**scene)
     device = gw.gpu.device
     usage = wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_DST
     mine = device.create_buffer_with_data(data=pairs.astype(np.uint32), usage=usage)

@@ -9,10 +9,10 @@
 // takes it, (hi_side - hi_pair) + (lo_side - lo_pair), plus the side's own offset. The tile's
 // place in its window (u, v pixels from the window's corner) is subtracted in pixels.
 //
-// The structs TileBody, PlanWindow, AtlasTile, AtlasSummary and Tile are generated from
+// The structs BodyPose, PlanWindow, AtlasTile, AtlasSummary and Tile are generated from
 // tilewords.py, windows.py, atlasplan.py and layout.py; so are the constants WORKGROUP and ROW.
 
-@group(0) @binding(0) var<storage, read> bodies: array<TileBody>;
+@group(0) @binding(0) var<storage, read> bodies: array<BodyPose>;
 @group(0) @binding(1) var<storage, read> windows: array<PlanWindow>;
 @group(0) @binding(2) var<storage, read> pairs: array<vec2u>;
 @group(0) @binding(3) var<storage, read> atlas: array<AtlasTile>;
@@ -23,7 +23,7 @@
 // body's origin, axis_i . (t - origin) / pixel, where t - origin is measured from the pair's
 // anchor body `p` (corner: the window's corner relative to it), less the tile's place in pixels
 // (`place`: u axis_i . axis_0 + v axis_i . axis_1).
-fn side_rows(b: TileBody, p: TileBody, view: mat3x3f, corner: vec3f, pixel: f32,
+fn side_rows(b: BodyPose, p: BodyPose, view: mat3x3f, corner: vec3f, pixel: f32,
              place: vec3f) -> array<vec4f, 3> {
     let offset = vec3f(b.rows[0].w, b.rows[1].w, b.rows[2].w);  // t - the body's anchor
     // The body's origin from the window's corner: (anchor_b - anchor_p) + (t - anchor_b) - corner.

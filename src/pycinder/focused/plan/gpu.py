@@ -2,8 +2,9 @@
 :func:`pycinder.focused.plan.tiles.plan_tiles`, with the work per candidate pair and per tile
 done in compute passes.
 
-    bodies' bounds, relative to anchors, and faces    (host, O(N)) -> upload
+    bodies' poses and boxes, relative to anchors      (host, O(N)) -> upload
     pairs and tolerances                              -> upload
+    P0 bodies: each body's frame, half axes, bounds   (compute, plan/bodies.py)
     P1 windows: each pair's view, window, slab        (compute, plan/windows.py)
     P2 atlas: probes, pieces, bands, cuts, rounds     (compute, plan/atlas.py)
     P3 tile words: each tile's matrices as the frame reads them   (compute, plan/tilewords.py)
@@ -43,16 +44,17 @@ from ...util.text import plural
 from .atlas import BAND_SLACK, MAX_PAIRS, MAX_TILES, NO_FIT, SUMMARY, AtlasPlan, AtlasPlanner
 from .atlas import TILE as ATLAS_TILE
 from .tiles import TilePlan, check_pixels, empty_plan, plan_tiles
+from .bodies import GpuBodies
 from .tilewords import TileWords
 from .windows import WINDOW, GpuWindows
 
 
-PASSES = (GpuWindows, AtlasPlanner, TileWords)
+PASSES = (GpuBodies, GpuWindows, AtlasPlanner, TileWords)
 """The planner's passes, in the order they run (the docs' pass table)."""
 
 
 class GpuPlanner:
-    """Plans tiles with passes P1-P3 on the GPU; their pipelines and buffers are made once and
+    """Plans tiles with passes P0-P3 on the GPU; their pipelines and buffers are made once and
     reused (the buffers grown when a plan needs more).
 
     Parameters
@@ -125,7 +127,6 @@ class GpuPlanner:
         p1.upload_bodies(local_lo, local_hi, world_lo, world_hi, transforms, open_bodies,
                          faces=faces)
         p1.upload_pairs(pairs, tolerance)
-        p3.upload_bodies(transforms, p1.anchor)
         # Room for most plans (fewer tiles than twice their pairs, or about the last plan's);
         # a larger one runs again with room for what it needs (P2 says how many).
         most = min(p2.tiles.limit // ATLAS_TILE.size, p3.tiles.limit // TILE.size) - BAND_SLACK
@@ -149,7 +150,7 @@ class GpuPlanner:
 
     def _run(self, k: int, budget_pixels: int, probe: bool, faces: bool
              ) -> tuple[np.ndarray, np.ndarray]:
-        """Encode P1, P2 and P3 over ``k`` uploaded pairs, submit once, map once: the windows
+        """Encode P0, P1, P2 and P3 over ``k`` uploaded pairs, submit once, map once: the windows
         (K,) and the bytes of P2's plan (see :meth:`AtlasPlanner.parse`); P3's tile words stay on
         the GPU."""
         p1, p2 = self.windows, self.atlas
@@ -157,7 +158,7 @@ class GpuPlanner:
         p1.encode(encoder, k)
         p2.encode(encoder, p1.atlas, k, budget_pixels=budget_pixels, probe=probe, faces=faces)
         self.words.encode(encoder, windows=p1.buffer, pairs=p1.pairs, atlas_tiles=p2.tiles,
-                          summary=p2.summary, capacity=p2.capacity)
+                          summary=p2.summary, capacity=p2.capacity, bodies=p1.poses)
         head = k * WINDOW.size
         nbytes = head + p2.nbytes
         staging = self.readback.ensure(nbytes)

@@ -32,8 +32,13 @@ README)."""
 
 def _qr_frames(t3: np.ndarray) -> np.ndarray:
     """Orthonormal frames (n, 3, 3) of linear parts ``t3`` (n, 3, 3), as the columns of Q of
-    their QR decomposition with the last column's sign chosen so that the frame is proper."""
-    q, _ = np.linalg.qr(t3)
+    their QR decomposition with the last column's sign chosen so that the frame is proper.
+
+    Every ``-0.0`` is made ``+0.0`` first (``t3 + 0.0``): LAPACK takes the sign of a zero
+    diagonal element as the reflection's, so a ``-0.0`` would turn an axis of the frame round,
+    and pass P0 (:mod:`pycinder.focused.plan.bodies`), which follows LAPACK's steps on a GPU
+    whose compiler need not keep the sign of a zero, could not follow it."""
+    q, _ = np.linalg.qr(t3 + 0.0)
     # QR's sign convention is arbitrary; that is fine for a frame, but keep it proper.
     det = np.linalg.det(q)
     q[:, :, 2] *= np.where(det < 0, -1.0, 1.0)[:, None]

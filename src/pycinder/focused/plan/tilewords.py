@@ -14,7 +14,7 @@ plan.tile_from_body(transforms))`` (:func:`pycinder.focused.frame.frameio.tile_w
   ``flags``: the window's and the tile's; ``pair``: its candidate pair;
 - ``m0``, ``m1``: body a's and body b's tile-from-body (3, 4) rows. With ``axes`` and ``pixel`` the
   window's, its origin ``o`` relative to the pair's anchor (the anchor of body ``window.anchor``,
-  :func:`pycinder.focused.plan.windows.plan_bodies`), and the tile ``u``, ``v`` pixels from the
+  :mod:`pycinder.focused.plan.bodies`), and the tile ``u``, ``v`` pixels from the
   window's corner (``u = (moved ? u0 : 0) + shift``, ``v = moved ? v0 : 0``, as
   :meth:`pycinder.focused.plan.gpu.GpuPlanner._tiles` moves the origin), row ``i`` of a side with
   world-from-body ``(R, t)`` is ``axes[i] . R / pixel`` and, in its last column, ``axes[i] . (t -
@@ -26,8 +26,8 @@ WGSL has no float64, and the tiles of a pair 1e13 from the world's origin must k
 precision of the pair's own size. So nothing is measured from the world's origin on the GPU:
 
 - The host (float64, O(N)) uploads each body's linear part ``R`` rounded to float32, its anchor
-  (pass P1's, given to :meth:`TileWords.upload_bodies`: exactly ``hi + lo`` of two float32
-  vectors), and its translation *less its anchor*, ``t - A``, computed in float64 (an exact
+  (pass P0's: exactly ``hi + lo`` of two float32 vectors; the planner binds P0's poses, a
+  caller of its own gives them to :meth:`TileWords.upload_bodies`), and its translation *less its anchor*, ``t - A``, computed in float64 (an exact
   difference wherever ``t`` is within a factor two of ``A``) and rounded to float32 once: an
   error of ``2**-24 |t - A|``, relative to how far the body's origin lies from its oriented box's
   centre, not from the world's.
@@ -81,51 +81,21 @@ from ...gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ...gpu import native
 from ...gpu.device import Gpu, get_gpu
 from ...gpu.layout import ROW, TILE, WORKGROUP
-from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
 from .atlas import SUMMARY
 from .atlas import TILE as ATLAS_TILE
-from .windows import WINDOW, anchor_parts
+from .bodies import POSE, body_poses
+from .windows import WINDOW
 
-BODY = Struct("TileBody", [
-    ("rows", "array<vec4f, 3>", "world-from-body rows: R's row i (xyz), (t - anchor)_i (w)"),
-    ("hi", "vec3f", "the body's anchor (pass P1's), high part"),
-    ("pad0", "u32", ""),
-    ("lo", "vec3f", "the anchor's low part: anchor - hi (exact)"),
-    ("pad1", "u32", ""),
-], doc="One body's transform for pass P3, its translation relative to its anchor "
-       "(pycinder/passes/tilewords.py).")
+BODY = POSE
+"""One body's transform for this pass, its translation relative to its anchor (pass P0's
+:data:`~pycinder.focused.plan.bodies.POSE`)."""
 
 _U = wgpu.BufferUsage
 
 
-def tile_bodies(transforms: np.ndarray, anchor: np.ndarray) -> np.ndarray:
-    """Every body's :data:`BODY`: its linear part, its anchor as ``hi + lo`` and its translation
-    less its anchor (float64, rounded to float32 once).
-
-    Parameters
-    ----------
-    transforms : (N, 4, 4) float
-        World-from-body matrices.
-    anchor : (N, 3) float64
-        Each body's anchor, as pass P1 uploaded them (:attr:`GpuWindows.anchor
-        <pycinder.focused.plan.windows.GpuWindows>`): each exactly the sum of two float32 vectors.
-
-    Returns
-    -------
-    (N,) structured array of :data:`BODY`
-    """
-    transforms = np.asarray(transforms, np.float64)
-    anchor = np.asarray(anchor, np.float64)
-    n = len(transforms)
-    if transforms.shape != (n, 4, 4) or anchor.shape != (n, 3):
-        raise ValueError(f"transforms {transforms.shape} and anchors {anchor.shape} do not "
-                         "match: (N, 4, 4) and (N, 3)")
-    out = BODY.zeros(n)
-    out["rows"][:, :, :3] = transforms[:, :3, :3]
-    out["rows"][:, :, 3] = transforms[:, :3, 3] - anchor
-    out["hi"], out["lo"] = anchor_parts(anchor)
-    return out
+tile_bodies = body_poses
+"""Every body's :data:`BODY` (:func:`pycinder.focused.plan.bodies.body_poses`)."""
 
 
 class TileWords:
@@ -137,9 +107,10 @@ class TileWords:
         p1.encode(encoder, k)
         p2.encode(encoder, p1.atlas, k, budget_pixels=...)
         p3.encode(encoder, windows=p1.buffer, pairs=p1.pairs, atlas_tiles=p2.tiles,
-                  summary=p2.summary, capacity=p2.capacity)
+                  summary=p2.summary, capacity=p2.capacity, bodies=p1.poses)
 
-    after :meth:`upload_bodies` with the transforms and P1's anchors.
+    with the poses pass P0 uploaded with P1's bodies (or after :meth:`upload_bodies` with the
+    transforms and P1's anchors).
 
     Parameters
     ----------
@@ -163,7 +134,7 @@ class TileWords:
         self.timeout = float(timeout)
         self.workgroup = int(workgroup)
         self.stage = Stage(gpu, self.SHADER, self.ENTRY, label=self.INFO.title,
-                           structs=(BODY, WINDOW, ATLAS_TILE, SUMMARY, TILE),
+                           structs=(POSE, WINDOW, ATLAS_TILE, SUMMARY, TILE),
                            consts={"WORKGROUP": self.workgroup, "ROW": ROW})
         device = gpu.device
         self.bodies = GrowableBuffer(device, f"{self.INFO.name} bodies", _U.STORAGE | _U.COPY_DST)
@@ -198,7 +169,8 @@ class TileWords:
         self.count = len(bodies)
 
     def encode(self, encoder: wgpu.GPUCommandEncoder, *, windows: Resource, pairs: Resource,
-               atlas_tiles: Resource, summary: Resource, capacity: int) -> None:
+               atlas_tiles: Resource, summary: Resource, capacity: int,
+               bodies: Resource | None = None) -> None:
         """Record the pass into ``encoder`` (after passes P1 and P2 in the same encoder, or with
         their buffers written earlier): the tiles of P2's plan into :attr:`tiles`.
 
@@ -224,19 +196,24 @@ class TileWords:
         capacity : int
             Tile records P2's buffer holds (:attr:`AtlasPlanner.capacity`): the invocations
             dispatched, and the records :attr:`tiles` holds.
+        bodies : GrowableBuffer or wgpu.GPUBuffer, optional
+            The bodies' :data:`BODY` records, those P1's windows are relative to (pass P0's
+            :attr:`GpuWindows.poses <pycinder.focused.plan.windows.GpuWindows>`); default: this
+            pass's own, from :meth:`upload_bodies`.
         """
         capacity = int(capacity)
         self._tiles.ensure(max(capacity, 1) * TILE.size)
         if capacity <= 0:
             return
-        if self.count == 0:
+        if bodies is None and self.count == 0:
             raise RuntimeError(f"{self.INFO.title}: upload_bodies before encode")
         if isinstance(summary, GrowableBuffer):
             summary = summary.buffer
         if not isinstance(summary, tuple):
             summary = (summary, 0, SUMMARY.size)
-        group = self.stage.group(bodies=self.bodies, windows=windows, pairs=pairs,
-                                 atlas=atlas_tiles, summary=summary, tiles=self._tiles)
+        group = self.stage.group(bodies=self.bodies if bodies is None else bodies,
+                                 windows=windows, pairs=pairs, atlas=atlas_tiles, summary=summary,
+                                 tiles=self._tiles)
         cpass = encoder.begin_compute_pass(label=self.INFO.title)
         dispatch(cpass, self.stage, group, -(-capacity // self.workgroup))
         cpass.end()

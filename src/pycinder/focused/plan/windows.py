@@ -14,15 +14,10 @@ Precision
 WGSL has no float64, and a scene may lie far from the world's origin, or hold a tiny body inside
 a huge one. So nothing is measured from the world's origin on the GPU:
 
-- The host (float64, O(N) in the bodies) computes every body's bounds as
-  :func:`pycinder.focused.plan.hostwindows.body_bounds` does, and picks the body's *anchor*: its
-  oriented box's centre ``c``, rounded to a multiple of ``2**(e - 46)`` (where ``max |c| < 2**e``),
-  so that the anchor is exactly ``hi + lo`` of two float32 vectors. Every other quantity of the
-  body is taken relative to its own anchor and rounded to float32 (:data:`BODY`): its boxes'
-  centres (measured from the inputs, the translation and the world box's bounds less the anchor, so
-  that they do not round at the anchor's distance from the origin as ``body_bounds``'s do), its
-  intervals along the world's axes and its own frame's (from those centres), its half axes and
-  frame.
+- Every body's bounds come from pass P0 (:mod:`pycinder.focused.plan.bodies`), relative to the
+  body's own *anchor* (a point at its oriented box's centre, exactly ``hi + lo`` of two float32
+  vectors): its boxes' centres (computed on the host in float64 and rounded once), its intervals
+  along the world's axes and its own frame's, its half axes and frame (:data:`BODY`).
 - Per pair, the shader anchors the pair at the body with the smaller world box (ties: a), and
   moves the other body's quantities by the offset between the anchors,
   ``d = (hi_o - hi_p) + (lo_o - lo_p)``. Both differences are exact for bodies whose anchors are
@@ -64,25 +59,9 @@ from ...gpu.layout import FLAG_COUNT_BACK, ROW, WORKGROUP
 from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
 from .atlas import WINDOW as ATLAS_WINDOW
-from .hostwindows import MARGIN_PX, TILT, BodyBounds, body_bounds, interval_meet, sum3
+from .bodies import ANCHOR_BITS, BODY, GpuBodies, anchor_parts, anchors
+from .hostwindows import MARGIN_PX, TILT
 from .tiles import PROBE_FACES
-
-BODY = Struct("PlanBody", [
-    ("hi", "vec3f", "the body's anchor, high part: f32(anchor)"),
-    ("size", "f32", "its world box's half extents, summed: the smaller body anchors a pair"),
-    ("lo", "vec3f", "the anchor's low part: anchor - hi (exact)"),
-    ("flags_a", "u32", "FLAG_* bits the body brings as body a of a pair"),
-    ("centre", "vec3f", "the oriented box's centre - anchor"),
-    ("flags_b", "u32", "FLAG_* bits the body brings as body b"),
-    ("half_axes", "array<vec4f, 3>", "the oriented box's half axes (xyz; w unused)"),
-    ("frame", "array<vec4f, 3>", "the body's orthonormal frame, one axis per element (xyz)"),
-    ("aabb_centre", "vec3f", "the world box's centre - anchor"),
-    ("aabb_half", "vec3f", "the world box's half extents"),
-    ("world_lo", "vec3f", "where both boxes hold along the world's axes, - anchor"),
-    ("world_hi", "vec3f", ""),
-    ("own_lo", "vec3f", "where both boxes hold along the frame's axes, - dot(axis, anchor)"),
-    ("own_hi", "vec3f", ""),
-], doc="One body's bounds for pass P1, relative to the body's anchor (pycinder/passes/windows.py).")
 
 WINDOW = Struct("PlanWindow", [
     ("axes", "array<vec4f, 3>", "rows: world directions of screen x, screen y and the view (xyz)"),
@@ -99,96 +78,7 @@ WINDOW = Struct("PlanWindow", [
 
 PARAMS = Struct("PlanParams", [("count", "u32", "pairs of the dispatch")], uniform=True)
 
-ANCHOR_BITS = 46
-"""Bits of an anchor below its largest coordinate's power of two: an anchor is exactly the sum
-of two float32 vectors (a float32 holds 24)."""
-
 _U = wgpu.BufferUsage
-
-
-def anchors(centres: np.ndarray) -> np.ndarray:
-    """Each body's anchor: ``centres`` rounded to a multiple of ``2**(e - ANCHOR_BITS)``, where
-    ``2**e`` is above the largest coordinate of the body's centre, so that it is the sum of two
-    float32 vectors exactly (``hi = float32(anchor)``, ``lo = float32(anchor - hi)``).
-
-    Parameters
-    ----------
-    centres : (N, 3) float64
-
-    Returns
-    -------
-    (N, 3) float64
-    """
-    centres = np.asarray(centres, np.float64)
-    _, e = np.frexp(np.abs(centres).max(axis=1) if len(centres) else np.zeros(0))
-    step = np.ldexp(1.0, np.maximum(e, -80) - ANCHOR_BITS)[:, None]
-    return np.round(centres / step) * step
-
-
-def anchor_parts(anchor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Anchors (N, 3) of :func:`anchors` as the GPU takes them: ``hi = float32(anchor)`` and
-    ``lo = anchor - hi`` (N, 3) float32, whose sum is the anchor exactly (what passes P1 and P3
-    both take the offset between two anchors from)."""
-    hi = np.asarray(anchor, np.float64).astype(np.float32)
-    return hi, (anchor - hi).astype(np.float32)
-
-
-def plan_bodies(local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarray,
-                world_hi: np.ndarray, transforms: np.ndarray, bounds: BodyBounds
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """Every body's :data:`BODY`, relative to its anchor (see the module's docstring).
-
-    The boxes' centres are measured from the anchor in float64 from the inputs themselves
-    (the translation less the anchor, plus the linear part's share; the world box's bounds less
-    the anchor), so that they do not round at the anchor's distance from the world's origin.
-
-    Parameters
-    ----------
-    local_lo, local_hi : (N, 3) float
-        Body-space bounding boxes.
-    world_lo, world_hi : (N, 3) float
-        World bounding boxes.
-    transforms : (N, 4, 4) float
-        World-from-body matrices.
-    bounds : BodyBounds
-        Their bounds, from :func:`pycinder.focused.plan.hostwindows.body_bounds`.
-
-    Returns
-    -------
-    bodies : (N,) structured array of :data:`BODY`
-    anchor : (N, 3) float64
-        Each body's anchor (what the windows' origins are relative to).
-    """
-    n = len(bounds.obb_centre)
-    anchor = anchors(bounds.obb_centre)
-    out = BODY.zeros(n)
-    out["hi"], out["lo"] = anchor_parts(anchor)
-    out["size"] = bounds.aabb_half.sum(axis=1)
-    out["flags_a"] = bounds.flags[0]
-    out["flags_b"] = bounds.flags[1]
-    transforms = np.asarray(transforms, np.float64)
-    local = 0.5 * (np.asarray(local_lo, np.float64) + np.asarray(local_hi, np.float64))
-    centre = np.einsum("nij,nj->ni", transforms[:, :3, :3], local) \
-        + (transforms[:, :3, 3] - anchor)
-    aabb_centre = 0.5 * ((np.asarray(world_lo, np.float64) - anchor)
-                         + (np.asarray(world_hi, np.float64) - anchor))
-    obb_m = bounds.obb_axes                              # (N, 3, 3): columns are half axes
-    frames = bounds.frames                               # (N, 3, 3): rows are axes
-    out["centre"] = centre
-    out["half_axes"][:, :, :3] = np.transpose(obb_m, (0, 2, 1))
-    out["frame"][:, :, :3] = frames
-    out["aabb_centre"] = aabb_centre
-    out["aabb_half"] = bounds.aabb_half
-    # Where both boxes hold, along the world's axes and the frame's (as body_bounds finds
-    # them, measured from the anchor).
-    world = interval_meet((centre, sum3(np.abs(obb_m))), (aabb_centre, bounds.aabb_half))
-    out["world_lo"], out["world_hi"] = world[:, 0], world[:, 1]
-    h1 = sum3(np.abs(frames @ obb_m))
-    own = interval_meet((np.einsum("nij,nj->ni", frames, centre), h1),
-                (np.einsum("nij,nj->ni", frames, aabb_centre),
-                 np.einsum("nij,nj->ni", np.abs(frames), bounds.aabb_half)))
-    out["own_lo"], out["own_hi"] = own[:, 0], own[:, 1]
-    return out, anchor
 
 
 class GpuWindows:
@@ -227,7 +117,8 @@ class GpuWindows:
         def grow(label: str, usage: int = _U.STORAGE | _U.COPY_DST) -> GrowableBuffer:
             return GrowableBuffer(device, f"{self.INFO.name} {label}", usage)
 
-        self.bodies = grow("bodies")
+        self.p0 = GpuBodies(gpu, timeout, workgroup=workgroup)
+        """Pass P0, whose bodies this pass reads (encoded before it by :meth:`encode`)."""
         self.pairs, self.tolerance = grow("pairs"), grow("tolerances")
         self.windows = grow("windows", _U.STORAGE | _U.COPY_SRC)
         self.faces = grow("faces")
@@ -235,8 +126,18 @@ class GpuWindows:
         self.params = device.create_buffer(label=f"{self.INFO.name} parameters", size=16,
                                            usage=_U.UNIFORM | _U.COPY_DST)
         self.readback = Readback(device, f"{self.INFO.name} readback")
-        self.anchor = np.zeros((0, 3))
-        """(N, 3) float64: the anchors of the bodies uploaded last (see :func:`plan_bodies`)."""
+
+    @property
+    def anchor(self) -> np.ndarray:
+        """(N, 3) float64: the anchors of the bodies uploaded last (pass P0's,
+        :func:`~pycinder.focused.plan.bodies.anchors`)."""
+        return self.p0.anchor
+
+    @property
+    def poses(self) -> GrowableBuffer:
+        """The :data:`~pycinder.focused.plan.bodies.POSE` of every body uploaded last (what
+        pass P3 reads)."""
+        return self.p0.poses
 
     @property
     def buffer(self) -> GrowableBuffer:
@@ -247,9 +148,9 @@ class GpuWindows:
     def upload_bodies(self, local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarray,
                       world_hi: np.ndarray, transforms: np.ndarray,
                       open_bodies: np.ndarray | None = None, *,
-                      bounds: BodyBounds | None = None,
-                      faces: np.ndarray | None = None) -> BodyBounds:
-        """Upload every body's bounds (:func:`plan_bodies`), relative to its anchor.
+                      faces: np.ndarray | None = None) -> np.ndarray:
+        """Upload every body's pose and boxes for pass P0 (which :meth:`encode` runs before this
+        pass), relative to its anchor, and its faces.
 
         Parameters
         ----------
@@ -261,9 +162,6 @@ class GpuWindows:
             World-from-body matrices.
         open_bodies : (N,) bool, optional
             Bodies that are not solids.
-        bounds : BodyBounds, optional
-            :func:`pycinder.focused.plan.hostwindows.body_bounds` of the same arguments, when the
-            caller has it.
         faces : (N,) int, optional
             Faces of each body: a pair is dense (its large window is probed in a plan of any size)
             when its bodies have :data:`~pycinder.focused.plan.tiles.PROBE_FACES` or more together.
@@ -271,21 +169,15 @@ class GpuWindows:
 
         Returns
         -------
-        BodyBounds
-            ``bounds``, or the bounds computed.
+        (N, 3) float64
+            The bodies' anchors (:attr:`anchor`).
         """
-        if bounds is None:
-            bounds = body_bounds(local_lo, local_hi, world_lo, world_hi, transforms,
-                                  open_bodies)
-        bodies, self.anchor = plan_bodies(local_lo, local_hi, world_lo, world_hi, transforms,
-                                          bounds)
-        self.bodies.ensure(max(bodies.nbytes, BODY.size))
-        self.bodies.write(bodies)
-        counts = np.zeros(len(bodies), np.uint32) if faces is None else \
+        anchor = self.p0.upload(local_lo, local_hi, world_lo, world_hi, transforms, open_bodies)
+        counts = np.zeros(len(anchor), np.uint32) if faces is None else \
             np.minimum(np.asarray(faces), PROBE_FACES).astype(np.uint32)
         self.faces.ensure(max(counts.nbytes, 4))
         self.faces.write(counts)
-        return bounds
+        return anchor
 
     def upload_pairs(self, pairs: np.ndarray, tolerance: np.ndarray) -> None:
         """Upload candidate pairs and their tolerances to this pass's own buffers.
@@ -309,8 +201,9 @@ class GpuWindows:
 
     def encode(self, encoder: wgpu.GPUCommandEncoder, count: int, *,
                pairs: Resource | None = None, tolerance: Resource | None = None) -> None:
-        """Record the pass into ``encoder``: the windows of ``count`` pairs into :attr:`buffer`,
-        and what pass P2 reads of them into :attr:`atlas` (a :data:`~.atlasplan.WINDOW` each).
+        """Record pass P0 over the bodies uploaded last (:meth:`upload_bodies`), then this pass
+        into ``encoder``: the windows of ``count`` pairs into :attr:`buffer`, and what pass P2
+        reads of them into :attr:`atlas` (a :data:`~.atlasplan.WINDOW` each).
 
         The count is written to the pass's parameters at once (``queue.write_buffer``), so one
         submission holds at most one encode of this pass.
@@ -333,7 +226,8 @@ class GpuWindows:
         params = PARAMS.zeros()
         params["count"] = count
         self.gpu.device.queue.write_buffer(self.params, 0, params)
-        group = self.stage.group(bodies=self.bodies,
+        self.p0.encode(encoder)
+        group = self.stage.group(bodies=self.p0.bodies,
                                  pairs=self.pairs if pairs is None else pairs,
                                  tolerance=self.tolerance if tolerance is None else tolerance,
                                  windows=self.windows, params=(self.params, 0, 16),
@@ -433,5 +327,4 @@ class GpuWindows:
         return self.to_plan(self.windows_of(pairs, tolerance), pairs, tolerance)
 
 
-__all__ = ["ANCHOR_BITS", "BODY", "PARAMS", "WINDOW", "GpuWindows", "anchor_parts", "anchors",
-           "plan_bodies"]
+__all__ = ["ANCHOR_BITS", "BODY", "PARAMS", "WINDOW", "GpuWindows", "anchor_parts", "anchors"]
