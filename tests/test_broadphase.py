@@ -33,6 +33,31 @@ def test_sweep_and_prune_matches_brute_force(seed):
         [p for p in brute(lo, hi) if groups[p[0]] != groups[p[1]]]
 
 
+def test_a_pair_list_keeps_its_pairs_whose_boxes_meet_in_its_order():
+    """A PairList given for ``within``: its pairs whose boxes overlap (touching ones too), in the
+    list's order, and no other pair, at any size (no sweep runs); groups are refused."""
+    rng = np.random.default_rng(8)
+    lo = rng.uniform(0, 10, (400, 3))
+    hi = lo + rng.uniform(0.01, 1.5, (400, 3))
+    lo[20:40] = hi[:20]  # exactly touching boxes count
+    hi[20:40] = lo[20:40] + 0.5
+    every = brute(lo, hi)
+    i, j = np.triu_indices(400, 1)
+    listed = np.stack([i, j], axis=1)[rng.random(len(i)) < 0.3]
+    listed = np.concatenate([listed, np.stack([np.arange(20), np.arange(20, 40)], axis=1)])
+    listed = listed[np.lexsort((listed[:, 1], listed[:, 0]))]
+    got = sweep_and_prune(lo, hi, broadphase.PairList(listed))
+    meet = set(every)
+    assert [tuple(p) for p in got.tolist()] == \
+        [tuple(p) for p in listed.tolist() if tuple(p) in meet]
+    assert {(a, b) for a, b in zip(range(20), range(20, 40))} <= {tuple(p) for p in got.tolist()}
+    assert len(sweep_and_prune(lo[:2], hi[:2], broadphase.PairList(np.zeros((0, 2))))) == 0
+    with pytest.raises(ValueError, match="groups"):
+        sweep_and_prune(lo, hi, broadphase.PairList(listed), groups=np.zeros(400))
+    with pytest.raises(ValueError, match="shape"):
+        broadphase.PairList(np.zeros(4))
+
+
 @pytest.mark.parametrize("n", [2, 3, 17, broadphase.ALL_PAIRS_BELOW - 1,
                                broadphase.ALL_PAIRS_BELOW])
 def test_few_boxes_are_tested_pair_by_pair_exactly(n):

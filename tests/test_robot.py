@@ -289,7 +289,7 @@ def test_a_batch_too_large_for_the_device_is_split_and_answers_the_same(robots, 
     queries = []
 
     def refuse_large(det, scene, within, tolerance):
-        configurations = len(np.unique(within)) // max(1, len(panda._plan(env, True)[0].scenes))
+        configurations = len(scene) // panda._plan(env, True)[0].bodies
         queries.append(configurations)
         if configurations > 3:
             raise GpuMemoryError("too large for this test's device")

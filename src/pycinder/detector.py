@@ -19,6 +19,7 @@ import wgpu
 
 from .batching import join_scenes, split
 from .errors import GpuError, GpuTimeoutError, with_message
+from .focused.broad.prune import PairList
 from .focused.strategy import FocusedStrategy
 from .gpu.device import (check_not_forked, device_lost, fork_generation, get_gpu,
                          keep_from_parent, renew_gpu)
@@ -299,13 +300,14 @@ class Detector:
             result = self._finish(pending, t0, records)
         return split(result, joined)
 
-    def _find_within(self, scene: Scene, within: np.ndarray, tolerance: np.ndarray | None
-                     ) -> CollisionResult:
+    def _find_within(self, scene: Scene, within: np.ndarray | PairList,
+                     tolerance: np.ndarray | None) -> CollisionResult:
         """One query of a validated scene holding many small ones (``within`` (N,): each body's
-        scene; pairs only inside one), each body's scene's tolerance in ``tolerance`` (N,), NaN
-        for the request's: :meth:`find_collisions_batch` without joining and splitting scenes
-        (for callers that make the scene themselves, from :meth:`PreparedBodies.copies`, and
-        read its pairs with the bodies' global indices)."""
+        scene; pairs only inside one; or a :class:`~pycinder.focused.broad.prune.PairList` of
+        the only pairs to test), each body's scene's tolerance in ``tolerance`` (N,), NaN for
+        the request's: :meth:`find_collisions_batch` without joining and splitting scenes (for
+        callers that make the scene themselves, from :meth:`PreparedBodies.copies`, and read
+        its pairs with the bodies' global indices)."""
         if self.request.strategy != "focused":
             raise ValueError("many scenes in one query need strategy='focused': the scene "
                              "strategy draws one image of everything")
@@ -329,7 +331,8 @@ class Detector:
 
     def _submit(self, scene: Scene, t0: float, *, groups: np.ndarray | None = None,
                 view: View | Sequence[View] | None = None, records: str | None = None,
-                within: np.ndarray | None = None, tolerance: np.ndarray | None = None,
+                within: np.ndarray | PairList | None = None,
+                tolerance: np.ndarray | None = None,
                 stop_at_first: bool = False) -> Any:
         """Submit a validated scene to the strategy (the one path of single and batched
         queries; the caller holds the device lock); :meth:`_finish` completes it.
@@ -345,8 +348,9 @@ class Detector:
             Scene strategy only.
         records : {"found", "all", "none"}, optional
             Focused strategy: the records kept (default: the request's).
-        within : (N,) int, optional
-            Focused strategy: only pairs of bodies with the same key (a batch's scenes).
+        within : (N,) int or PairList, optional
+            Focused strategy: only pairs of bodies with the same key (a batch's scenes), or only
+            the pairs of a list (:class:`~pycinder.focused.broad.prune.PairList`).
         tolerance : (N,) float, optional
             Focused strategy: a pair's tolerance from its first body, where not NaN.
         stop_at_first : bool

@@ -316,7 +316,6 @@ def run_robots(configurations: int = ROBOT_CONFIGURATIONS, *,
             "matrix_samples": samples, "matrix_seconds": matrix_s,
             "pairs_before": before, "pairs_after": after,
             "self_pairs_after": len(robot.checked_pairs()),
-            "scenes_per_configuration": len(plan.scenes),
             "bodies_per_configuration": plan.bodies,
             "configurations": configurations, "colliding": int(collides.sum()),
             "pycinder": {"seconds": seconds, "per_s": _rate(configurations, seconds)},
@@ -355,12 +354,11 @@ def robots_markdown(rows: list[dict[str, Any]]) -> list[str]:
     lines += ["", "Wall milliseconds per configuration in the batched queries, by stage "
               "(`host` = validate + broad phase + tiles: what bounds one worker's rate whatever "
               "the GPU; `outside query`: forward kinematics, building scenes and splitting "
-              "results):", "", "| robot | scenes (bodies) / configuration | "
+              "results):", "", "| robot | bodies / configuration | "
               + " | ".join(stages) + " |", "|---|---|" + "---|" * len(stages)]
     for r in rows:
         ms = r["ms_per_configuration"]
-        lines.append(f"| {r['robot']} | {r['scenes_per_configuration']} "
-                     f"({r['bodies_per_configuration']}) | "
+        lines.append(f"| {r['robot']} | {r.get('bodies_per_configuration', '')} | "
                      + " | ".join(f"{ms.get(k, 0.0):.3f}" for k in stages) + " |")
     lines.append("")
     return lines

@@ -36,7 +36,7 @@ from ..scene.pack import ShapePack, pack_shapes, shape_layout
 from ..tolerance import pair_tolerances
 from ..util.text import plural
 from .broad import GpuBroadPhase, in_range
-from .broad.prune import sweep_and_prune
+from .broad.prune import PairList, sweep_and_prune
 from .frame.again import (LARGER_LISTS, RETRIES, RoundTooLarge, retry_on_gpu, smaller_rounds,
                           undecided_tiles)
 from .frame.atlas import ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS
@@ -102,7 +102,7 @@ class FocusedStrategy:
         return self._pack
 
     def run(self, scene: Scene, stats: Stats, groups: np.ndarray | None = None,
-            records: str | None = None, within: np.ndarray | None = None,
+            records: str | None = None, within: np.ndarray | PairList | None = None,
             tolerance: np.ndarray | None = None) -> CollisionResult:
         """Find the colliding pairs of a validated scene (of bodies in different ``groups``,
         when given; of bodies with the same ``within`` key (N,), when given), keeping
@@ -111,7 +111,7 @@ class FocusedStrategy:
         return self.submit(scene, stats, groups, records, within, tolerance).result()
 
     def submit(self, scene: Scene, stats: Stats, groups: np.ndarray | None = None,
-               records: str | None = None, within: np.ndarray | None = None,
+               records: str | None = None, within: np.ndarray | PairList | None = None,
                tolerance: np.ndarray | None = None, stop_at_first: bool = False
                ) -> PendingFocused:
         """:meth:`run` up to the first frame's submission (see :meth:`submit_interference`);
@@ -133,7 +133,7 @@ class FocusedStrategy:
 
     def submit_interference(self, scene: Scene, stats: Stats,
                             groups: np.ndarray | None = None, records: str | None = None,
-                            within: np.ndarray | None = None,
+                            within: np.ndarray | PairList | None = None,
                             tolerance: np.ndarray | None = None, stop_at_first: bool = False
                             ) -> PendingFocused:
         """The interference test up to the first frame's submission: the broad phase, the
@@ -213,14 +213,14 @@ class FocusedStrategy:
                            scene.shapes, records, capacity or 0, retry)
 
     def _candidates(self, scene: Scene, lo: np.ndarray, hi: np.ndarray,
-                    within: np.ndarray | None, groups: np.ndarray | None, stats: Stats
+                    within: np.ndarray | PairList | None, groups: np.ndarray | None, stats: Stats
                     ) -> tuple[np.ndarray, str]:
         """(K, 2) candidate pairs: bodies whose world boxes (``lo``, ``hi``) overlap, with equal
         ``within`` keys and different ``groups`` when given; found on the GPU or by NumPy as the
         request says (see :attr:`~pycinder.request.CollisionRequest.broad_phase`), and which of
         the two found them. The GPU's pairs are exactly NumPy's: those its padded boxes add are
         dropped against ``lo`` and ``hi``. The GPU's wait is added to ``stats.waited_ms``."""
-        if not self.request.gpu_broad_phase(len(scene)):
+        if isinstance(within, PairList) or not self.request.gpu_broad_phase(len(scene)):
             return sweep_and_prune(lo, hi, within, groups), "numpy"
         body = (scene.local_lo, scene.local_hi, scene.bounding_radii(), scene.transforms)
         if self.request.broad_phase != "gpu" and not in_range(*body):

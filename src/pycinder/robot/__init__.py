@@ -19,9 +19,9 @@ collision in the default configuration, pairs always and never in collision over
 configurations) and written and read as an SRDF's ``<disable_collisions>`` elements, so that a
 MoveIt user's SRDF is honoured as given.
 
-Disallowed pairs are never put on the GPU: the pairs to check are covered by cliques (sets of
-bodies whose every pair is checked), each a scene of the batched query, so a configuration's
-scenes test exactly its checked pairs.
+Disallowed pairs are never put on the GPU: a batched query holds a copy of the bodies per
+configuration, and its only candidate pairs are each configuration's checked pairs, culled by their
+world boxes (no sweep runs).
 
 Padding is MoveIt's: the robot checked against the environment is the padded robot (each link grown
 by its padding), and self-collision is checked with the unpadded robot, as MoveIt's

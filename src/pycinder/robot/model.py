@@ -160,7 +160,6 @@ class RobotModel:
     allowed: AllowedCollisionMatrix = field(default_factory=AllowedCollisionMatrix)
     tolerance: float | None = None
     source: str = ""
-    share_never_pairs: bool = False
     _attached: dict[str, _Attached] = field(default_factory=dict, repr=False)
     _detector: Any = field(default=None, repr=False)
     _padded: dict = field(default_factory=dict, repr=False)

@@ -15,13 +15,15 @@ import numpy as np
 from .acm import AllowedCollisionMatrix, matrix_from_samples
 from .model import Body, Environment, RobotModel
 
+from ..focused.broad.prune import PairList
+
 if TYPE_CHECKING:
     from ..detector import Detector
     from ..scene import PreparedBodies
 
 DEFAULT_BODIES_PER_QUERY = 12_000
 """Most bodies one batched query holds by default (configurations per query: this divided by
-the bodies one configuration's scenes hold)."""
+the bodies one configuration holds)."""
 
 QUERY_SECONDS = 2.0
 """Wall seconds a batched query of :meth:`Robot.check` aims at when no ``batch`` is given:
@@ -39,29 +41,21 @@ bodies prepared once it has run; the oldest is dropped first."""
 
 @dataclass
 class _Plan:
-    """Scenes of one configuration: each a clique of bodies (indices into the bodies of a check:
-    robot, attached, environment) whose every pair is checked, and each pair in one scene."""
+    """The pairs of one configuration a check tests (indices into the bodies of a check:
+    robot, attached, environment)."""
 
-    scenes: list[np.ndarray]
-    pairs: int
+    pairs: np.ndarray
+    """(P, 2) int64: the pairs checked, ``i < j``, sorted."""
     bodies: int
-    checked: np.ndarray
-    """(B, B) bool: the pairs checked (a scene may also hold pairs allowed as ``Never``, cheap
-    to test and left out of the answers)."""
-    exact: bool
-    """Whether the scenes hold checked pairs only."""
+    """Bodies of one configuration."""
     prepared: PreparedBodies | None = None
     """The check's bodies, prepared once (made by the first batch)."""
 
-    @property
-    def layout(self) -> np.ndarray:
-        """(S,) the body of each copy a configuration's scenes hold, scene after scene."""
-        return np.concatenate(self.scenes)
-
-    @property
-    def scene_of(self) -> np.ndarray:
-        """(S,) the scene of each copy of :attr:`layout`."""
-        return np.repeat(np.arange(len(self.scenes)), [len(s) for s in self.scenes])
+    def batch(self, count: int) -> PairList:
+        """The pairs of ``count`` configurations whose bodies are copied in order, a
+        configuration's bodies after the last's."""
+        offsets = np.arange(count, dtype=np.int64)[:, None, None] * self.bodies
+        return PairList((offsets + self.pairs[None]).reshape(-1, 2))
 
 
 class _CopyNames(Sequence):
@@ -110,11 +104,6 @@ class Robot(RobotModel):
         smaller body's size, per pair.
     source : str
         The URDF file's name, for messages.
-    share_never_pairs : bool
-        Let pairs allowed as ``Never`` share a batch's scenes with checked pairs (their answers
-        dropped): far fewer scenes and less host work per configuration, more GPU work where
-        their boxes overlap. Default False: the scenes hold checked pairs only (on lavapipe the
-        GPU stage dominates; on a fast GPU the host stages may).
     """
     # -- pairs ----------------------------------------------------------------------------
 
@@ -160,27 +149,14 @@ class Robot(RobotModel):
         # The bodies by name and mesh (a plan holds their meshes, prepared, once it has run:
         # an environment whose bodies changed gets a plan of its own).
         key = (tuple((b.name, id(b.mesh)) for b in bodies), self_collision, len(self.allowed),
-               hash(tuple(self.allowed.pairs())), self.share_never_pairs)
+               hash(tuple(self.allowed.pairs())))
         plan = self._plans.get(key)
         if plan is None:
             if len(self._plans) >= PLANS_KEPT:
                 self._plans.pop(next(iter(self._plans)))  # the oldest, and its prepared meshes
-            pairs = self._pair_list(environment, self_collision)
-            # Pairs MoveIt found never colliding may share a scene with checked ones: their
-            # boxes seldom overlap, so they cost little, and they let far fewer scenes cover
-            # the checked pairs (host work grows with scenes); their answers are dropped.
-            robot = len(self.bodies) + len(self._attached)
-            never = [(i, j) for i in range(robot) for j in range(i + 1, robot)
-                     if self.allowed.reason(_owner(bodies[i]), _owner(bodies[j])) == "Never"
-                     ] if self.share_never_pairs else []
-            scenes = _clique_cover(len(bodies), pairs, never)
-            checked = np.zeros((len(bodies), len(bodies)), dtype=bool)
-            for i, j in pairs:
-                checked[i, j] = checked[j, i] = True
-            exact = all(checked[np.ix_(sc, sc)].sum() == len(sc) * (len(sc) - 1)
-                        for sc in scenes)
-            plan = self._plans[key] = _Plan(scenes, len(pairs), sum(len(s) for s in scenes),
-                                            checked, exact)
+            pairs = np.array(self._pair_list(environment, self_collision),
+                             dtype=np.int64).reshape(-1, 2)
+            plan = self._plans[key] = _Plan(pairs, len(bodies))
         return plan, bodies
 
     # -- checks ---------------------------------------------------------------------------
@@ -319,7 +295,7 @@ class Robot(RobotModel):
                      pads: np.ndarray | None = None) -> None:
         from ..errors import GpuMemoryError
 
-        if not plan.scenes or not len(qs):
+        if not len(plan.pairs) or not len(qs):
             return
         poses = self.poses(qs)
         if environment is not None and len(environment):
@@ -348,34 +324,35 @@ class Robot(RobotModel):
     def _query(self, poses: np.ndarray, start: int, plan: _Plan, bodies: list[Body],
                pads: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One query of a batch of configurations (``poses`` (C, B, 4, 4): each body's pose in
-        each): a copy of each scene's bodies per configuration, prepared once, in one scene
-        whose copies pair only within their configuration's scene. Returns the checked pairs
-        found: each one's configuration (index into the batch) and bodies ``a``, ``b``
-        (indices into ``bodies``), (P,) each; with padding, each pair kept by its own padding
-        (environment pairs by the robot body's, the robot's own pairs by none: MoveIt's)."""
+        each): a copy of the check's bodies per configuration, prepared once, in one scene
+        whose only candidates are each configuration's checked pairs (a
+        :class:`~pycinder.focused.broad.prune.PairList`, culled by their world boxes). Returns
+        the pairs found: each one's configuration (index into the batch) and bodies ``a``,
+        ``b`` (indices into ``bodies``), (P,) each; with padding, each pair kept by its own
+        padding (environment pairs by the robot body's, the robot's own pairs by none:
+        MoveIt's)."""
         if plan.prepared is None:
             plan.prepared = self.detector.prepare([body.mesh for body in bodies],
                                                   names=[body.name for body in bodies])
-        layout, per = plan.layout, plan.bodies
-        count = len(poses)
-        scene = plan.prepared.copies(np.tile(layout, count),
-                                     poses[:, layout].reshape(-1, 4, 4),
-                                     _CopyNames(bodies, layout, start, count))
-        within = (np.arange(count)[:, None] * len(plan.scenes) + plan.scene_of).reshape(-1)
-        tolerance = np.full(len(within), self._tolerance_value)
+        per, count = plan.bodies, len(poses)
+        every = np.arange(per)
+        scene = plan.prepared.copies(np.tile(every, count), poses.reshape(-1, 4, 4),
+                                     _CopyNames(bodies, every, start, count))
+        candidates = plan.batch(count)
+        tolerance = np.full(per * count, self._tolerance_value)
         if pads is None:
-            result = self.detector._find_within(scene, within, tolerance)
+            result = self.detector._find_within(scene, candidates, tolerance)
         else:
             clearance = max(float(pads.max()), 1e-12)
-            result = self._padded_detector(clearance)._find_within(scene, within, tolerance)
+            result = self._padded_detector(clearance)._find_within(scene, candidates,
+                                                                   tolerance)
         found = result.pairs
-        config = found[:, 0] // per
-        a, b = layout[found[:, 0] % per], layout[found[:, 1] % per]
-        keep = np.ones(len(found), dtype=bool) if plan.exact else plan.checked[a, b]
-        if pads is not None:
-            robot = len(self.bodies) + len(self._attached)
-            limit = np.where((a >= robot) | (b >= robot), pads[a] + pads[b], 0.0)
-            keep &= result.distances < limit + result.distance_errors
+        config, a, b = found[:, 0] // per, found[:, 0] % per, found[:, 1] % per
+        if pads is None:
+            return config, a, b
+        robot = len(self.bodies) + len(self._attached)
+        limit = np.where((a >= robot) | (b >= robot), pads[a] + pads[b], 0.0)
+        keep = result.distances < limit + result.distance_errors
         return config[keep], a[keep], b[keep]
 
     @property
@@ -509,36 +486,6 @@ def _owner(body: Body) -> str:
     """The name a body's collisions are reported under: its link (robot), its own name
     (attached object, environment body)."""
     return body.name if body.source == "attached" else body.link
-
-
-def _clique_cover(n: int, pairs: list[tuple[int, int]],
-                  extra: Sequence[tuple[int, int]] = ()) -> list[np.ndarray]:
-    """Scenes covering every pair of ``pairs`` (of ``n`` bodies), each a clique of the graph of
-    ``pairs`` and ``extra`` (so no other pair is tested): grown greedily from an uncovered pair
-    by the body that covers most uncovered pairs."""
-    adjacent = [set() for _ in range(n)]
-    for i, j in list(pairs) + list(extra):
-        adjacent[i].add(j)
-        adjacent[j].add(i)
-    uncovered = {(min(i, j), max(i, j)) for i, j in pairs}
-    scenes = []
-    for i, j in sorted(uncovered):
-        if (i, j) not in uncovered:
-            continue
-        clique = [i, j]
-        candidates = adjacent[i] & adjacent[j]
-        while candidates:
-            best = max(sorted(candidates), key=lambda v: sum(
-                (min(v, u), max(v, u)) in uncovered for u in clique))
-            if not any((min(best, u), max(best, u)) in uncovered for u in clique):
-                break
-            clique.append(best)
-            candidates &= adjacent[best]
-        for a in range(len(clique)):
-            for b in range(a + 1, len(clique)):
-                uncovered.discard((min(clique[a], clique[b]), max(clique[a], clique[b])))
-        scenes.append(np.array(sorted(clique), dtype=np.int64))
-    return scenes
 
 
 # ---------------------------------------------------------------------------------------------

@@ -13,6 +13,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from ...gpu.device import Gpu
+    from ..broad.prune import PairList
     from ...request import CollisionRequest
     from ...result import CollisionResult, Stats
     from ...scene import Scene
@@ -43,7 +44,7 @@ class ModeHost(Protocol):
 
     def submit_interference(self, scene: Scene, stats: Stats,
                             groups: np.ndarray | None = None, records: str | None = None,
-                            within: np.ndarray | None = None,
+                            within: np.ndarray | PairList | None = None,
                             tolerance: np.ndarray | None = None, stop_at_first: bool = False
                             ) -> PendingResult:
         """The interference test of ``scene``, submitted."""

@@ -62,7 +62,7 @@ from ...result import CollisionResult, Stats
 from ...scene import Scene
 from ...scene.pack import ShapePack
 from ...tolerance import resolvable_tolerance
-from ..broad.prune import sweep_and_prune
+from ..broad.prune import PairList, sweep_and_prune
 from .distance import ITEM, Distance
 from .pairwork import pair_frames, spread
 from .regions import (
@@ -217,7 +217,7 @@ class Clearance:
         self._boxes: tuple[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
 
     def run(self, scene: Scene, stats: Stats, c: float, groups: np.ndarray | None,
-            records: str | None, within: np.ndarray | None,
+            records: str | None, within: np.ndarray | PairList | None,
             tolerance: np.ndarray | None) -> CollisionResult:
         """The pairs within ``c`` of a validated scene (see the module's contract)."""
         n = len(scene)

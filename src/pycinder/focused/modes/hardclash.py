@@ -93,7 +93,7 @@ from ...records import empty_records
 from ...result import CollisionResult, Stats
 from ...scene import Scene
 from ...scene.pack import ShapePack
-from ..broad.prune import sweep_and_prune
+from ..broad.prune import PairList, sweep_and_prune
 from .clearance import ERROR_SCALE
 from .cull import depth_items, skip_lines
 from .depth import (
@@ -244,7 +244,7 @@ class HardClash:
         self.regions = RegionBuffers(strategy.gpu.device, "H1 regions")
 
     def run(self, scene: Scene, stats: Stats, d: float, groups: np.ndarray | None,
-            within: np.ndarray | None) -> CollisionResult:
+            within: np.ndarray | PairList | None) -> CollisionResult:
         """The pairs deeper than ``d`` of a validated scene (see the module's contract)."""
         if len(scene) < 2:
             empty = CollisionResult.empty(stats)
