@@ -6,13 +6,13 @@
 // the host uploads the centres less the anchor, computed in float64, so nothing here rounds at
 // the body's distance from the world's origin.
 //
-// The structs BodyPose, BodyExtent, PlanBody and BodiesParams are generated from bodies.py; so
+// The structs BodyPose, BodyExtent, PlanBody and PlanParams are generated from bodies.py; so
 // are the constants WORKGROUP, ROW, FLAG_MIRROR_A, FLAG_MIRROR_B, FLAG_OPEN_A and FLAG_OPEN_B.
 
 @group(0) @binding(0) var<storage, read> poses: array<BodyPose>;
 @group(0) @binding(1) var<storage, read> extents: array<BodyExtent>;
 @group(0) @binding(2) var<storage, read_write> bodies: array<PlanBody>;
-@group(0) @binding(3) var<uniform> params: BodiesParams;
+@group(0) @binding(3) var<uniform> params: PlanParams;
 
 // -sign(x) as LAPACK's dlarfg takes it (BETA = -SIGN(norm, ALPHA)), a zero of either sign
 // counting as positive: the host's reference decomposes its matrices with every -0.0 made +0.0
@@ -66,7 +66,7 @@ fn frame_of(m: mat3x3f) -> mat3x3f {
 @compute @workgroup_size(WORKGROUP)
 fn plan_bodies(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
     let i = (wg.y * ROW + wg.x) * WORKGROUP + lid;
-    if (i >= params.count) {
+    if (i >= params.bodies) {
         return;
     }
     let pose = poses[i];

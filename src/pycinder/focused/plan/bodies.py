@@ -50,7 +50,7 @@ from typing import ClassVar
 import numpy as np
 import wgpu
 
-from ...gpu.bindings import Stage, dispatch
+from ...gpu.bindings import Resource, Stage, dispatch
 from ...gpu import native
 from ...gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ...gpu.device import Gpu, get_gpu
@@ -97,7 +97,10 @@ BODY = Struct("PlanBody", [
 ], doc="One body's bounds for pass P1, relative to the body's anchor, written by pass P0 "
        "(pycinder/focused/plan/bodies.py).")
 
-PARAMS = Struct("BodiesParams", [("count", "u32", "bodies of the dispatch")], uniform=True)
+PARAMS = Struct("PlanParams", [
+    ("count", "u32", "candidate pairs of pass P1's dispatch"),
+    ("bodies", "u32", "bodies of pass P0's dispatch"),
+], uniform=True, doc="The parameters passes P0 and P1 share (one write a plan).")
 
 ANCHOR_BITS = 46
 """Bits of an anchor below its largest coordinate's power of two: an anchor is exactly the sum
@@ -312,6 +315,8 @@ class GpuBodies:
         """The bodies' :data:`BODY` records, written by :meth:`encode` (bind after encoding)."""
         self.params = device.create_buffer(label=f"{self.INFO.name} parameters", size=16,
                                            usage=_U.UNIFORM | _U.COPY_DST)
+        """The pass's own :data:`PARAMS`, for :meth:`read` (pass P1 binds its own block, which
+        it writes with its pairs)."""
         self.readback = Readback(device, f"{self.INFO.name} readback")
         self.anchor = np.zeros((0, 3))
         """(N, 3) float64: the anchors of the bodies uploaded last."""
@@ -324,8 +329,7 @@ class GpuBodies:
     def upload(self, local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarray,
                world_hi: np.ndarray, transforms: np.ndarray,
                open_bodies: np.ndarray | None = None) -> np.ndarray:
-        """Upload every body's pose and extent (:func:`body_inputs`), and the count for
-        :meth:`encode` (``queue.write_buffer``: one submission holds at most one upload).
+        """Upload every body's pose and extent (:func:`body_inputs`).
 
         Parameters
         ----------
@@ -346,19 +350,24 @@ class GpuBodies:
         self.extents.ensure(max(extents.nbytes, EXTENT.size))
         self.extents.write(extents)
         self.bodies.ensure(max(n, 1) * BODY.size)
-        params = PARAMS.zeros()
-        params["count"] = n
-        self.gpu.device.queue.write_buffer(self.params, 0, params)
         return self.anchor
 
-    def encode(self, encoder: wgpu.GPUCommandEncoder) -> None:
+    def encode(self, encoder: wgpu.GPUCommandEncoder, params: Resource) -> None:
         """Record the pass into ``encoder``: the :data:`BODY` of every body uploaded last into
-        :attr:`bodies` (nothing when none was)."""
+        :attr:`bodies` (nothing when none was).
+
+        Parameters
+        ----------
+        encoder : wgpu.GPUCommandEncoder
+        params : wgpu.GPUBuffer or (buffer, offset, size)
+            A :data:`PARAMS` block whose ``bodies`` is :attr:`count` by the time the encoder's
+            commands run (pass P1's, written with its pairs).
+        """
         n = self.count
         if n == 0:
             return
         group = self.stage.group(poses=self.poses, extents=self.extents, bodies=self.bodies,
-                                 params=(self.params, 0, 16))
+                                 params=params)
         cpass = encoder.begin_compute_pass(label=self.INFO.title)
         dispatch(cpass, self.stage, group, -(-n // self.workgroup))
         cpass.end()
@@ -376,8 +385,11 @@ class GpuBodies:
             return BODY.zeros(0)
         nbytes = n * BODY.size
         staging = self.readback.ensure(nbytes)
+        params = PARAMS.zeros()
+        params["bodies"] = n
+        self.gpu.device.queue.write_buffer(self.params, 0, params)
         encoder = native.encoder(self.gpu.device, self.INFO.title)
-        self.encode(encoder)
+        self.encode(encoder, (self.params, 0, 16))
         encoder.copy_buffer_to_buffer(self.bodies.buffer, 0, staging, 0, nbytes)
         self.gpu.device.queue.submit([encoder.finish()])
         data = self.readback.read(nbytes, np.uint8, timeout=self.timeout,

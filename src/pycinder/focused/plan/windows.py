@@ -59,7 +59,7 @@ from ...gpu.layout import FLAG_COUNT_BACK, ROW, WORKGROUP
 from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
 from .atlas import WINDOW as ATLAS_WINDOW
-from .bodies import ANCHOR_BITS, BODY, GpuBodies, anchor_parts, anchors
+from .bodies import ANCHOR_BITS, BODY, PARAMS, GpuBodies, anchor_parts, anchors
 from .hostwindows import MARGIN_PX, TILT
 from .tiles import PROBE_FACES
 
@@ -76,7 +76,6 @@ WINDOW = Struct("PlanWindow", [
     ("frame", "u32", "the frame the window was planned in: 0 world, 1 body a's, 2 body b's"),
 ], doc="One candidate pair's window, written by pass P1 (pycinder/passes/windows.py).")
 
-PARAMS = Struct("PlanParams", [("count", "u32", "pairs of the dispatch")], uniform=True)
 
 _U = wgpu.BufferUsage
 
@@ -225,8 +224,9 @@ class GpuWindows:
             return
         params = PARAMS.zeros()
         params["count"] = count
+        params["bodies"] = self.p0.count
         self.gpu.device.queue.write_buffer(self.params, 0, params)
-        self.p0.encode(encoder)
+        self.p0.encode(encoder, (self.params, 0, 16))
         group = self.stage.group(bodies=self.p0.bodies,
                                  pairs=self.pairs if pairs is None else pairs,
                                  tolerance=self.tolerance if tolerance is None else tolerance,
