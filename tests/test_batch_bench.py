@@ -54,7 +54,7 @@ def test_panda_links_and_poses_match_pybullet(panda):
 
 def test_short_benchmark_run_agrees_with_exact_geometry():
     r = batch.run_batch(60, batch_sizes=(1, 30), sweep=30, single=5, truth=20, workers=(),
-                        robots=())
+                        robots=(), check_sizes=(1, 8))
     assert r["pairs_per_configuration"] == 55 and r["ray"] == [] and r["robots"] == []
     assert r["batch_equals_single"] == [5, 5]
     assert [b["batch_size"] for b in r["pycinder-batch"]] == [1, 30]
@@ -64,3 +64,21 @@ def test_short_benchmark_run_agrees_with_exact_geometry():
     text = "\n".join(batch.markdown(r))
     assert "| python-fcl (DynamicAABBTree manager) | 60 |" in text
     assert "open, tested as surfaces: link6.obj" in text
+    sweep = r["check_sweep"]
+    assert [row["batch_size"] for row in sweep["sizes"]] == [1, 8]
+    assert all(row["per_s"] > 0 and row["host_cpu_ms"] > 0 for row in sweep["sizes"])
+    assert sweep["python-fcl"]["per_s"] > 0 and sweep["trimesh"]["per_s"] > 0
+    assert sweep["overtakes"] in (None, 1, 8)
+    assert "configurations per second against the batch size" in text
+
+
+def test_robot_rows_hold_trimesh_beside_python_fcl():
+    """The four-robot comparison (one robot, a few configurations here) times trimesh's
+    CollisionManager on the same configurations, and its answers are python-fcl's (both are FCL
+    underneath, kept by the same matrix)."""
+    rows = batch.run_robots(6, robots=("xarm",), samples=10)
+    row = rows[0]
+    assert row["trimesh"]["per_s"] > 0 and row["trimesh"]["equal_to_fcl"] == 6
+    assert row["scored"]["missed"] == 0 and row["scored"]["false"] == 0
+    text = "\n".join(batch.robots_markdown(rows))
+    assert "| trimesh / s |" in text and " (6) |" in text

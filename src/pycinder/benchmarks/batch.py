@@ -36,7 +36,7 @@ import numpy as np
 
 from ..robot import Robot
 from .peers import FCL
-from .robots import ROBOTS, FclRobot, environment, load, score, write_meshes
+from .robots import ROBOTS, FclRobot, TrimeshRobot, environment, load, score, write_meshes
 from .scenes import Scene
 
 CONFIGURATIONS = 10_000
@@ -47,6 +47,8 @@ MATRIX_SAMPLES = 1000
 BATCH_SIZES = (1, 10, 100, 1000)
 RAY_BATCH = 250
 """Configurations per query in the batched Ray runs (40 chunks of the 10,000)."""
+CHECK_SIZES = (1, 4, 16, 64, 256, 1024, 4096, 16384)
+"""Configurations per query of :func:`run_check_sweep` (``Robot.check``'s ``batch``)."""
 
 
 def _rate(count: int, seconds: float) -> float:
@@ -141,6 +143,7 @@ def run_batch(configurations: int = CONFIGURATIONS, *, batch_sizes: Sequence[int
               robots: Sequence[str] = tuple(ROBOTS),
               robot_configurations: int = ROBOT_CONFIGURATIONS,
               matrix_samples: int = MATRIX_SAMPLES,
+              check_sizes: Sequence[int] = CHECK_SIZES,
               progress: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Configurations per second of the Panda arm, every system on the same poses.
 
@@ -165,6 +168,8 @@ def run_batch(configurations: int = CONFIGURATIONS, *, batch_sizes: Sequence[int
         Robots of :func:`run_robots` (empty: none).
     robot_configurations, matrix_samples : int
         :func:`run_robots`' configurations per robot and matrix samples.
+    check_sizes : sequence of int
+        Batch sizes of :func:`run_check_sweep` on the Panda (empty: none).
     """
     import pycinder
 
@@ -244,6 +249,8 @@ def run_batch(configurations: int = CONFIGURATIONS, *, batch_sizes: Sequence[int
     out["ray"] = rows
     out["robots"] = run_robots(robot_configurations, robots=robots, samples=matrix_samples,
                                seed=seed, progress=say) if robots else []
+    out["check_sweep"] = run_check_sweep("panda", check_sizes, seed=seed, progress=say) \
+        if check_sizes else None
     return out
 
 
@@ -300,6 +307,11 @@ def run_robots(configurations: int = ROBOT_CONFIGURATIONS, *,
         t0 = time.perf_counter()
         theirs = fcl.check(q, poses)
         fcl_seconds = time.perf_counter() - t0
+        say(f"batch: {name}, trimesh")
+        tm = TrimeshRobot(robot, env)
+        t0 = time.perf_counter()
+        trimeshes = tm.check(q, poses)
+        trimesh_seconds = time.perf_counter() - t0
         say(f"batch: {name}, exact geometry where the two differ")
         scored = score(robot, env, poses, [set(p) for p in ours], theirs)
         ms = {k: sum(s.get(k, 0.0) for s in stages) / configurations
@@ -320,6 +332,9 @@ def run_robots(configurations: int = ROBOT_CONFIGURATIONS, *,
             "configurations": configurations, "colliding": int(collides.sum()),
             "pycinder": {"seconds": seconds, "per_s": _rate(configurations, seconds)},
             "python-fcl": {"seconds": fcl_seconds, "per_s": _rate(configurations, fcl_seconds)},
+            "trimesh": {"seconds": trimesh_seconds,
+                        "per_s": _rate(configurations, trimesh_seconds),
+                        "equal_to_fcl": int(sum(a == b for a, b in zip(trimeshes, theirs)))},
             "configurations_equal": int(sum(set(a) == b for a, b in zip(ours, theirs))),
             "scored": {k: v for k, v in scored.items() if k != "examples"},
             "ms_per_configuration": ms,
@@ -327,18 +342,118 @@ def run_robots(configurations: int = ROBOT_CONFIGURATIONS, *,
     return rows
 
 
+def run_check_sweep(name: str = "panda", sizes: Sequence[int] = CHECK_SIZES, *,
+                    least: int = 64, peers: int = 500, seed: int = 0,
+                    progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Configurations per second of ``Robot.check`` against the batch size, beside python-fcl
+    and trimesh's ``CollisionManager`` on the same configurations: robot ``name`` with its
+    environment and the allowed-collision matrix it loads with.
+
+    Each size checks ``max(size, least)`` configurations in queries of ``size`` (after one
+    untimed query of the size: pipelines, buffers), timing the wall and the host CPU (every
+    Python thread summed, :func:`pycinder.benchmarks.hostcpu.python_thread_clocks`). A size the
+    device refuses or does not finish in time is recorded as such, and larger ones are not run.
+    The peers check ``peers`` configurations one by one (their rate does not depend on a batch).
+
+    Returns
+    -------
+    dict
+        ``robot``, ``python-fcl`` and ``trimesh`` (configurations, seconds, per_s), ``sizes``
+        (one row per size: batch_size, configurations, seconds, per_s, host_cpu_ms per
+        configuration, or ``error``), and ``overtakes``: the smallest size at which pycinder
+        checks more configurations per second than python-fcl (None: at none).
+    """
+    from ..errors import GpuError
+    from .hostcpu import cpu_ms, python_thread_clocks
+
+    say = progress or (lambda msg: None)
+    robot, env = load(name), environment(name)
+    most = max(max(sizes), least, peers)
+    q = robot.random_configurations(2 * most, seed)
+    out: dict[str, Any] = {"robot": name, "sizes": []}
+    fcl, tm = FclRobot(robot, env), TrimeshRobot(robot, env)
+    poses = fcl.poses(q[:peers])
+    for label, system in (("python-fcl", fcl), ("trimesh", tm)):
+        say(f"check sweep: {name}, {label}")
+        t0 = time.perf_counter()
+        system.check(q[:peers], poses)
+        seconds = time.perf_counter() - t0
+        out[label] = {"configurations": peers, "seconds": seconds,
+                      "per_s": _rate(peers, seconds)}
+    out["overtakes"] = None
+    for size in sizes:
+        count = max(size, least)
+        say(f"check sweep: {name}, pycinder, {size} per query")
+        row: dict[str, Any] = {"batch_size": size, "configurations": count}
+        try:
+            robot.check(q[most:most + size], environment=env, batch=size)  # warm-up
+            before, t0 = python_thread_clocks(), time.perf_counter()
+            robot.check(q[:count], environment=env, batch=size)
+            seconds = time.perf_counter() - t0
+        except GpuError as exc:
+            row["error"] = type(exc).__name__
+            out["sizes"].append(row)
+            break
+        row.update(seconds=seconds, per_s=_rate(count, seconds),
+                   host_cpu_ms=cpu_ms(before, python_thread_clocks()) / count)
+        out["sizes"].append(row)
+        if out["overtakes"] is None and row["per_s"] > out["python-fcl"]["per_s"]:
+            out["overtakes"] = size
+    return out
+
+
+def check_sweep_markdown(r: dict[str, Any]) -> list[str]:
+    """The report's section for :func:`run_check_sweep`."""
+    fcl, tm = r["python-fcl"], r["trimesh"]
+    lines = [f"## {r['robot']}: configurations per second against the batch size", "",
+             "`Robot.check(qs, environment=..., batch=size)` with the robot's table (and tray), "
+             "its allowed-collision matrix; python-fcl and trimesh check "
+             f"{fcl['configurations']} of the same configurations one by one. Host CPU: every "
+             "Python thread summed, per configuration.", "",
+             "| configurations per query | configurations | seconds | configurations / s | "
+             "/ python-fcl | host CPU ms / configuration |", "|---|---|---|---|---|---|"]
+    for row in r["sizes"]:
+        if "error" in row:
+            lines.append(f"| {row['batch_size']} | {row['configurations']} | "
+                         f"{row['error']} | - | - | - |")
+            continue
+        lines.append(f"| {row['batch_size']} | {row['configurations']} | "
+                     f"{row['seconds']:.2f} | {row['per_s']:.0f} | "
+                     f"{row['per_s'] / fcl['per_s']:.2f} | {row['host_cpu_ms']:.3f} |")
+    overtakes = r["overtakes"]
+    lines += ["", f"python-fcl: {fcl['per_s']:.0f} configurations / s; trimesh's "
+              f"`CollisionManager`: {tm['per_s']:.0f}. pycinder overtakes python-fcl at "
+              + (f"{overtakes} configurations per query." if overtakes is not None
+                 else "none of these batch sizes."), ""]
+    return lines
+
+
+def _per_s(system: dict[str, Any] | None) -> str:
+    """A system's configurations per second for a table, '-' where it did not run."""
+    return "-" if system is None else f"{system['per_s']:.0f}"
+
+
+def _equal(system: dict[str, Any] | None) -> str:
+    """trimesh's configurations equal to python-fcl's, in brackets ('' where it did not run)."""
+    return "" if system is None else f" ({system['equal_to_fcl']})"
+
+
 def robots_markdown(rows: list[dict[str, Any]]) -> list[str]:
     """The report's section on the four robots."""
     lines = [
         "## Robots with their environment and MoveIt's allowed-collision matrix", "",
         "pycinder.robot's `Robot.check` against python-fcl (a DynamicAABBTree manager, each "
-        "candidate pair checked only where the same matrix disallows it) on the same random "
-        "configurations within the joint limits; the environment is pybullet_data's table "
-        "(and tray, for the arms). Meshes as they are: open ones are tested as surfaces.", "",
+        "candidate pair checked only where the same matrix disallows it) and trimesh's "
+        "`CollisionManager` (python-fcl underneath, every pair it finds narrow-phased, then "
+        "kept where the matrix checks it) on the same random configurations within the joint "
+        "limits; the environment is pybullet_data's table (and tray, for the arms). Meshes as "
+        "they are: open ones are tested as surfaces. `equal`: configurations whose pairs equal "
+        "python-fcl's (pycinder's; trimesh's in brackets).", "",
         "| robot | bodies (open) | triangles | matrix: adjacent / default / always / never "
         "(samples) | pairs / configuration before -> after | configurations | colliding | "
-        "pycinder / s | python-fcl / s | equal | differing: band / missed / false |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "pycinder / s | python-fcl / s | trimesh / s | equal | differing: band / missed / "
+        "false |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         m, s = r["matrix"], r["scored"]
@@ -348,7 +463,8 @@ def robots_markdown(rows: list[dict[str, Any]]) -> list[str]:
             f"{m['Never']} ({r['matrix_samples']}) | {r['pairs_before']} -> {r['pairs_after']} "
             f"({r['self_pairs_after']} self) | {r['configurations']} | {r['colliding']} | "
             f"{r['pycinder']['per_s']:.0f} | {r['python-fcl']['per_s']:.0f} | "
-            f"{r['configurations_equal']} | {s['band']} / {s['missed']} / {s['false']} |")
+            f"{_per_s(r.get('trimesh'))} | {r['configurations_equal']}"
+            f"{_equal(r.get('trimesh'))} | {s['band']} / {s['missed']} / {s['false']} |")
     stages = ("validate", "broad phase", "tiles", "upload", "gpu", "decode", "total",
               "outside query", "host")
     lines += ["", "Wall milliseconds per configuration in the batched queries, by stage "
@@ -368,6 +484,8 @@ def markdown(r: dict[str, Any]) -> list[str]:
     """The report's section for ``pycinder bench batch``."""
     fcl = r["python-fcl"]["per_s"]
     lines = robots_markdown(r["robots"]) if r.get("robots") else []
+    if r.get("check_sweep"):
+        lines += check_sweep_markdown(r["check_sweep"])
     lines += [
         f"## Robot configurations: {r['robot']} ({r['bodies']} collision meshes, "
         f"{r['pairs_per_configuration']} pairs each)", "",

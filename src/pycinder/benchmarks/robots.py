@@ -8,6 +8,8 @@ environments, python-fcl's answers with the same allowed-collision matrix, and e
 * :class:`FclRobot`: python-fcl's ``DynamicAABBTreeCollisionManager`` over the same bodies, its
   broad phase's candidates filtered by the same pairs to check before the narrow phase (as
   MoveIt's FCL checker consults its matrix);
+* :class:`TrimeshRobot`: trimesh's ``CollisionManager`` over the same bodies, its pairs kept
+  where the matrix checks them (it has no matrix of its own);
 * :func:`exact_verdict`: where two answers differ, what exact geometry says of the pair in the
   terms of the tolerance contract.
 """
@@ -137,6 +139,44 @@ class FclRobot:
 
             self.manager.collide(fcl.CollisionData(), callback)
             out.append(found)
+        return out
+
+
+class TrimeshRobot:
+    """trimesh's answers for a robot, the way a trimesh user checks one: a
+    ``trimesh.collision.CollisionManager`` (python-fcl underneath) holding every body under its
+    index, transforms set per configuration, ``in_collision_internal(return_names=True)``, and
+    the names kept where the robot checks the pair (:meth:`~pycinder.robot.Robot.checked_pairs`:
+    trimesh's manager has no allowed-collision matrix, so every pair it finds is narrow-phased).
+    """
+
+    def __init__(self, robot: Robot, environment: Environment | None = None, *,
+                 self_collision: bool = True) -> None:
+        self.robot, self.environment = robot, environment
+        self.bodies: list[Body] = robot._all_bodies(environment)
+        self.owner = [b.name if b.source == "attached" else b.link for b in self.bodies]
+        self.checked = {frozenset(p) for p in robot._pair_list(environment, self_collision)}
+        self.manager = trimesh.collision.CollisionManager()
+        for i, b in enumerate(self.bodies):
+            self.manager.add_object(str(i), b.mesh)
+        self.env_poses = np.array([b.origin for b in environment.bodies]).reshape(-1, 4, 4) \
+            if environment is not None else np.zeros((0, 4, 4))
+
+    def check(self, qs: np.ndarray, poses: np.ndarray | None = None
+              ) -> list[set[tuple[str, str]]]:
+        """Colliding pairs of names per configuration (names sorted in each pair); ``poses``
+        (C, B, 4, 4) as :meth:`FclRobot.poses` gives them."""
+        if poses is None:
+            poses = self.robot.poses(qs)
+            env = np.broadcast_to(self.env_poses, (len(poses), *self.env_poses.shape))
+            poses = np.concatenate([poses, env], axis=1)
+        out = []
+        for pose in poses:
+            for i, t in enumerate(pose):
+                self.manager.set_transform(str(i), t)
+            _, names = self.manager.in_collision_internal(return_names=True)
+            out.append({tuple(sorted((self.owner[int(a)], self.owner[int(b)])))
+                        for a, b in names if frozenset((int(a), int(b))) in self.checked})
         return out
 
 
