@@ -134,4 +134,9 @@ def test_a_robots_host_cpu_per_configuration_is_measured(monkeypatch):
     r = hostcpu.robot_configurations("xarm", batch=4, batches=1)
     assert r["robot"] == "xarm" and r["batch"] == 4
     assert r["host_cpu_us"] > 0 and r["wall_ms"] > 0
-    assert len(queries) == 2 and queries[0] == queries[1] > 4  # copies of 4 configurations' bodies
+    # One query a check (an untimed one, the timed one, the one timed by stage), each of the
+    # copies of 4 configurations' bodies.
+    assert len(queries) == 3 and len(set(queries)) == 1 and queries[0] > 4
+    stages = r["stages_us"]
+    assert {"forward kinematics", "broad phase", "validate"} <= set(stages)
+    assert all(v >= 0 for v in stages.values()) and sum(stages.values()) > 0

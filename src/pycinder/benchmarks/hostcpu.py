@@ -194,6 +194,8 @@ def summarise_calls(counts: dict[str, int], queries: int) -> dict[str, Any]:
 STAGES: tuple[tuple[str, str, str], ...] = (
     ("pycinder.scene.prepared", "PreparedBodies.update", "update (new vertices)"),
     ("pycinder.detector", "Detector._scene", "validate"),
+    ("pycinder.scene.prepared", "PreparedBodies.copies", "validate"),
+    ("pycinder.robot.model", "RobotModel.poses", "forward kinematics"),
     ("pycinder.scene.bodies", "ShapeCache.get_many", "shapes (check, hash, measure)"),
     ("pycinder.scene.topology", "TopologyCache.get", "topology lookup"),
     ("pycinder.scene.bodies", "Scene.world_boxes", "broad phase"),
@@ -689,7 +691,8 @@ def robot_configurations(name: str = "panda", batch: int = 1024, batches: int = 
     ``name`` with its table (and tray), the allowed-collision matrix it loads with), summed over
     the process's Python threads, in ``batches`` timed checks of ``batch`` configurations each
     (one query each), after one untimed check of as many. Returns the median microseconds per
-    configuration and the wall milliseconds per configuration."""
+    configuration, the wall milliseconds per configuration, and the host CPU microseconds per
+    configuration by stage (``stages_us``, :data:`STAGES`, over one more check)."""
     import warnings
 
     from .robots import environment, load
@@ -705,8 +708,14 @@ def robot_configurations(name: str = "panda", batch: int = 1024, batches: int = 
             robot.check(q[k * batch:(k + 1) * batch], environment=env, batch=batch)
             wall.append((time.perf_counter() - t0) * 1e3 / batch)
             cpu.append(cpu_ms(before, python_thread_clocks()) * 1e3 / batch)
+        clock = StageClock()
+        with staged(clock):
+            clock.start()
+            robot.check(q[:batch], environment=env, batch=batch)
+            clock.stop()
+    stages = {s: ms * 1e3 / batch for s, ms in sorted(clock.ms.items(), key=lambda kv: -kv[1])}
     return {"robot": name, "batch": batch, "host_cpu_us": statistics.median(cpu),
-            "wall_ms": statistics.median(wall)}
+            "wall_ms": statistics.median(wall), "stages_us": stages}
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -738,7 +747,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     if a.robot:
         r = robot_configurations(a.robot, a.batch)
         print(f"{r['robot']}, batches of {r['batch']}: host CPU {r['host_cpu_us']:.0f} us a "
-              f"configuration, wall {r['wall_ms']:.3f} ms a configuration")
+              f"configuration, wall {r['wall_ms']:.3f} ms a configuration; by stage (us a "
+              "configuration): " + ", ".join(f"{k} {v:.1f}" for k, v in r["stages_us"].items()))
         return
     if a.planner_sweep is not None:
         rows = planner_sweep(a.planner_sweep or SWEEP_SIZES)

@@ -17,6 +17,7 @@ import numpy as np
 
 from ...gpu.layout import FLAG_COUNT_BACK, FLAG_MIRROR, FLAG_OPEN
 from ...util import threads
+from ...util.arrays import sum3
 
 TILT = 0.41
 """Radians between the view direction and the overlap box's longest axis."""
@@ -125,14 +126,6 @@ def plan_windows(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
     keep = [p for p in parts if p is not None]
     return None if not keep else keep[0] if len(keep) == 1 else \
         {k: np.concatenate([p[k] for p in keep]) for k in keep[0]}
-
-
-def sum3(x: np.ndarray) -> np.ndarray:
-    """``x.sum(axis=-1)`` of an axis of 3, as NumPy adds it (``(x0 + x1) + x2``), without a
-    reduction's cost per row."""
-    out = x[..., 0] + x[..., 1]
-    out += x[..., 2]
-    return out
 
 
 def _support(rows: np.ndarray, centre: np.ndarray, axes: np.ndarray
