@@ -12,10 +12,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..focused.broad.prune import PairList
 from .acm import AllowedCollisionMatrix, matrix_from_samples
 from .model import Body, Environment, RobotModel
-
-from ..focused.broad.prune import PairList
 
 if TYPE_CHECKING:
     from ..detector import Detector
