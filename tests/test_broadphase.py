@@ -45,7 +45,7 @@ def test_a_pair_list_keeps_its_pairs_whose_boxes_meet_in_its_order():
     i, j = np.triu_indices(400, 1)
     listed = np.stack([i, j], axis=1)[rng.random(len(i)) < 0.3]
     listed = np.concatenate([listed, np.stack([np.arange(20), np.arange(20, 40)], axis=1)])
-    listed = listed[np.lexsort((listed[:, 1], listed[:, 0]))]
+    listed = np.unique(listed, axis=0)  # sorted, each once
     got = sweep_and_prune(lo, hi, broadphase.PairList(listed))
     meet = set(every)
     assert [tuple(p) for p in got.tolist()] == \
@@ -56,6 +56,15 @@ def test_a_pair_list_keeps_its_pairs_whose_boxes_meet_in_its_order():
         sweep_and_prune(lo, hi, broadphase.PairList(listed), groups=np.zeros(400))
     with pytest.raises(ValueError, match="shape"):
         broadphase.PairList(np.zeros(4))
+    for bad in ([[3, 3]], [[4, 2]], [[-1, 2]]):
+        with pytest.raises(ValueError, match="0 <= i < j"):
+            broadphase.PairList(np.array(bad))
+    with pytest.raises(ValueError, match="names box 400"):
+        sweep_and_prune(lo, hi, broadphase.PairList(np.array([[0, 400]])))
+    with pytest.raises(ValueError, match="sorted, each once"):
+        sweep_and_prune(lo, hi, broadphase.PairList(listed[::-1]))
+    with pytest.raises(ValueError, match="sorted, each once"):
+        sweep_and_prune(lo, hi, broadphase.PairList(np.array([[0, 1], [0, 1]])))
 
 
 @pytest.mark.parametrize("n", [2, 3, 17, broadphase.ALL_PAIRS_BELOW - 1,
@@ -272,3 +281,18 @@ def test_only_large_windows_of_large_plans_are_probed():
     first = deep.round == 0
     assert (deep.window[first, 2] <= PROBE[0]).all() and (deep.window[first, 3] <= PROBE[1]).all()
     assert (deep.flags[~first] & FLAG_SKIP_IF_HIT).all()
+
+
+def test_sum3_and_det3_are_numpys_bits():
+    """World boxes and frames lean on sums along axes of 3 written out (``sum3``): the same
+    bits as NumPy's reductions (which the stored answers were made with), strided views
+    included; ``det3``'s signs are LU's away from singular matrices."""
+    from pycinder.util.arrays import det3, sum3
+
+    rng = np.random.default_rng(2)
+    x = rng.normal(size=(20000, 3, 3)) * 10.0 ** rng.integers(-5, 6, (20000, 1, 1))
+    assert np.array_equal(sum3(x), x.sum(axis=-1))
+    assert np.array_equal(np.sqrt(sum3(x * x)), np.linalg.norm(x, axis=-1))
+    view = x[:, :, ::-1][::2]
+    assert np.array_equal(sum3(view), view.sum(axis=-1))
+    assert np.array_equal(det3(x) < 0, np.linalg.det(x) < 0)

@@ -20,7 +20,7 @@ from pycinder.focused.plan import hostwindows
 from pycinder.focused.plan.bodies import BODY, GpuBodies, body_inputs, plan_bodies
 from pycinder.gpu.device import get_gpu
 from pycinder.gpu.layout import FLAG_MIRROR
-from pycinder.testing import box_world_bounds, random_box_bodies
+from pycinder.testing import box_world_bounds, random_box_bodies, random_rotation
 
 EPS = 2.0 ** -24
 
@@ -110,18 +110,67 @@ def test_frames_take_numpys_signs_where_qr_meets_exact_zeros(p0):
     exact, so any difference is a sign)."""
     m = signed_permutations()
     assert (np.signbit(m) & (m == 0)).any()
+    got, ref = compare(p0, boxes_of(m))
+    frames = np.transpose(hostwindows._qr_frames(m), (0, 2, 1))
+    assert np.array_equal(got["frame"][:, :, :3], frames)
+    assert np.array_equal(ref["frame"][:, :, :3], frames)
+
+
+def quarter_turns() -> np.ndarray:
+    """Rotations composed of quarter turns about the axes, built from ``np.pi`` (every pair and
+    triple of multiples of pi / 2 about x, y and z, in two axis orders): their zeros are not
+    zeros but residues such as ``6e-17`` and their products (``4e-33``, ``2e-49``), which
+    LAPACK reflects where they are not exactly zero."""
+    import trimesh
+
+    out = []
+    angles = np.arange(4) * (np.pi / 2)
+    for axes in ("sxyz", "rzyx"):
+        for a, b, c in itertools.product(angles, repeat=3):
+            out.append(trimesh.transformations.euler_matrix(a, b, c, axes)[:3, :3])
+    return np.array(out)
+
+
+def boxes_of(m: np.ndarray) -> dict:
+    """Unit boxes under linear parts ``m`` (n, 3, 3), placed apart."""
     n = len(m)
     transforms = np.tile(np.eye(4), (n, 1, 1))
     transforms[:, :3, :3] = m
     transforms[:, :3, 3] = np.arange(n)[:, None] * 3.0
     lo, hi = -np.ones((n, 3)), np.ones((n, 3))
     world_lo, world_hi = box_world_bounds(lo, hi, transforms)
-    inputs = {"local_lo": lo, "local_hi": hi, "world_lo": world_lo, "world_hi": world_hi,
-              "transforms": transforms}
-    got, ref = compare(p0, inputs)
+    return {"local_lo": lo, "local_hi": hi, "world_lo": world_lo, "world_hi": world_hi,
+            "transforms": transforms}
+
+
+def test_frames_of_quarter_turns_built_from_pi_are_numpys(p0):
+    """Composed quarter and half turns: residues far below 1 (some below float32's smallest
+    normal number) decide LAPACK's reflections; P0's frames are NumPy's, sign for sign."""
+    m = quarter_turns()
+    tiny = (np.abs(m) > 0) & (np.abs(m) < 1e-30)
+    assert tiny.any() and ((np.abs(m) > 1e-40) & (np.abs(m) < 1e-19)).any()
+    got, ref = compare(p0, boxes_of(m))
     frames = np.transpose(hostwindows._qr_frames(m), (0, 2, 1))
-    assert np.array_equal(got["frame"][:, :, :3], frames)
-    assert np.array_equal(ref["frame"][:, :, :3], frames)
+    assert np.abs(got["frame"][:, :, :3] - frames).max() <= 16 * EPS
+
+
+def test_mirror_flags_are_the_float64_determinants_sign(p0):
+    """Bodies flattened to 1e-9 along one turned axis, or scaled by 1e-14 (their float32
+    determinant rounds to zero or to the wrong sign), mirrored or not: P0's flags are the
+    NumPy planner's."""
+    rng = np.random.default_rng(12)
+    turns = [random_rotation(rng)[:3, :3] for _ in range(40)]
+    m = []
+    for k, r in enumerate(turns):
+        flat = r @ np.diag([1.0, 1.0, 1e-9]) @ r.T
+        m.append(flat @ np.diag([1.0, 1.0, -1.0]) if k % 2 else flat)
+        m.append(1e-14 * (r @ np.diag([1.0, 1.0, -1.0 if k % 2 else 1.0])))
+    m = np.array(m)
+    got, _ = compare(p0, boxes_of(m))
+    mirrored = np.linalg.det(m) < 0
+    assert mirrored.any() and not mirrored.all()
+    assert np.array_equal(got["flags_a"] & FLAG_MIRROR[0] != 0, mirrored)
+    assert np.array_equal(got["flags_b"] & FLAG_MIRROR[1] != 0, mirrored)
 
 
 def test_float32_transforms_and_a_second_smaller_upload(p0):

@@ -22,11 +22,11 @@ import numpy as np
 import pytest
 
 from pycinder.focused.plan import hostwindows
-from pycinder.gpu.device import get_gpu
-from pycinder.gpu.layout import FLAG_COUNT_BACK, FLAG_MIRROR, FLAG_OPEN
-from pycinder.gpu.bindings import workgroup_grid
 from pycinder.focused.plan.bodies import BODY, anchors, plan_bodies
 from pycinder.focused.plan.windows import WINDOW, GpuWindows
+from pycinder.gpu.bindings import workgroup_grid
+from pycinder.gpu.device import get_gpu
+from pycinder.gpu.layout import FLAG_COUNT_BACK, FLAG_MIRROR, FLAG_OPEN
 from pycinder.testing import box_world_bounds, random_box_bodies
 
 NOISE = 2.0 ** -49

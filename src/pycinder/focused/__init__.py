@@ -5,7 +5,7 @@ The stages, in the order a query flows through them, one subpackage each:
 
 - :mod:`~pycinder.focused.broad`: world boxes and candidate pairs (NumPy, or passes B1-B8);
 - :mod:`~pycinder.focused.plan`: each pair's window and the atlas of tiles (NumPy, or passes
-  P1-P3);
+  P0-P3);
 - :mod:`~pycinder.focused.frame`: the frame's passes F0-F8, their buffers and their readback;
 - :mod:`~pycinder.focused.modes`: the query modes that measure pairs exactly (hard clashes, pass
   H1; clearance, pass C1), plug-ins the strategy calls and that never import it.

@@ -216,10 +216,13 @@ class FocusedStrategy:
                     within: np.ndarray | PairList | None, groups: np.ndarray | None, stats: Stats
                     ) -> tuple[np.ndarray, str]:
         """(K, 2) candidate pairs: bodies whose world boxes (``lo``, ``hi``) overlap, with equal
-        ``within`` keys and different ``groups`` when given; found on the GPU or by NumPy as the
-        request says (see :attr:`~pycinder.request.CollisionRequest.broad_phase`), and which of
-        the two found them. The GPU's pairs are exactly NumPy's: those its padded boxes add are
-        dropped against ``lo`` and ``hi``. The GPU's wait is added to ``stats.waited_ms``."""
+        ``within`` keys and different ``groups`` when given (or the pairs of a
+        :class:`~pycinder.focused.broad.prune.PairList` given as ``within`` whose boxes overlap:
+        on the host whatever the request says, as no sweep runs); found on the GPU or by NumPy as
+        the request says (see :attr:`~pycinder.request.CollisionRequest.broad_phase`), and which
+        of the two found them. The GPU's pairs are exactly NumPy's: those its padded boxes add
+        are dropped against ``lo`` and ``hi``. The GPU's wait is added to
+        ``stats.waited_ms``."""
         if isinstance(within, PairList) or not self.request.gpu_broad_phase(len(scene)):
             return sweep_and_prune(lo, hi, within, groups), "numpy"
         body = (scene.local_lo, scene.local_hi, scene.bounding_radii(), scene.transforms)

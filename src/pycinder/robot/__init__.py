@@ -3,9 +3,9 @@
     URDF (yourdfpy) -> links' collision meshes + joints in tree order
     configurations (C, J) -> link transforms (C, L, 4, 4) -> body transforms (C, B, 4, 4)
     pairs to check (every pair of bodies on different links, less the allowed-collision
-    matrix; robot against environment) -> scenes, a copy of each per configuration, of one
-    query (the bodies prepared once: :meth:`pycinder.scene.PreparedBodies.copies`; pairs only
-    within a scene, as :meth:`pycinder.Detector.find_collisions_batch` pairs them)
+    matrix; robot against environment) -> one query of a batch: a copy per configuration of
+    the bodies those pairs name (prepared once: :meth:`pycinder.scene.PreparedBodies.copies`),
+    its only candidates each configuration's pairs to check, culled by their world boxes
     -> (C,) bool, and pairs when asked
 
 A :class:`Robot` is read from a URDF with :meth:`Robot.from_urdf` (the ``robot`` extra brings

@@ -40,19 +40,31 @@ bodies prepared once it has run; the oldest is dropped first."""
 
 @dataclass
 class _Plan:
-    """The pairs of one configuration a check tests (indices into the bodies of a check:
-    robot, attached, environment)."""
+    """The pairs of one configuration a check tests, and the bodies they name (indices into the
+    bodies of a check: robot, attached, environment)."""
 
+    used: np.ndarray
+    """(U,) int64: the bodies some checked pair names, in order: a configuration's copies."""
     pairs: np.ndarray
-    """(P, 2) int64: the pairs checked, ``i < j``, sorted."""
-    bodies: int
-    """Bodies of one configuration."""
+    """(P, 2) int64: the pairs checked, as positions in :attr:`used`, ``i < j``, sorted."""
     prepared: PreparedBodies | None = None
     """The check's bodies, prepared once (made by the first batch)."""
 
+    @classmethod
+    def of(cls, pairs: list[tuple[int, int]]) -> _Plan:
+        """The plan of the checked pairs ``pairs`` (of the check's bodies)."""
+        flat = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+        used, at = np.unique(flat, return_inverse=True)
+        return cls(used, at.reshape(-1, 2))
+
+    @property
+    def bodies(self) -> int:
+        """Copies of one configuration's bodies in a query."""
+        return len(self.used)
+
     def batch(self, count: int) -> PairList:
         """The pairs of ``count`` configurations whose bodies are copied in order, a
-        configuration's bodies after the last's."""
+        configuration's copies after the last's."""
         offsets = np.arange(count, dtype=np.int64)[:, None, None] * self.bodies
         return PairList((offsets + self.pairs[None]).reshape(-1, 2))
 
@@ -153,9 +165,7 @@ class Robot(RobotModel):
         if plan is None:
             if len(self._plans) >= PLANS_KEPT:
                 self._plans.pop(next(iter(self._plans)))  # the oldest, and its prepared meshes
-            pairs = np.array(self._pair_list(environment, self_collision),
-                             dtype=np.int64).reshape(-1, 2)
-            plan = self._plans[key] = _Plan(pairs, len(bodies))
+            plan = self._plans[key] = _Plan.of(self._pair_list(environment, self_collision))
         return plan, bodies
 
     # -- checks ---------------------------------------------------------------------------
@@ -163,7 +173,7 @@ class Robot(RobotModel):
     @property
     def detector(self) -> Detector:
         """The detector of the checks (made on first use: ``records="none"``, and the broad
-        phase in NumPy: a batch's scenes hold a few bodies each)."""
+        phase in NumPy: a batch's candidates are its pair list, culled by world boxes)."""
         if self._detector is None:
             from ..detector import Detector
 
@@ -323,20 +333,22 @@ class Robot(RobotModel):
     def _query(self, poses: np.ndarray, start: int, plan: _Plan, bodies: list[Body],
                pads: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One query of a batch of configurations (``poses`` (C, B, 4, 4): each body's pose in
-        each): a copy of the check's bodies per configuration, prepared once, in one scene
+        each): a copy per configuration of the check's bodies that some checked pair names,
+        prepared once, in one scene
         whose only candidates are each configuration's checked pairs (a
         :class:`~pycinder.focused.broad.prune.PairList`, culled by their world boxes). Returns
         the pairs found: each one's configuration (index into the batch) and bodies ``a``,
         ``b`` (indices into ``bodies``), (P,) each; with padding, each pair kept by its own
         padding (environment pairs by the robot body's, the robot's own pairs by none:
         MoveIt's)."""
+        used = plan.used
         if plan.prepared is None:
-            plan.prepared = self.detector.prepare([body.mesh for body in bodies],
-                                                  names=[body.name for body in bodies])
+            plan.prepared = self.detector.prepare([bodies[i].mesh for i in used],
+                                                  names=[bodies[i].name for i in used])
         per, count = plan.bodies, len(poses)
-        every = np.arange(per)
-        scene = plan.prepared.copies(np.tile(every, count), poses.reshape(-1, 4, 4),
-                                     _CopyNames(bodies, every, start, count))
+        scene = plan.prepared.copies(np.tile(np.arange(per), count),
+                                     poses[:, used].reshape(-1, 4, 4),
+                                     _CopyNames(bodies, used, start, count))
         candidates = plan.batch(count)
         tolerance = np.full(per * count, self._tolerance_value)
         if pads is None:
@@ -346,7 +358,7 @@ class Robot(RobotModel):
             result = self._padded_detector(clearance)._find_within(scene, candidates,
                                                                    tolerance)
         found = result.pairs
-        config, a, b = found[:, 0] // per, found[:, 0] % per, found[:, 1] % per
+        config, a, b = found[:, 0] // per, used[found[:, 0] % per], used[found[:, 1] % per]
         if pads is None:
             return config, a, b
         robot = len(self.bodies) + len(self._attached)

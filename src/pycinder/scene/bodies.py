@@ -32,7 +32,7 @@ import numpy as np
 import xxhash
 
 from ..util import threads
-from ..util.arrays import sum3
+from ..util.arrays import det3, sum3
 from .normals import face_normals, signed_volume, vertex_and_edge_normals
 from .topology import DEFAULT_CACHE_BYTES, Topology, TopologyCache, report_problems
 from .vertices import MAX_EXTENT, VertexMemory, bounding_radius, check_vertices
@@ -201,7 +201,7 @@ def check_transforms(transforms: Any, n: int, names: Sequence[str | None]) -> np
         raise ValueError(
             f"{body_label(i, names[i])}: transform is not affine (last row must be [0, 0, 0, 1])"
         )
-    det = _det3(t)
+    det = det3(t[:, :3, :3])
     odd = ~np.isfinite(det)  # a product overflowed (extreme scales): LU's determinant there
     if odd.any():
         det[odd] = np.linalg.det(t[odd, :3, :3])
@@ -214,17 +214,6 @@ def check_transforms(transforms: Any, n: int, names: Sequence[str | None]) -> np
         raise ValueError(f"{body_label(i, names[i])}: transform moves or scales the body beyond "
                          f"{MAX_EXTENT:g} units; rescale the scene")
     return t
-
-
-def _det3(t: np.ndarray) -> np.ndarray:
-    """(N,) determinants of the linear parts of (N, 4, 4) matrices, by cofactors along the
-    first row (a few element-wise products of columns: many times faster than an LU per
-    3 x 3 matrix)."""
-    m = t[:, :3, :3]
-    a, b, c = m[:, 0, 0], m[:, 0, 1], m[:, 0, 2]
-    d, e, f = m[:, 1, 0], m[:, 1, 1], m[:, 1, 2]
-    g, h, i = m[:, 2, 0], m[:, 2, 1], m[:, 2, 2]
-    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
 
 
 _SEED = secrets.randbits(64)

@@ -7,7 +7,8 @@
 // the body's distance from the world's origin.
 //
 // The structs BodyPose, BodyExtent, PlanBody and PlanParams are generated from bodies.py; so
-// are the constants WORKGROUP, ROW, FLAG_MIRROR_A, FLAG_MIRROR_B, FLAG_OPEN_A and FLAG_OPEN_B.
+// are the constants WORKGROUP, ROW, FLAG_MIRROR_A, FLAG_MIRROR_B, FLAG_OPEN_A, FLAG_OPEN_B,
+// EXTENT_OPEN, EXTENT_MIRRORED and MIN_NORMAL.
 
 @group(0) @binding(0) var<storage, read> poses: array<BodyPose>;
 @group(0) @binding(1) var<storage, read> extents: array<BodyExtent>;
@@ -22,6 +23,16 @@ fn negated_sign(x: f32) -> f32 {
     return select(1.0, -1.0, x >= 0.0);
 }
 
+// |v|, scaled by its largest element first (as LAPACK's dnrm2 and dlapy2 are), so that elements
+// far below 1 (a quarter turn's 6e-17, squared) neither underflow nor vanish.
+fn norm(v: vec3f) -> f32 {
+    let s = max(max(abs(v.x), abs(v.y)), abs(v.z));
+    if (s == 0.0) {
+        return 0.0;
+    }
+    return s * length(v / s);
+}
+
 // A Householder reflector H = I - tau v v^T (tau = 0: none).
 struct Reflector {
     v: vec3f,
@@ -29,13 +40,12 @@ struct Reflector {
 };
 
 // LAPACK's dlarfg for a column whose diagonal element is alpha, with the elements below it in
-// `below` (zeros above the diagonal): no reflection where they are exactly zero.
+// `below` (zeros above the diagonal): no reflection where they are all exactly zero.
 fn reflector(alpha: f32, below: vec3f, unit: vec3f) -> Reflector {
-    let xnorm = length(below);
-    if (xnorm == 0.0) {
+    if (all(below == vec3f(0.0))) {
         return Reflector(vec3f(0.0), 0.0);
     }
-    let beta = negated_sign(alpha) * length(vec2f(alpha, xnorm));
+    let beta = negated_sign(alpha) * norm(vec3f(alpha, norm(below), 0.0));
     return Reflector(unit + below * (1.0 / (alpha - beta)), (beta - alpha) / beta);
 }
 
@@ -50,7 +60,13 @@ fn reflect(h: Reflector, x: vec3f) -> vec3f {
 // The Q of the QR decomposition of m (columns), as NumPy's qr makes it (LAPACK's dgeqr2 and
 // dorg2r: Q = H0 H1, the third reflector being none), made proper by negating its last column
 // (hostwindows._qr_frames).
-fn frame_of(m: mat3x3f) -> mat3x3f {
+fn frame_of(given: mat3x3f) -> mat3x3f {
+    // Elements below float32's smallest normal number are zeros, as the host's reference makes
+    // them (a GPU may flush them to zero in arithmetic, or not).
+    var m: mat3x3f;
+    for (var c = 0u; c < 3u; c++) {
+        m[c] = select(given[c], vec3f(0.0), abs(given[c]) < vec3f(MIN_NORMAL));
+    }
     let h0 = reflector(m[0].x, vec3f(0.0, m[0].y, m[0].z), vec3f(1.0, 0.0, 0.0));
     let c1 = reflect(h0, m[1]);
     let h1 = reflector(c1.y, vec3f(0.0, 0.0, c1.z), vec3f(0.0, 1.0, 0.0));
@@ -79,8 +95,8 @@ fn plan_bodies(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index
     out.hi = pose.hi;
     out.lo = pose.lo;
     out.size = (ext.aabb_half.x + ext.aabb_half.y) + ext.aabb_half.z;
-    let mirrored = determinant(r) < 0.0;
-    let open = ext.open != 0u;
+    let mirrored = (ext.flags & EXTENT_MIRRORED) != 0u;  // the host's float64 determinant
+    let open = (ext.flags & EXTENT_OPEN) != 0u;
     out.flags_a = select(0u, FLAG_MIRROR_A, mirrored) | select(0u, FLAG_OPEN_A, open);
     out.flags_b = select(0u, FLAG_MIRROR_B, mirrored) | select(0u, FLAG_OPEN_B, open);
     out.centre = ext.centre;

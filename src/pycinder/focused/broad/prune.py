@@ -29,7 +29,7 @@ ALL_PAIRS_BELOW = 32
 sweep's two dozen (2 boxes: about 20 microseconds instead of 100)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PairList:
     """A fixed list of the only pairs a query may test, given where a batch's ``within`` keys go
     (:func:`sweep_and_prune`, and every entry point of the focused strategy that takes
@@ -49,13 +49,26 @@ class PairList:
         pairs = np.asarray(self.pairs, dtype=np.int64)
         if pairs.ndim != 2 or pairs.shape[1] != 2:
             raise ValueError(f"a pair list is (K, 2), got shape {pairs.shape}")
+        if len(pairs) and not ((pairs[:, 0] >= 0).all() and (pairs[:, 0] < pairs[:, 1]).all()):
+            raise ValueError("a pair list's pairs are (i, j) with 0 <= i < j")
         object.__setattr__(self, "pairs", pairs)
 
     def meeting(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """(K', 2) int64: the pairs whose boxes ``lo``, ``hi`` (N, 3) overlap (touching counts),
-        in the list's order."""
+        in the list's order.
+
+        Raises
+        ------
+        ValueError
+            A pair names a box past the N given, or the pairs are not sorted, each once."""
         # Gathers along contiguous rows (an axis of 3 per body is slow to gather by body).
         a, b = np.ascontiguousarray(self.pairs[:, 0]), np.ascontiguousarray(self.pairs[:, 1])
+        n = len(lo)
+        if len(b) and b.max() >= n:
+            raise ValueError(f"a pair list names box {int(b.max())} of {n}")
+        key = a * n + b
+        if len(key) > 1 and not (key[1:] > key[:-1]).all():
+            raise ValueError("a pair list's pairs must be sorted, each once")
         lo_t, hi_t = np.ascontiguousarray(lo.T), np.ascontiguousarray(hi.T)
         meet = ((lo_t.take(a, axis=1) <= hi_t.take(b, axis=1))
                 & (lo_t.take(b, axis=1) <= hi_t.take(a, axis=1))).all(axis=0)

@@ -8,23 +8,28 @@ The host uploads, per body, what only float64 can give (O(N) NumPy, no decomposi
   (pass P3 reads the same buffer);
 - its *extent* (:data:`EXTENT`): the oriented box's centre and the world box's centre less the
   anchor (float64, rounded once), the world box's and the body-space box's half extents, and
-  whether the body is open.
+  whether the body is open and whether its transform mirrors it (the sign of the float64
+  determinant: in float32 a body flattened or scaled far down would lose it).
 
 One invocation per body then finds what :func:`plan_bodies` (its float64 reference) finds: the
 oriented box's half axes ``R[:, c] * half[c]``, the body's frame, where both boxes hold along the
 world's axes and along the frame's, the size that picks a pair's anchor body, and the mirror and
 open flags.
 
-The frame is the Q of the QR decomposition of ``R`` as NumPy's ``qr`` makes it (LAPACK's
-Householder reflections, ``dgeqr2`` and ``dorg2r``), its last axis negated where Q is not proper:
-:func:`pycinder.focused.plan.hostwindows._qr_frames`. The shader follows LAPACK's steps with its
-sign conventions (a column whose part below the diagonal is exactly zero is not reflected; a zero
-diagonal element reflects as a positive one, the host's reference having made every ``-0.0`` of
-its matrices ``+0.0``), so that both planners look along the same axes, not along axes that
-differ in sign: bodies turned by exact quarter turns included. A sign is decided differently only
-where the reflected second column's diagonal element rounds to either sign (or to zero in one
-precision only, as an element under ``1e-38`` does in float32): then the two planners' frames
-differ in an axis's sign, each a valid frame of the body.
+The frame is the Q of the QR decomposition of ``R`` as NumPy's ``qr`` makes it with the LAPACK
+of NumPy's wheels (reference LAPACK's Householder reflections, ``dgeqr2`` and ``dorg2r``, as
+OpenBLAS ships them; another LAPACK may choose other signs), its last axis negated where Q is not
+proper: :func:`pycinder.focused.plan.hostwindows._qr_frames`. The shader follows those steps with
+their sign conventions: a column whose part below the diagonal is exactly zero is not reflected,
+however small the rest; norms are scaled first, so that elements far below 1 (a quarter turn's
+``6e-17``, and its products) neither underflow nor vanish; a zero diagonal element reflects as a
+positive one. The host's reference makes every ``-0.0``, and every element below float32's
+smallest normal number, ``+0.0`` before decomposing, and the shader takes those elements as
+zeros too, so the two planners look along the same axes, not along axes that differ in sign:
+bodies turned by quarter and half turns built from ``np.pi`` included. A sign is decided
+differently only where the reflected second column's diagonal element, or an element below it,
+rounds to zero or to either sign in one precision only: then the two planners' frames differ in
+an axis's sign, each a valid frame of the body.
 
 Anchors
 -------
@@ -57,7 +62,8 @@ from ...gpu.device import Gpu, get_gpu
 from ...gpu.layout import FLAG_MIRROR, FLAG_OPEN, ROW, WORKGROUP
 from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
-from .hostwindows import BodyBounds, interval_meet, sum3
+from ...util.arrays import sum3
+from .hostwindows import TINY, BodyBounds, interval_meet, mirrors
 
 POSE = Struct("BodyPose", [
     ("rows", "array<vec4f, 3>", "world-from-body rows: R's row i (xyz), (t - anchor)_i (w)"),
@@ -68,9 +74,14 @@ POSE = Struct("BodyPose", [
 ], doc="One body's transform, its translation relative to its anchor (passes P0 and P3, "
        "pycinder/focused/plan/bodies.py).")
 
+EXTENT_OPEN, EXTENT_MIRRORED = 1, 2
+"""Bits of :data:`EXTENT`'s ``flags``: the body is not a solid; its transform mirrors it (the
+sign of its float64 determinant, :func:`~pycinder.focused.plan.hostwindows.mirrors`: float32
+would lose it for a body flattened or scaled far down)."""
+
 EXTENT = Struct("BodyExtent", [
     ("centre", "vec3f", "the oriented box's centre - anchor (float64 on the host)"),
-    ("open", "u32", "1: the body is not a solid"),
+    ("flags", "u32", "EXTENT_OPEN | EXTENT_MIRRORED bits"),
     ("aabb_centre", "vec3f", "the world box's centre - anchor (float64 on the host)"),
     ("pad0", "u32", ""),
     ("aabb_half", "vec3f", "the world box's half extents"),
@@ -207,8 +218,10 @@ def body_inputs(local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarray
     extents["aabb_centre"] = 0.5 * ((world_lo - anchor) + (world_hi - anchor))
     extents["aabb_half"] = 0.5 * (world_hi - world_lo)
     extents["half"] = 0.5 * (local_hi - local_lo)
+    flags = np.where(mirrors(transforms[:, :3, :3]), EXTENT_MIRRORED, 0)
     if open_bodies is not None:
-        extents["open"] = np.asarray(open_bodies, bool)
+        flags |= np.where(np.asarray(open_bodies, bool), EXTENT_OPEN, 0)
+    extents["flags"] = flags
     return _poses(transforms, offset, anchor), extents, anchor
 
 
@@ -239,19 +252,15 @@ def plan_bodies(local_lo: np.ndarray, local_hi: np.ndarray, world_lo: np.ndarray
     anchor : (N, 3) float64
         Each body's anchor (what the windows' origins are relative to).
     """
-    n = len(bounds.obb_centre)
-    anchor = anchors(bounds.obb_centre)
-    out = BODY.zeros(n)
+    # The anchors and the centres measured from them: the very float64 values P0 is given.
+    _, extents, anchor = body_inputs(local_lo, local_hi, world_lo, world_hi, transforms)
+    centre = extents["centre"].astype(np.float64)
+    aabb_centre = extents["aabb_centre"].astype(np.float64)
+    out = BODY.zeros(len(anchor))
     out["hi"], out["lo"] = anchor_parts(anchor)
     out["size"] = bounds.aabb_half.sum(axis=1)
     out["flags_a"] = bounds.flags[0]
     out["flags_b"] = bounds.flags[1]
-    transforms = np.asarray(transforms, np.float64)
-    local = 0.5 * (np.asarray(local_lo, np.float64) + np.asarray(local_hi, np.float64))
-    centre = np.einsum("nij,nj->ni", transforms[:, :3, :3], local) \
-        + (transforms[:, :3, 3] - anchor)
-    aabb_centre = 0.5 * ((np.asarray(world_lo, np.float64) - anchor)
-                         + (np.asarray(world_hi, np.float64) - anchor))
     obb_m = bounds.obb_axes                              # (N, 3, 3): columns are half axes
     frames = bounds.frames                               # (N, 3, 3): rows are axes
     out["centre"] = centre
@@ -300,7 +309,9 @@ class GpuBodies:
         self.workgroup = int(workgroup)
         consts = {"WORKGROUP": self.workgroup, "ROW": ROW,
                   "FLAG_MIRROR_A": FLAG_MIRROR[0], "FLAG_MIRROR_B": FLAG_MIRROR[1],
-                  "FLAG_OPEN_A": FLAG_OPEN[0], "FLAG_OPEN_B": FLAG_OPEN[1]}
+                  "FLAG_OPEN_A": FLAG_OPEN[0], "FLAG_OPEN_B": FLAG_OPEN[1],
+                  "EXTENT_OPEN": EXTENT_OPEN, "EXTENT_MIRRORED": EXTENT_MIRRORED,
+                  "MIN_NORMAL": TINY}
         self.stage = Stage(gpu, self.SHADER, self.ENTRY, label=self.INFO.title,
                            structs=(POSE, EXTENT, BODY, PARAMS), consts=consts)
         device = gpu.device

@@ -17,7 +17,7 @@ import numpy as np
 
 from ...gpu.layout import FLAG_COUNT_BACK, FLAG_MIRROR, FLAG_OPEN
 from ...util import threads
-from ...util.arrays import sum3
+from ...util.arrays import det3, sum3
 
 TILT = 0.41
 """Radians between the view direction and the overlap box's longest axis."""
@@ -31,15 +31,29 @@ PARALLEL_PAIRS = 1024
 README)."""
 
 
+TINY = float(np.finfo(np.float32).tiny)
+"""Float32's smallest normal number: smaller elements of a linear part count as zeros in its
+frame's decomposition (see :func:`_qr_frames`)."""
+
+
+def mirrors(t3: np.ndarray) -> np.ndarray:
+    """(N,) bool: whether each linear part ``t3`` (N, 3, 3) mirrors, by the sign of its float64
+    determinant (cofactors: what pass P0 is given, and the NumPy planner's flags)."""
+    return det3(np.asarray(t3, np.float64)) < 0
+
+
 def _qr_frames(t3: np.ndarray) -> np.ndarray:
     """Orthonormal frames (n, 3, 3) of linear parts ``t3`` (n, 3, 3), as the columns of Q of
     their QR decomposition with the last column's sign chosen so that the frame is proper.
 
-    Every ``-0.0`` is made ``+0.0`` first (``t3 + 0.0``): LAPACK takes the sign of a zero
-    diagonal element as the reflection's, so a ``-0.0`` would turn an axis of the frame round,
-    and pass P0 (:mod:`pycinder.focused.plan.bodies`), which follows LAPACK's steps on a GPU
-    whose compiler need not keep the sign of a zero, could not follow it."""
-    q, _ = np.linalg.qr(t3 + 0.0)
+    Elements of magnitude below float32's smallest normal number (:data:`TINY`) are made
+    ``+0.0`` first, and so is every ``-0.0``: LAPACK takes the sign of a zero diagonal element
+    as the reflection's, and reflects a column whose part below the diagonal is not exactly zero
+    however small, so either would turn an axis of the frame round; pass P0
+    (:mod:`pycinder.focused.plan.bodies`) follows LAPACK's steps in float32, on a GPU whose
+    compiler need not keep the sign of a zero and may flush subnormal numbers to zero."""
+    m = np.where(np.abs(t3) < TINY, 0.0, t3)  # -0.0 too
+    q, _ = np.linalg.qr(m)
     # QR's sign convention is arbitrary; that is fine for a frame, but keep it proper.
     det = np.linalg.det(q)
     q[:, :, 2] *= np.where(det < 0, -1.0, 1.0)[:, None]
@@ -67,7 +81,7 @@ def _body_frames(transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     t3 = transforms[:, :3, :3]
     n = len(t3)
     if transforms.dtype != np.float64:
-        return _qr_frames(t3), np.linalg.det(t3) < 0
+        return _qr_frames(t3), mirrors(t3)
     bits = t3.view(np.int64).reshape(n, 9)
     last = _last_frames
     if last is not None and last[0].shape == bits.shape:
@@ -89,7 +103,7 @@ def _body_frames(transforms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         i = np.flatnonzero(todo)
         sub = t3[i]
         q[i] = _qr_frames(sub)
-        mirrored[i] = np.linalg.det(sub) < 0
+        mirrored[i] = mirrors(sub)
     _last_frames = (bits, q, mirrored)
     return q, mirrored
 

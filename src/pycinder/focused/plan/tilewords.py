@@ -26,8 +26,9 @@ WGSL has no float64, and the tiles of a pair 1e13 from the world's origin must k
 precision of the pair's own size. So nothing is measured from the world's origin on the GPU:
 
 - The host (float64, O(N)) uploads each body's linear part ``R`` rounded to float32, its anchor
-  (pass P0's: exactly ``hi + lo`` of two float32 vectors; the planner binds P0's poses, a
-  caller of its own gives them to :meth:`TileWords.upload_bodies`), and its translation *less its anchor*, ``t - A``, computed in float64 (an exact
+  (pass P0's: exactly ``hi + lo`` of two float32 vectors; the planner binds P0's poses, and a
+  caller of this pass alone gives them to :meth:`TileWords.upload_bodies`), and its translation
+  *less its anchor*, ``t - A``, computed in float64 (an exact
   difference wherever ``t`` is within a factor two of ``A``) and rounded to float32 once: an
   error of ``2**-24 |t - A|``, relative to how far the body's origin lies from its oriented box's
   centre, not from the world's.
@@ -89,7 +90,8 @@ from .windows import WINDOW
 
 BODY = POSE
 """One body's transform for this pass, its translation relative to its anchor (pass P0's
-:data:`~pycinder.focused.plan.bodies.POSE`)."""
+:data:`~pycinder.focused.plan.bodies.POSE`: the planner binds P0's buffer; this pass's own,
+from :meth:`TileWords.upload_bodies`, serves a caller running it alone)."""
 
 _U = wgpu.BufferUsage
 
