@@ -54,7 +54,7 @@ def test_panda_links_and_poses_match_pybullet(panda):
 
 def test_short_benchmark_run_agrees_with_exact_geometry():
     r = batch.run_batch(60, batch_sizes=(1, 30), sweep=30, single=5, truth=20, workers=(),
-                        robots=(), check_sizes=(1, 8))
+                        robots=(), check_sizes=(1, 8), matrix_samples=10)
     assert r["pairs_per_configuration"] == 55 and r["ray"] == [] and r["robots"] == []
     assert r["batch_equals_single"] == [5, 5]
     assert [b["batch_size"] for b in r["pycinder-batch"]] == [1, 30]
@@ -66,6 +66,7 @@ def test_short_benchmark_run_agrees_with_exact_geometry():
     assert "open, tested as surfaces: link6.obj" in text
     sweep = r["check_sweep"]
     assert [row["batch_size"] for row in sweep["sizes"]] == [1, 8]
+    assert sweep["matrix_samples"] == 10 and 0 < sweep["pairs"] < 121  # the matrix pruned
     assert all(row["per_s"] > 0 and row["host_cpu_ms"] > 0 for row in sweep["sizes"])
     assert sweep["python-fcl"]["per_s"] > 0 and sweep["trimesh"]["per_s"] > 0
     faster = [row["batch_size"] for row in sweep["sizes"]

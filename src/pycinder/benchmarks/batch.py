@@ -249,8 +249,8 @@ def run_batch(configurations: int = CONFIGURATIONS, *, batch_sizes: Sequence[int
     out["ray"] = rows
     out["robots"] = run_robots(robot_configurations, robots=robots, samples=matrix_samples,
                                seed=seed, progress=say) if robots else []
-    out["check_sweep"] = run_check_sweep("panda", check_sizes, seed=seed, progress=say) \
-        if check_sizes else None
+    out["check_sweep"] = run_check_sweep("panda", check_sizes, samples=matrix_samples,
+                                         seed=seed, progress=say) if check_sizes else None
     return out
 
 
@@ -343,11 +343,13 @@ def run_robots(configurations: int = ROBOT_CONFIGURATIONS, *,
 
 
 def run_check_sweep(name: str = "panda", sizes: Sequence[int] = CHECK_SIZES, *,
-                    least: int = 64, peers: int = 500, seed: int = 0,
-                    progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+                    least: int = 64, peers: int = 500, samples: int = MATRIX_SAMPLES,
+                    seed: int = 0, progress: Callable[[str], None] | None = None
+                    ) -> dict[str, Any]:
     """Configurations per second of ``Robot.check`` against the batch size, beside python-fcl
     and trimesh's ``CollisionManager`` on the same configurations: robot ``name`` with its
-    environment and the allowed-collision matrix it loads with.
+    environment and MoveIt's allowed-collision matrix from ``samples`` random configurations (as
+    :func:`run_robots` makes it; 0: the matrix the robot loads with).
 
     Each size checks ``max(size, least)`` configurations in queries of ``size`` (after one
     untimed query of the size: pipelines, buffers), timing the wall and the host CPU (every
@@ -368,9 +370,13 @@ def run_check_sweep(name: str = "panda", sizes: Sequence[int] = CHECK_SIZES, *,
 
     say = progress or (lambda msg: None)
     robot, env = load(name), environment(name)
+    if samples:
+        say(f"check sweep: {name}, allowed-collision matrix from {samples} samples")
+        robot.allowed = robot.compute_allowed_collisions(samples, seed=seed + 1)
+    out: dict[str, Any] = {"robot": name, "matrix_samples": samples,
+                           "pairs": len(robot.checked_pairs(env)), "sizes": []}
     most = max(max(sizes), least, peers)
     q = robot.random_configurations(2 * most, seed)
-    out: dict[str, Any] = {"robot": name, "sizes": []}
     fcl, tm = FclRobot(robot, env), TrimeshRobot(robot, env)
     poses = fcl.poses(q[:peers])
     for label, system in (("python-fcl", fcl), ("trimesh", tm)):
@@ -407,7 +413,9 @@ def check_sweep_markdown(r: dict[str, Any]) -> list[str]:
     fcl, tm = r["python-fcl"], r["trimesh"]
     lines = [f"## {r['robot']}: configurations per second against the batch size", "",
              "`Robot.check(qs, environment=..., batch=size)` with the robot's table (and tray), "
-             "its allowed-collision matrix; python-fcl and trimesh check "
+             f"{r['pairs']} pairs to check a configuration (MoveIt's allowed-collision matrix "
+             f"from {r['matrix_samples']} samples; 0: the matrix it loads with); python-fcl and "
+             "trimesh check "
              f"{fcl['configurations']} of the same configurations one by one. Host CPU: every "
              "Python thread summed, per configuration.", "",
              "| configurations per query | configurations | seconds | configurations / s | "
