@@ -334,13 +334,12 @@ class Robot(RobotModel):
                pads: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One query of a batch of configurations (``poses`` (C, B, 4, 4): each body's pose in
         each): a copy per configuration of the check's bodies that some checked pair names,
-        prepared once, in one scene
-        whose only candidates are each configuration's checked pairs (a
-        :class:`~pycinder.focused.broad.prune.PairList`, culled by their world boxes). Returns
-        the pairs found: each one's configuration (index into the batch) and bodies ``a``,
-        ``b`` (indices into ``bodies``), (P,) each; with padding, each pair kept by its own
-        padding (environment pairs by the robot body's, the robot's own pairs by none:
-        MoveIt's)."""
+        prepared once, in one scene whose only candidates are each configuration's checked
+        pairs (a :class:`~pycinder.focused.broad.prune.PairList`, culled by their world
+        boxes). Returns the pairs found: each one's configuration (index into the batch) and
+        bodies ``a``, ``b`` (indices into ``bodies``), (P,) each; with padding, each pair kept
+        by its own padding (environment pairs by the robot body's, the robot's own pairs by
+        none: MoveIt's)."""
         used = plan.used
         if plan.prepared is None:
             plan.prepared = self.detector.prepare([bodies[i].mesh for i in used],
