@@ -23,6 +23,7 @@ import numpy as np
 import trimesh
 
 from ..robot import Body, Environment, Robot
+from ..robot.robot import _owner
 from ..testing import crosses_deeply, ground_truth, pair_tolerances, surface_distance
 from ..util.optional import require
 
@@ -81,7 +82,7 @@ class FclRobot:
         fcl = self.fcl = require("fcl", "python-fcl", "bench", "python-fcl")
         self.robot, self.environment = robot, environment
         self.bodies: list[Body] = robot._all_bodies(environment)
-        self.owner = [b.name if b.source == "attached" else b.link for b in self.bodies]
+        self.owner = [_owner(b) for b in self.bodies]
         pairs = robot._pair_list(environment, self_collision)
         self.checked = np.zeros((len(self.bodies),) * 2, dtype=bool)
         for i, j in pairs:
@@ -101,14 +102,11 @@ class FclRobot:
         self.manager = fcl.DynamicAABBTreeCollisionManager()
         self.manager.registerObjects(self.objs)
         self.manager.setup()
-        self.env_poses = np.array([b.origin for b in environment.bodies]).reshape(-1, 4, 4) \
-            if environment is not None else np.zeros((0, 4, 4))
 
     def poses(self, qs: np.ndarray) -> np.ndarray:
-        """(C, B, 4, 4) every body's pose (robot, attached, environment)."""
-        poses = self.robot.poses(qs)
-        env = np.broadcast_to(self.env_poses, (len(poses), *self.env_poses.shape))
-        return np.concatenate([poses, env], axis=1)
+        """(C, B, 4, 4) every body's pose (robot, attached, environment), as a check poses
+        them."""
+        return self.robot._check_poses(qs, self.environment)
 
     def check(self, qs: np.ndarray, poses: np.ndarray | None = None
               ) -> list[set[tuple[str, str]]]:
@@ -154,22 +152,18 @@ class TrimeshRobot:
                  self_collision: bool = True) -> None:
         self.robot, self.environment = robot, environment
         self.bodies: list[Body] = robot._all_bodies(environment)
-        self.owner = [b.name if b.source == "attached" else b.link for b in self.bodies]
+        self.owner = [_owner(b) for b in self.bodies]
         self.checked = {frozenset(p) for p in robot._pair_list(environment, self_collision)}
         self.manager = trimesh.collision.CollisionManager()
         for i, b in enumerate(self.bodies):
             self.manager.add_object(str(i), b.mesh)
-        self.env_poses = np.array([b.origin for b in environment.bodies]).reshape(-1, 4, 4) \
-            if environment is not None else np.zeros((0, 4, 4))
 
     def check(self, qs: np.ndarray, poses: np.ndarray | None = None
               ) -> list[set[tuple[str, str]]]:
         """Colliding pairs of names per configuration (names sorted in each pair); ``poses``
         (C, B, 4, 4) as :meth:`FclRobot.poses` gives them."""
         if poses is None:
-            poses = self.robot.poses(qs)
-            env = np.broadcast_to(self.env_poses, (len(poses), *self.env_poses.shape))
-            poses = np.concatenate([poses, env], axis=1)
+            poses = self.robot._check_poses(qs, self.environment)
         out = []
         for pose in poses:
             for i, t in enumerate(pose):
@@ -194,7 +188,7 @@ def world_meshes(robot: Robot, environment: Environment | None, pose: np.ndarray
     bodies = robot._all_bodies(environment)
     parts: dict[str, list[trimesh.Trimesh]] = {}
     for b, t in zip(bodies, pose):
-        name = b.name if b.source == "attached" else b.link
+        name = _owner(b)
         m = b.mesh.copy()
         m.apply_transform(t)
         parts.setdefault(name, []).append(m)

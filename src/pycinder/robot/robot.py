@@ -298,6 +298,15 @@ class Robot(RobotModel):
                              f"{batch!r}")
         return int(batch)
 
+    def _check_poses(self, qs: np.ndarray, environment: Environment | None) -> np.ndarray:
+        """(C, B, 4, 4): every body's pose of a check (robot, attached, then environment, as
+        :meth:`_all_bodies` orders them) in each configuration ``qs`` (C, J)."""
+        poses = self.poses(qs)
+        if environment is None or not len(environment):
+            return poses
+        env = np.array([b.origin for b in environment.bodies])
+        return np.concatenate([poses, np.broadcast_to(env, (len(poses), *env.shape))], axis=1)
+
     def _check_batch(self, qs: np.ndarray, start: int, plan: _Plan, bodies: list[Body],
                      environment: Environment | None, collides: np.ndarray,
                      pairs: list[list[tuple[str, str]]] | None,
@@ -306,10 +315,7 @@ class Robot(RobotModel):
 
         if not len(plan.pairs) or not len(qs):
             return
-        poses = self.poses(qs)
-        if environment is not None and len(environment):
-            env = np.array([b.origin for b in environment.bodies])
-            poses = np.concatenate([poses, np.broadcast_to(env, (len(qs), *env.shape))], axis=1)
+        poses = self._check_poses(qs, environment)
         try:
             config, a, b = self._query(poses, start, plan, bodies, pads)
         except GpuMemoryError:
