@@ -135,8 +135,8 @@ def test_a_robots_host_cpu_per_configuration_is_measured(monkeypatch):
     assert r["robot"] == "xarm" and r["batch"] == 4
     assert r["host_cpu_us"] > 0 and r["wall_ms"] > 0
     # One query a check (an untimed one, the timed one, the one timed by stage), each of the
-    # copies of 4 configurations' bodies.
-    assert len(queries) == 3 and len(set(queries)) == 1 and queries[0] > 4
+    # copies of 4 configurations' bodies (those of the pairs pass K2 kept).
+    assert len(queries) == 3 and min(queries) > 4
     stages = r["stages_us"]
-    assert {"forward kinematics", "broad phase", "validate"} <= set(stages)
+    assert {"kinematics and cull (K1, K2)", "broad phase", "validate"} <= set(stages)
     assert all(v >= 0 for v in stages.values()) and sum(stages.values()) > 0

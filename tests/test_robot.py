@@ -289,7 +289,7 @@ def test_a_batch_too_large_for_the_device_is_split_and_answers_the_same(robots, 
     queries = []
 
     def refuse_large(det, scene, within, tolerance):
-        configurations = len(scene) // panda._plan(env, True)[0].bodies
+        configurations = len(np.unique(scene.names.config))
         queries.append(configurations)
         if configurations > 3:
             raise GpuMemoryError("too large for this test's device")
@@ -299,7 +299,7 @@ def test_a_batch_too_large_for_the_device_is_split_and_answers_the_same(robots, 
     split, split_pairs = panda.check(q, environment=env, return_pairs=True, batch=12)
     assert queries == [12, 6, 3, 3, 6, 3, 3]  # refused, refused, answered in four quarters
     assert split.tolist() == whole.tolist() and split_pairs == whole_pairs
-    names = _CopyNames(panda.bodies, np.array([2, 0]), 40, 3)
+    names = _CopyNames(panda.bodies, np.array([2, 0] * 3), np.repeat(np.arange(3), 2), 40)
     assert len(names) == 6 and names[3] == f"configuration 41: {panda.bodies[0].name}"
     assert names[-1] == names[5] and names[:2] == [names[0], names[1]]
     assert list(names) == [names[k] for k in range(6)]  # iteration ends

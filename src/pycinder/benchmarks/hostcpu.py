@@ -196,6 +196,7 @@ STAGES: tuple[tuple[str, str, str], ...] = (
     ("pycinder.detector", "Detector._scene", "validate"),
     ("pycinder.scene.prepared", "PreparedBodies.copies", "validate"),
     ("pycinder.robot.model", "RobotModel.poses", "forward kinematics"),
+    ("pycinder.robot.cull", "GpuPairCull.run", "kinematics and cull (K1, K2)"),
     ("pycinder.scene.bodies", "ShapeCache.get_many", "shapes (check, hash, measure)"),
     ("pycinder.scene.topology", "TopologyCache.get", "topology lookup"),
     ("pycinder.scene.bodies", "Scene.world_boxes", "broad phase"),

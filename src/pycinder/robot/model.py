@@ -164,6 +164,7 @@ class RobotModel:
     _detector: Any = field(default=None, repr=False)
     _padded: dict = field(default_factory=dict, repr=False)
     _plans: dict = field(default_factory=dict, repr=False)
+    _kinematics: Any = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         self._link_index = {n: k for k, n in enumerate(self.links)}
@@ -376,12 +377,17 @@ class RobotModel:
         (C, B, 4, 4) float64
         """
         links = self.link_transforms(q)
-        out = links[:, self._body_link] @ self._body_origin
-        if self._attached:
-            att = [(self._link_index[a.body.link], a.body.origin) for a in self._attached.values()]
-            extra = links[:, [k for k, _ in att]] @ np.array([o for _, o in att])
-            out = np.concatenate([out, extra], axis=1)
-        return out
+        link, origin = self._body_links()
+        return links[:, link] @ origin
+
+    def _body_links(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each body's link (B,) (an index into :attr:`links`) and link-from-body origin
+        (B, 4, 4): the collision bodies, then the attached objects (:meth:`poses`' order)."""
+        if not self._attached:
+            return self._body_link, self._body_origin
+        att = [(self._link_index[a.body.link], a.body.origin) for a in self._attached.values()]
+        return (np.concatenate([self._body_link, [k for k, _ in att]]),
+                np.concatenate([self._body_origin, [o for _, o in att]]))
 
     # -- attached objects -----------------------------------------------------------------
 
@@ -415,12 +421,14 @@ class RobotModel:
         self._attached[name] = _Attached(Body(name, link, _as_trimesh(mesh, name), origin,
                                               "attached"), touch)
         self._plans.clear()
+        self._kinematics = None
 
     def detach(self, name: str) -> None:
         """Remove an attached object."""
         if self._attached.pop(name, None) is None:
             raise KeyError(f"{self.name}: no attached object {name!r}")
         self._plans.clear()
+        self._kinematics = None
 
     @property
     def attached(self) -> list[str]:

@@ -13,12 +13,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..focused.broad.prune import PairList
+from ..tolerance import DEFAULT_RELATIVE_TOLERANCE
 from .acm import AllowedCollisionMatrix, matrix_from_samples
 from .model import Body, Environment, RobotModel
 
 if TYPE_CHECKING:
     from ..detector import Detector
     from ..scene import PreparedBodies
+    from .cull import GpuPairCull
 
 DEFAULT_BODIES_PER_QUERY = 12_000
 """Most bodies one batched query holds by default (configurations per query: this divided by
@@ -49,6 +51,8 @@ class _Plan:
     """(P, 2) int64: the pairs checked, as positions in :attr:`used`, ``i < j``, sorted."""
     prepared: PreparedBodies | None = None
     """The check's bodies, prepared once (made by the first batch)."""
+    front: GpuPairCull | None = None
+    """Its passes K1 and K2 on the GPU (made by the first check that takes its poses there)."""
 
     @classmethod
     def of(cls, pairs: list[tuple[int, int]]) -> _Plan:
@@ -73,11 +77,12 @@ class _CopyNames(Sequence):
     """The names of a batch's copies of the bodies, made when read (a message names one):
     ``configuration C: body``."""
 
-    def __init__(self, bodies: list[Body], layout: np.ndarray, first: int, count: int) -> None:
-        self.bodies, self.layout, self.first, self.count = bodies, layout, first, count
+    def __init__(self, bodies: list[Body], body: np.ndarray, config: np.ndarray, first: int
+                 ) -> None:
+        self.bodies, self.body, self.config, self.first = bodies, body, config, first
 
     def __len__(self) -> int:
-        return self.count * len(self.layout)
+        return len(self.body)
 
     def __getitem__(self, i: Any) -> Any:
         if isinstance(i, slice):
@@ -85,8 +90,8 @@ class _CopyNames(Sequence):
         i = int(i)
         if not -len(self) <= i < len(self):
             raise IndexError(f"copy {i} of {len(self)}")
-        c, k = divmod(i % len(self), len(self.layout))
-        return f"configuration {self.first + c}: {self.bodies[int(self.layout[k])].name}"
+        return (f"configuration {self.first + int(self.config[i])}: "
+                f"{self.bodies[int(self.body[i])].name}")
 
 
 class Robot(RobotModel):
@@ -234,12 +239,47 @@ class Robot(RobotModel):
         qs = self._configurations(qs)
         plan, bodies = self._plan(environment, self_collision)
         pads = self._paddings(padding, bodies)
+        front = self._gpu_front(plan, bodies)
         collides = np.zeros(len(qs), dtype=bool)
         pairs: list[list[tuple[str, str]]] = [[] for _ in range(len(qs))]
         for start, stop in self._batches(len(qs), batch, plan):
             self._check_batch(qs[start:stop], start, plan, bodies, environment, collides,
-                              pairs if return_pairs else None, pads)
+                              pairs if return_pairs else None, pads, front)
         return (collides, pairs) if return_pairs else collides
+
+    def _gpu_front(self, plan: _Plan, bodies: list[Body]) -> GpuPairCull | None:
+        """Passes K1 and K2 of a check: the robot's poses and the plan's pairs culled by world
+        boxes, on the GPU (:mod:`pycinder.robot.cull`; made once per plan, and again when the
+        device was renewed); None where, for some checked pair, K1's poses of its bodies may
+        lie farther from float64's than :data:`~pycinder.robot.kinematics.POSE_MARGIN` of the
+        pair's tolerance (:meth:`GpuKinematics.error_estimate`, both bodies' added): the host's
+        :meth:`poses` and box test then."""
+        from .cull import GpuPairCull
+        from .kinematics import POSE_MARGIN, GpuKinematics
+
+        gpu = self.detector.gpu
+        if self._kinematics is None or self._kinematics.gpu is not gpu:
+            self._kinematics = GpuKinematics(self, gpu, self.detector.request.timeout)
+        kinematics = self._kinematics
+        robot = len(self.bodies) + len(self._attached)
+        sources = np.where(plan.used < robot, plan.used, -1)
+        # Per checked pair, both bodies' estimates against the pair's tolerance.
+        error = np.where(sources >= 0, kinematics.error_estimate()[np.maximum(sources, 0)], 0.0)
+        a, b = plan.pairs[:, 0], plan.pairs[:, 1]
+        if self.tolerance is None:
+            size = np.array([_size(bodies[i]) for i in plan.used])
+            tolerance = DEFAULT_RELATIVE_TOLERANCE * np.minimum(size[a], size[b])
+        else:
+            tolerance = np.full(len(a), float(self.tolerance))
+        if not (error[a] + error[b] <= POSE_MARGIN * tolerance).all():
+            return None
+        if plan.front is None or plan.front.kinematics is not kinematics:
+            used = [bodies[i] for i in plan.used]
+            fixed = np.array([b.origin if k < 0 else np.eye(4) for b, k in zip(used, sources)])
+            bounds = np.array([b.mesh.bounds for b in used], np.float64).reshape(-1, 2, 3)
+            plan.front = GpuPairCull(kinematics, sources, fixed, bounds[:, 0], bounds[:, 1],
+                                     plan.pairs)
+        return plan.front
 
     def _batches(self, count: int, batch: int | None, plan: _Plan) -> Iterator[tuple[int, int]]:
         """``(start, stop)`` of each query's configurations: ``batch`` at a time when given;
@@ -298,10 +338,12 @@ class Robot(RobotModel):
                              f"{batch!r}")
         return int(batch)
 
-    def _check_poses(self, qs: np.ndarray, environment: Environment | None) -> np.ndarray:
+    def _check_poses(self, qs: np.ndarray, environment: Environment | None,
+                     robot: np.ndarray | None = None) -> np.ndarray:
         """(C, B, 4, 4): every body's pose of a check (robot, attached, then environment, as
-        :meth:`_all_bodies` orders them) in each configuration ``qs`` (C, J)."""
-        poses = self.poses(qs)
+        :meth:`_all_bodies` orders them) in each configuration ``qs`` (C, J); the robot's and
+        attached objects' ``robot`` where given (K1's), else :meth:`poses`."""
+        poses = self.poses(qs) if robot is None else robot
         if environment is None or not len(environment):
             return poses
         env = np.array([b.origin for b in environment.bodies])
@@ -310,22 +352,30 @@ class Robot(RobotModel):
     def _check_batch(self, qs: np.ndarray, start: int, plan: _Plan, bodies: list[Body],
                      environment: Environment | None, collides: np.ndarray,
                      pairs: list[list[tuple[str, str]]] | None,
-                     pads: np.ndarray | None = None) -> None:
+                     pads: np.ndarray | None = None,
+                     front: GpuPairCull | None = None) -> None:
         from ..errors import GpuMemoryError
 
         if not len(plan.pairs) or not len(qs):
             return
-        poses = self._check_poses(qs, environment)
+        clearance = None if pads is None else max(float(pads.max()), 1e-12)
+        survivors = None
+        if front is None:
+            poses = self._check_poses(qs, environment)
+        else:
+            with front.gpu.lock:
+                robot, survivors = front.run(qs, clearance or 0.0)
+            poses = self._check_poses(qs, environment, robot)
         try:
-            config, a, b = self._query(poses, start, plan, bodies, pads)
+            config, a, b = self._query(poses, start, plan, bodies, pads, clearance, survivors)
         except GpuMemoryError:
             if len(qs) == 1:
                 raise
             half = len(qs) // 2
             self._check_batch(qs[:half], start, plan, bodies, environment, collides, pairs,
-                              pads)
+                              pads, front)
             self._check_batch(qs[half:], start + half, plan, bodies, environment, collides,
-                              pairs, pads)
+                              pairs, pads, front)
             return
         collides[start + config] = True
         if pairs is not None:
@@ -337,33 +387,46 @@ class Robot(RobotModel):
                 pairs[start + c] = sorted(names)
 
     def _query(self, poses: np.ndarray, start: int, plan: _Plan, bodies: list[Body],
-               pads: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               pads: np.ndarray | None, clearance: float | None = None,
+               survivors: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One query of a batch of configurations (``poses`` (C, B, 4, 4): each body's pose in
-        each): a copy per configuration of the check's bodies that some checked pair names,
-        prepared once, in one scene whose only candidates are each configuration's checked
-        pairs (a :class:`~pycinder.focused.broad.prune.PairList`, culled by their world
-        boxes). Returns the pairs found: each one's configuration (index into the batch) and
-        bodies ``a``, ``b`` (indices into ``bodies``), (P,) each; with padding, each pair kept
-        by its own padding (environment pairs by the robot body's, the robot's own pairs by
-        none: MoveIt's)."""
+        each): copies of the check's bodies, prepared once, in one scene whose only candidates
+        are each configuration's checked pairs (a :class:`~pycinder.focused.broad.prune.PairList`,
+        culled by their world boxes). Without ``survivors``, a copy per configuration of every
+        body some checked pair names, the pairs culled by the host's boxes; with them (pass K2's
+        (S, 3): configuration and positions in ``plan.used``), copies of the bodies of the
+        pairs kept alone, and those pairs the candidates. Returns the pairs found: each one's
+        configuration (index into the batch) and bodies ``a``, ``b`` (indices into
+        ``bodies``), (P,) each; with padding, each pair kept by its own padding (environment
+        pairs by the robot body's, the robot's own pairs by none: MoveIt's)."""
         used = plan.used
         if plan.prepared is None:
             plan.prepared = self.detector.prepare([bodies[i].mesh for i in used],
                                                   names=[bodies[i].name for i in used])
         per, count = plan.bodies, len(poses)
-        scene = plan.prepared.copies(np.tile(np.arange(per), count),
-                                     poses[:, used].reshape(-1, 4, 4),
-                                     _CopyNames(bodies, used, start, count))
-        candidates = plan.batch(count)
-        tolerance = np.full(per * count, self._tolerance_value)
+        if survivors is None:
+            copy = np.arange(per * count)  # configuration * per + position in used
+            candidates = plan.batch(count)
+        else:
+            first, second = survivors[:, 0] * per + survivors[:, 1], \
+                survivors[:, 0] * per + survivors[:, 2]
+            kept = np.zeros(per * count, dtype=bool)
+            kept[first] = kept[second] = True
+            copy = np.flatnonzero(kept)
+            slot = np.cumsum(kept) - 1  # a kept copy's index among the copies
+            candidates = PairList(np.stack([slot[first], slot[second]], axis=1), culled=True)
+        config, body = copy // per, copy % per
+        scene = plan.prepared.copies(body, poses[config, used[body]],
+                                     _CopyNames(bodies, used[body], config, start))
+        tolerance = np.full(len(copy), self._tolerance_value)
         if pads is None:
             result = self.detector._find_within(scene, candidates, tolerance)
         else:
-            clearance = max(float(pads.max()), 1e-12)
             result = self._padded_detector(clearance)._find_within(scene, candidates,
                                                                    tolerance)
         found = result.pairs
-        config, a, b = found[:, 0] // per, used[found[:, 0] % per], used[found[:, 1] % per]
+        config, a, b = config[found[:, 0]], used[body[found[:, 0]]], used[body[found[:, 1]]]
         if pads is None:
             return config, a, b
         robot = len(self.bodies) + len(self._attached)
@@ -496,6 +559,13 @@ class Robot(RobotModel):
     def write_srdf(self, path: str | Path) -> None:
         """Write :attr:`allowed` as an SRDF file."""
         self.allowed.write_srdf(path, self.name)
+
+
+def _size(body: Body) -> float:
+    """A body's size as the default tolerance measures it: its box's diagonal, placed by its
+    origin (:func:`pycinder.tolerance.body_sizes`)."""
+    lo, hi = np.asarray(body.mesh.bounds, np.float64)
+    return float(np.linalg.norm(np.asarray(body.origin, np.float64)[:3, :3] @ (hi - lo)))
 
 
 def _owner(body: Body) -> str:

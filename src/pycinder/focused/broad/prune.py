@@ -41,9 +41,14 @@ class PairList:
     ----------
     pairs : (K, 2) int
         Pairs ``(i, j)`` with ``i < j``, sorted, each once.
+    culled : bool
+        The pairs were culled already, by boxes that hold the bodies (a robot check's pass K2,
+        :mod:`pycinder.robot.cull`): every pair is a candidate, and no box is tested. A pair
+        whose bodies' boxes are apart is found apart by the planner.
     """
 
     pairs: np.ndarray
+    culled: bool = False
 
     def __post_init__(self) -> None:
         pairs = np.asarray(self.pairs, dtype=np.int64)
@@ -55,7 +60,7 @@ class PairList:
 
     def meeting(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """(K', 2) int64: the pairs whose boxes ``lo``, ``hi`` (N, 3) overlap (touching counts),
-        in the list's order.
+        in the list's order (all of them, where :attr:`culled`).
 
         Raises
         ------
@@ -69,6 +74,8 @@ class PairList:
         key = a * n + b
         if len(key) > 1 and not (key[1:] > key[:-1]).all():
             raise ValueError("a pair list's pairs must be sorted, each once")
+        if self.culled:
+            return self.pairs
         lo_t, hi_t = np.ascontiguousarray(lo.T), np.ascontiguousarray(hi.T)
         meet = ((lo_t.take(a, axis=1) <= hi_t.take(b, axis=1))
                 & (lo_t.take(b, axis=1) <= hi_t.take(a, axis=1))).all(axis=0)

@@ -194,18 +194,23 @@ class _Views:
         self.raw, self.atlas, self.anchor = raw, atlas, anchor
         self.tolerance = np.asarray(tolerance, np.float64)
 
-    def gather(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def gather(self, which: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``axes`` (T, 3, 3), ``origin`` (T, 3), ``pixel`` (T,) and ``slab`` (T, 2), float64:
         each tile's pair's window, its origin moved to its part of the window as
-        :func:`pycinder.focused.plan.tiles._place` moves it."""
+        :func:`pycinder.focused.plan.tiles._place` moves it; of tiles ``which`` (n,) only, where
+        given."""
         atlas = self.atlas
-        k = atlas.pair
+        k = atlas.pair if which is None else atlas.pair[which]
         r = self.raw.take(k)
         axes = r["axes"][:, :, :3].astype(np.float64)
         pixel = self.tolerance.take(k)
         origin = self.anchor.take(r["anchor"], axis=0) + r["origin"]
-        u = np.where(atlas.moved, atlas.u0, 0) + atlas.shift
-        v = np.where(atlas.moved, atlas.v0, 0)
+        moved, u0, v0, shift = atlas.moved, atlas.u0, atlas.v0, atlas.shift
+        if which is not None:
+            moved, u0, v0, shift = moved[which], u0[which], v0[which], shift[which]
+        u = np.where(moved, u0, 0) + shift
+        v = np.where(moved, v0, 0)
         origin += (u * pixel)[:, None] * axes[:, 0] + (v * pixel)[:, None] * axes[:, 1]
         return axes, origin, pixel, r["slab"].astype(np.float64)
 
@@ -224,6 +229,12 @@ class GpuTilePlan(TilePlan):
         self.round_rows, self.atlas_width, self.separated = round_rows, atlas_width, separated
         self._views = views
         self._gathered: tuple | None = None
+
+    def views(self, which: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """See :meth:`TilePlan.views`: gathered for tiles ``which`` alone, unless all were."""
+        if self._gathered is not None:
+            return super().views(which)
+        return self._views.gather(np.asarray(which, np.int64))
 
     def _view(self, k: int) -> np.ndarray:
         gathered = self._gathered

@@ -109,6 +109,10 @@ class TilePlan:
     def __len__(self) -> int:
         return len(self.pair)
 
+    def views(self, which: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``axes``, ``origin``, ``pixel`` and ``slab`` of tiles ``which`` (n,) int only."""
+        return self.axes[which], self.origin[which], self.pixel[which], self.slab[which]
+
     @property
     def pixels(self) -> int:
         """Pixels of all tiles (what is rasterised), not counting the atlas's unused parts."""
@@ -310,15 +314,44 @@ def fitted_width(w: np.ndarray, h: np.ndarray) -> int:
 
 
 def concat_plans(plans: list[TilePlan]) -> TilePlan:
-    """Plans one after another: rounds of later plans follow those of earlier ones."""
+    """Plans one after another: rounds of later plans follow those of earlier ones. The tiles'
+    views (``axes``, ``origin``, ``pixel``, ``slab``) are joined when first read
+    (:class:`ConcatPlan`): a plan of the GPU planner gathers its own only then."""
     if len(plans) == 1:
         return plans[0]
     offsets = np.cumsum([0] + [len(p.round_rows) for p in plans[:-1]])
     cat = {name: np.concatenate([getattr(p, name) for p in plans])
-           for name in ("pair", "bodies", "axes", "origin", "pixel", "window", "slab", "flags")}
+           for name in ("pair", "bodies", "window", "flags")}
     rounds = np.concatenate([p.round + o for p, o in zip(plans, offsets)])
-    return TilePlan(**cat, round=rounds, round_rows=sum((p.round_rows for p in plans), []),
-                    atlas_width=plans[0].atlas_width, separated=plans[0].separated)
+    return ConcatPlan(plans, **cat, round=rounds,
+                      round_rows=sum((p.round_rows for p in plans), []),
+                      atlas_width=plans[0].atlas_width, separated=plans[0].separated)
+
+
+class ConcatPlan(TilePlan):
+    """The :class:`TilePlan` of :func:`concat_plans`: its parts' views are joined when first
+    read."""
+
+    def __init__(self, parts: list[TilePlan], *, pair: np.ndarray, bodies: np.ndarray,
+                 window: np.ndarray, flags: np.ndarray, round: np.ndarray, round_rows: list[int],
+                 atlas_width: int, separated: int) -> None:
+        self.pair, self.bodies, self.window, self.flags, self.round = \
+            pair, bodies, window, flags, round
+        self.round_rows, self.atlas_width, self.separated = round_rows, atlas_width, separated
+        self._parts = parts
+        self._joined: dict[str, np.ndarray] = {}
+
+    def _view(self, name: str) -> np.ndarray:
+        joined = self._joined.get(name)
+        if joined is None:
+            joined = self._joined[name] = np.concatenate([getattr(p, name)
+                                                          for p in self._parts])
+        return joined
+
+    axes = property(lambda self: self._view("axes"), doc="(T, 3, 3) float64, see TilePlan")
+    origin = property(lambda self: self._view("origin"), doc="(T, 3) float64, see TilePlan")
+    pixel = property(lambda self: self._view("pixel"), doc="(T,) float64, see TilePlan")
+    slab = property(lambda self: self._view("slab"), doc="(T, 2) float64, see TilePlan")
 
 
 def check_pixels(cat: dict, pairs: np.ndarray, tolerance: np.ndarray, max_pixels: float
@@ -580,18 +613,19 @@ def split_depth(plan: TilePlan, which: np.ndarray, budget_pixels: int, cut: bool
     budget_pixels : int
         Most atlas pixels per round.
     """
-    z0, z1 = plan.slab[which, 0], plan.slab[which, 1]
+    axes, origin, pixel, slab = plan.views(which)
+    z0, z1 = slab[:, 0], slab[:, 1]
     if not cut:
-        t = {"pair": plan.pair[which], "bodies": plan.bodies[which], "axes": plan.axes[which],
-             "origin": plan.origin[which], "pixel": plan.pixel[which],
-             "w": plan.window[which, 2], "h": plan.window[which, 3], "slab": plan.slab[which],
+        t = {"pair": plan.pair[which], "bodies": plan.bodies[which], "axes": axes,
+             "origin": origin, "pixel": pixel,
+             "w": plan.window[which, 2], "h": plan.window[which, 3], "slab": slab,
              "flags": plan.flags[which] & ~FLAG_SKIP_IF_HIT}
         return _pack(t, budget_pixels, 0)
     mid = 0.5 * (z0 + z1)
     t = {
         "pair": np.tile(plan.pair[which], 2), "bodies": np.tile(plan.bodies[which], (2, 1)),
-        "axes": np.tile(plan.axes[which], (2, 1, 1)), "origin": np.tile(plan.origin[which], (2, 1)),
-        "pixel": np.tile(plan.pixel[which], 2), "w": np.tile(plan.window[which, 2], 2),
+        "axes": np.tile(axes, (2, 1, 1)), "origin": np.tile(origin, (2, 1)),
+        "pixel": np.tile(pixel, 2), "w": np.tile(plan.window[which, 2], 2),
         "h": np.tile(plan.window[which, 3], 2),
         "slab": np.concatenate([np.stack([z0, mid], axis=1), np.stack([mid, z1], axis=1)]),
         "flags": np.tile(plan.flags[which] & ~FLAG_SKIP_IF_HIT, 2),
