@@ -144,9 +144,10 @@ def test_cull_keeps_every_overlapping_pair(robots, name, grow):
     front = robot._gpu_front(plan, bodies)
     assert isinstance(front, GpuPairCull)
     q = robot.random_configurations(96, seed=12)
-    robot_poses, survivors = front.run(q, grow)
+    rows, survivors = front.run(q, grow)
     poses = robot._check_poses(q, env)  # float64, the host's
-    np.testing.assert_allclose(robot_poses, poses[:, :len(robot_poses[0])], rtol=0, atol=2e-6)
+    assert rows.shape == (len(q), len(robot.bodies), 3, 4) and rows.dtype == np.float32
+    np.testing.assert_allclose(rows, poses[:, :len(robot.bodies), :3], rtol=0, atol=2e-6)
     kept = {tuple(map(int, s)) for s in survivors}
     assert len(kept) == len(survivors)
     assert np.array_equal(survivors, survivors[np.lexsort((survivors[:, 2], survivors[:, 1],

@@ -19,6 +19,7 @@ SOURCES = {
     "clearance": ("pycinder.clearance", "PASSES"),
     "hardclash": ("pycinder.hardclash", "PASSES"),
     "planner": ("pycinder.focused.plan.gpu", "PASSES"),
+    "robot": ("pycinder.robot.cull", "PASSES"),
 }
 """Where each strategy lists its pass classes (module, attribute)."""
 

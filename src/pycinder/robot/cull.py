@@ -1,6 +1,6 @@
 """A robot check's fixed pair list culled by world boxes on the GPU (pass K2,
 ``robot_cull.wgsl``), after the forward kinematics (pass K1, :mod:`pycinder.robot.kinematics`),
-in one submission with one map:
+in one submission with one map::
 
     joint values (C, J) -> K1 kinematics: the robot's body poses (C, B)
                         -> K2 cull: per configuration, a bit per checked pair whose bodies'
@@ -28,7 +28,7 @@ from ..gpu.layout import WORKGROUP
 from ..gpu.structs import Struct
 from ..gpu.table import PassInfo
 from ..util.text import plural
-from .kinematics import GpuKinematics, pose_matrices
+from .kinematics import GpuKinematics
 
 FIXED = 0xFFFF_FFFF
 """A :data:`BODY`'s ``source`` where its pose is its own (an environment body)."""
@@ -126,8 +126,8 @@ class GpuPairCull:
 
         Returns
         -------
-        poses : (C, B, 4, 4) float64
-            K1's poses (:meth:`GpuKinematics.run`).
+        rows : (C, B, 3, 4) float32
+            K1's poses: world from body, its top three rows (:meth:`GpuKinematics.read`).
         survivors : (S, 3) int64
             The pairs kept: configuration (index into ``q``), and the pair's bodies (indices
             into the check's bodies), sorted by configuration, then as the pair list.
@@ -135,7 +135,7 @@ class GpuPairCull:
         k1 = self.kinematics
         c = len(q)
         if c == 0 or not len(self.pairs):
-            return k1.read(q), np.zeros((0, 3), np.int64)
+            return k1.read(q)[..., :3, :].astype(np.float32), np.zeros((0, 3), np.int64)
         k1.upload(q)
         words = c * self.words
         self.bits.ensure(4 * words)
@@ -162,14 +162,17 @@ class GpuPairCull:
         data = self.readback.read(
             nbytes, np.uint8, timeout=k1.timeout,
             waiting_for=f"{k1.name}'s poses and pairs in {plural(c, 'configuration')}")
-        poses = pose_matrices(data[:pose_bytes].view(np.float32), c, k1.bodies)
+        rows = data[:pose_bytes].view(np.float32).reshape(c, k1.bodies, 3, 4)
         bits = np.unpackbits(data[pose_bytes:].reshape(c, 4 * self.words), axis=1,
                              bitorder="little")[:, :len(self.pairs)]
         config, pair = np.nonzero(bits)
         survivors = np.empty((len(config), 3), np.int64)
         survivors[:, 0] = config
         survivors[:, 1:] = self.pairs.take(pair, axis=0)
-        return poses, survivors
+        return rows, survivors
 
 
-__all__ = ["BODY", "FIXED", "PARAMS", "ROUNDING", "GpuPairCull"]
+PASSES = (GpuKinematics, GpuPairCull)
+"""A robot check's passes on the GPU, in the order they run (the docs' pass table)."""
+
+__all__ = ["BODY", "FIXED", "PARAMS", "PASSES", "ROUNDING", "GpuPairCull"]

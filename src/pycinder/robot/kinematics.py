@@ -1,6 +1,6 @@
 """Forward kinematics on the GPU: every collision body's pose in every configuration, from joint
 values, in one compute pass (``robot_kinematics.wgsl``), the first stage of a robot query that
-lives on the GPU.
+lives on the GPU::
 
     joint values (C, J)       -> motions (C, M): each moving joint's sine and versine, or offset
                                  (host, float64, rounded once; O(C x M) NumPy)

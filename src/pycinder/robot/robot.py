@@ -73,6 +73,32 @@ class _Plan:
         return PairList((offsets + self.pairs[None]).reshape(-1, 2))
 
 
+@dataclass
+class _Poses:
+    """Every body's pose of a check's batch: the robot's and attached objects' rows, and the
+    environment's bodies' fixed poses."""
+
+    rows: np.ndarray
+    """(C, R, 3, 4) float: per configuration, world from body of the robot's bodies and attached
+    objects (their top three rows; pass K1's float32, or the host's float64)."""
+    fixed: np.ndarray
+    """(E, 4, 4) float64: world from body of the environment's bodies."""
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def take(self, config: np.ndarray, body: np.ndarray) -> np.ndarray:
+        """(M, 4, 4) float64 poses of bodies ``body`` (M,) (of the check) in configurations
+        ``config`` (M,)."""
+        moving = len(self.rows[0]) if len(self.rows) else 0
+        out = np.empty((len(body), 4, 4))
+        robot = body < moving
+        out[robot, :3] = self.rows[config[robot], body[robot]]
+        out[robot, 3] = (0.0, 0.0, 0.0, 1.0)
+        out[~robot] = self.fixed[body[~robot] - moving]
+        return out
+
+
 class _CopyNames(Sequence):
     """The names of a batch's copies of the bodies, made when read (a message names one):
     ``configuration C: body``."""
@@ -338,12 +364,10 @@ class Robot(RobotModel):
                              f"{batch!r}")
         return int(batch)
 
-    def _check_poses(self, qs: np.ndarray, environment: Environment | None,
-                     robot: np.ndarray | None = None) -> np.ndarray:
+    def _check_poses(self, qs: np.ndarray, environment: Environment | None) -> np.ndarray:
         """(C, B, 4, 4): every body's pose of a check (robot, attached, then environment, as
-        :meth:`_all_bodies` orders them) in each configuration ``qs`` (C, J); the robot's and
-        attached objects' ``robot`` where given (K1's), else :meth:`poses`."""
-        poses = self.poses(qs) if robot is None else robot
+        :meth:`_all_bodies` orders them) in each configuration ``qs`` (C, J)."""
+        poses = self.poses(qs)
         if environment is None or not len(environment):
             return poses
         env = np.array([b.origin for b in environment.bodies])
@@ -361,11 +385,12 @@ class Robot(RobotModel):
         clearance = None if pads is None else max(float(pads.max()), 1e-12)
         survivors = None
         if front is None:
-            poses = self._check_poses(qs, environment)
+            rows = self.poses(qs)[..., :3, :]
         else:
             with front.gpu.lock:
-                robot, survivors = front.run(qs, clearance or 0.0)
-            poses = self._check_poses(qs, environment, robot)
+                rows, survivors = front.run(qs, clearance or 0.0)
+        fixed = np.array([b.origin for b in bodies[len(rows[0]):]]).reshape(-1, 4, 4)
+        poses = _Poses(rows, fixed)
         try:
             config, a, b = self._query(poses, start, plan, bodies, pads, clearance, survivors)
         except GpuMemoryError:
@@ -386,12 +411,11 @@ class Robot(RobotModel):
             for c, names in found.items():
                 pairs[start + c] = sorted(names)
 
-    def _query(self, poses: np.ndarray, start: int, plan: _Plan, bodies: list[Body],
+    def _query(self, poses: _Poses, start: int, plan: _Plan, bodies: list[Body],
                pads: np.ndarray | None, clearance: float | None = None,
                survivors: np.ndarray | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One query of a batch of configurations (``poses`` (C, B, 4, 4): each body's pose in
-        each): copies of the check's bodies, prepared once, in one scene whose only candidates
+        """One query of a batch of configurations (``poses``: each body's pose in each): copies of the check's bodies, prepared once, in one scene whose only candidates
         are each configuration's checked pairs (a :class:`~pycinder.focused.broad.prune.PairList`,
         culled by their world boxes). Without ``survivors``, a copy per configuration of every
         body some checked pair names, the pairs culled by the host's boxes; with them (pass K2's
@@ -417,7 +441,7 @@ class Robot(RobotModel):
             slot = np.cumsum(kept) - 1  # a kept copy's index among the copies
             candidates = PairList(np.stack([slot[first], slot[second]], axis=1), culled=True)
         config, body = copy // per, copy % per
-        scene = plan.prepared.copies(body, poses[config, used[body]],
+        scene = plan.prepared.copies(body, poses.take(config, used[body]),
                                      _CopyNames(bodies, used[body], config, start))
         tolerance = np.full(len(copy), self._tolerance_value)
         if pads is None:
