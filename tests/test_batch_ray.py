@@ -246,3 +246,71 @@ def test_local_ray_starts_without_the_token_warning(tmp_path):
     assert "authentication" not in proc.stderr.lower() + proc.stdout.lower(), proc.stderr
     if tuple(int(x) for x in version("ray").split(".")[:2]) >= (2, 52):
         assert (tmp_path / ".ray" / "auth_token").is_file()
+
+
+@pytest.fixture(scope="module")
+def robot_manifest(tmp_path_factory):
+    """A Panda manifest (adjacent links allowed, a table) of 40 configurations, and its rows
+    checked in this process."""
+    pytest.importorskip("yourdfpy", reason="robot manifests need the robot extra")
+    pytest.importorskip("pybullet_data", reason="the Panda comes from pybullet_data")
+    import numpy as np
+    import trimesh
+
+    from pycinder.benchmarks import robots as R
+    from pycinder.robot import AllowedCollisionMatrix
+
+    folder = tmp_path_factory.mktemp("robot")
+    panda = R.load("panda")
+    panda.allowed = AllowedCollisionMatrix((a, b, "Adjacent") for a, b in panda.adjacent_links())
+    panda.write_srdf(folder / "panda.srdf")
+    np.save(folder / "q.npy", panda.random_configurations(40, seed=5))
+    trimesh.creation.box((1.5, 1.0, 0.05)).export(folder / "table.stl")
+    place = np.eye(4)
+    place[:3, 3] = (0.35, 0.0, -0.035)
+    manifest = folder / "robot.json"
+    manifest.write_text(json.dumps({
+        "robot": str(R.data_path() / R.ROBOTS["panda"]), "srdf": "panda.srdf",
+        "configurations": "q.npy",
+        "environment": [{"mesh": "table.stl", "transform": place.tolist(), "name": "table"}]}))
+    here = folder / "here.jsonl"
+    assert main(["batch", str(manifest), "--out", str(here), "--robot-batch", "8"]) == 0
+    return folder, manifest, here.read_text().splitlines()
+
+
+def test_robot_manifest_on_ray_workers_gives_the_rows_of_one_process(robot_manifest, capsys):
+    """``--workers 2``: chunks of configurations over two workers, each loading the robot once;
+    the rows, in order, are those of the run in one process; a run cut short goes on."""
+    folder, manifest, want = robot_manifest
+    out = folder / "ray.jsonl"
+    capsys.readouterr()
+    assert main(["batch", str(manifest), "--out", str(out), "--workers", "2",
+                 "--robot-batch", "8"]) == 0
+    assert "on 2 Ray workers" in capsys.readouterr().out
+    assert out.read_text().splitlines() == want
+    assert any(json.loads(line)["collides"] for line in want)
+    out.write_text("".join(line + "\n" for line in want[:13]))
+    assert main(["batch", str(manifest), "--out", str(out), "--workers", "2"]) == 0
+    assert "27 configurations" in capsys.readouterr().out
+    assert out.read_text().splitlines() == want
+
+
+def test_robot_run_survives_a_killed_worker(robot_manifest):
+    """A worker killed mid-run is restarted by Ray, which checks its chunks again: every row
+    comes once, in order."""
+    import numpy as np
+
+    from pycinder.batch.robot_ray import RobotRun
+    from pycinder.batch.robot_run import load_configurations, read_robot_manifest
+
+    _, manifest, want = robot_manifest
+    spec = read_robot_manifest(manifest)
+    q = load_configurations(spec["configurations"], [f"panda_joint{k}" for k in range(1, 8)]
+                            + ["panda_finger_joint1"])
+    run = RobotRun(spec, q, np.arange(len(q)), workers=2, chunk=4, batch=4)
+    rows = [next(run)]
+    os.kill(run.pids[1], signal.SIGKILL)  # its chunks in flight are lost, then run again
+    rows += list(run)
+    assert rows == [json.loads(line) for line in want]
+    with pytest.raises(ValueError, match="chunk must be"):
+        RobotRun(spec, q, np.arange(3), chunk=0)

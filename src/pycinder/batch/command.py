@@ -5,7 +5,8 @@
 
 MANIFEST is JSON lines, one scene a line (:mod:`.manifest`), or a robot manifest: one JSON object
 naming a URDF, an SRDF and a configurations file (:mod:`.robot_run`: one row per configuration,
-checked in this process); OUT gets one row a line (the rows
+checked in this process, or on Ray workers with ``--workers`` above 1 or ``--address``:
+:mod:`.robot_ray`); OUT gets one row a line (the rows
 of :func:`pycinder.batch.run`), or Parquet when it ends in ``.parquet`` (:mod:`.sink`). Run again
 with the same OUT to resume: the ids already there are skipped. A resumed run does not hide the
 errors OUT already holds: it says how many of the manifest's scenes failed before, and its exit
@@ -63,7 +64,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="OUT",
                    help="results as JSON lines, or Parquet when OUT ends in .parquet")
     p.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="worker processes, each with one detector (default: one per GPU, or 1)")
+                   help="worker processes, each with one detector (default: one per GPU, or 1; "
+                        "a robot manifest runs in this process unless N is above 1 or "
+                        "--address is given)")
     p.add_argument("--address", default=None, metavar="ADDR",
                    help="a Ray cluster to connect to (default: start a local one)")
     p.add_argument("--gpus-per-worker", type=float, default=None, metavar="G",
@@ -121,7 +124,8 @@ def cmd_batch(args: argparse.Namespace) -> int:
     manifest = Path(args.manifest)
     if is_robot_manifest(manifest):  # one JSON object naming a URDF and its configurations
         return run_robot(manifest, args.out, batch=args.robot_batch,
-                         retry_errors=args.retry_errors)
+                         retry_errors=args.retry_errors, workers=args.workers,
+                         address=args.address)
     sink = open_sink(args.out, retry_errors=args.retry_errors)
     try:
         total = skipped = earlier = 0

@@ -40,6 +40,43 @@ AUTH_MODE = "RAY_AUTH_MODE"
 """Ray's setting of how its cluster authenticates calls (``token`` or ``disabled``)."""
 
 
+def start_ray(ray: Any, address: str | None, workers: int | None) -> bool:
+    """Connect to the cluster at ``address``, or start a local one of ``workers`` CPUs (all of
+    this machine's by default), unless Ray is initialised already; True when this call did (the
+    run then shuts it down at its end)."""
+    if ray.is_initialized():
+        return False
+    kwargs: dict[str, Any] = {"logging_level": logging.WARNING, "log_to_driver": False}
+    if address:
+        ray.init(address=address, **kwargs)
+    else:
+        ray.init(num_cpus=workers or os.cpu_count() or 1, include_dashboard=False, **kwargs)
+    return True
+
+
+def placement(ray: Any, workers: int | None, gpus_per_worker: float | None
+              ) -> tuple[int, float]:
+    """The workers of a run and each one's GPUs: by default a GPU each where the cluster has
+    GPUs (as many workers as GPUs), else one worker.
+
+    Raises
+    ------
+    ValueError
+        The cluster cannot place that many workers (they would wait for ever)."""
+    have = ray.cluster_resources()
+    gpus, cpus = float(have.get("GPU", 0)), float(have.get("CPU", 0))
+    if gpus_per_worker is None:
+        gpus_per_worker = 1.0 if gpus else 0.0
+    if workers is None:
+        workers = max(1, int(gpus // gpus_per_worker)) if gpus_per_worker else 1
+    if workers * gpus_per_worker > gpus or workers > cpus:
+        raise ValueError(
+            f"{workers} workers need {workers} CPUs and {workers * gpus_per_worker:g} "
+            f"GPUs; the Ray cluster has {cpus:g} CPUs and {gpus:g} GPUs (set workers "
+            "or gpus_per_worker)")
+    return workers, gpus_per_worker
+
+
 @dataclass
 class _Item:
     seq: int
@@ -97,29 +134,10 @@ class BatchRun(Iterator[dict]):
         from ..request import CollisionRequest
 
         CollisionRequest(**detector)  # options checked here, once, not in every worker
-        self._started = False
-        if not ray.is_initialized():
-            kwargs: dict[str, Any] = {"logging_level": logging.WARNING, "log_to_driver": False}
-            if address:
-                ray.init(address=address, **kwargs)
-            else:
-                ray.init(num_cpus=workers or os.cpu_count() or 1, include_dashboard=False,
-                         **kwargs)
-            self._started = True
+        self._started = start_ray(ray, address, workers)
         self.closed = False
         try:
-            have = ray.cluster_resources()
-            gpus, cpus = float(have.get("GPU", 0)), float(have.get("CPU", 0))
-            if gpus_per_worker is None:
-                gpus_per_worker = 1.0 if gpus else 0.0
-            if workers is None:
-                workers = max(1, int(gpus // gpus_per_worker)) if gpus_per_worker else 1
-            # Workers that could never be placed would wait for ever: say so now.
-            if workers * gpus_per_worker > gpus or workers > cpus:
-                raise ValueError(
-                    f"{workers} workers need {workers} CPUs and {workers * gpus_per_worker:g} "
-                    f"GPUs; the Ray cluster has {cpus:g} CPUs and {gpus:g} GPUs (set workers "
-                    "or gpus_per_worker)")
+            workers, gpus_per_worker = placement(ray, workers, gpus_per_worker)
             actor = ray.remote(BatchWorker).options(
                 num_cpus=1, num_gpus=gpus_per_worker, max_restarts=-1, max_task_retries=0)
             self.workers = [actor.remote(detector, k) for k in range(workers)]

@@ -21,7 +21,9 @@ checked (:mod:`.sink`: JSON lines, or Parquet when OUT ends in ``.parquet``)::
 names (links, environment bodies), each pair sorted.
 
 Run again with the same OUT to go on: the configurations already there are skipped. The run is
-in this process, on one detector (configurations are batched into queries already).
+in this process, on one detector (configurations are batched into queries already), or, with
+``--workers N`` (N above 1) or ``--address``, on Ray workers (:mod:`.robot_ray`), each checking
+chunks of configurations with the robot loaded once.
 """
 
 from __future__ import annotations
@@ -38,6 +40,10 @@ from ..util.optional import require
 
 KEYS = {"robot", "srdf", "configurations", "environment", "tolerance", "package_dirs",
         "self_collision"}
+
+CHUNK = 1000
+"""Configurations per chunk when no batch is given: rows are written (and a run resumable)
+every chunk, and a Ray worker is given one chunk at a time."""
 
 
 def is_robot_manifest(path: str | Path) -> bool:
@@ -123,9 +129,47 @@ def load_configurations(path: Path, joint_names: list[str]) -> np.ndarray:
     return q
 
 
+def load_robot(spec: dict[str, Any], where: str | Path) -> tuple[Any, Any]:
+    """The robot and environment (None when it has no bodies) of a checked manifest ``spec``
+    (:func:`read_robot_manifest`), loaded from its files; ``where`` names it in errors."""
+    from ..robot import Environment, Robot
+
+    robot = Robot.from_urdf(spec["robot"], srdf=spec.get("srdf"),
+                            package_dirs=spec.get("package_dirs"),
+                            tolerance=spec.get("tolerance"))
+    if not spec["environment"]:
+        return robot, None
+    import trimesh
+
+    env = Environment()
+    for k, body in enumerate(spec["environment"]):
+        try:
+            mesh = trimesh.load(body["mesh"], force="mesh")
+        except Exception as exc:
+            raise ValueError(f"{where}: environment body {k} ({Path(body['mesh']).name}): "
+                             f"{exc}") from None
+        env.add(body.get("name") or Path(body["mesh"]).stem, mesh, body.get("transform"))
+    return robot, env
+
+
+def check_rows(robot: Any, environment: Any, spec: dict[str, Any], ids: np.ndarray,
+               q: np.ndarray, batch: int | None) -> list[dict[str, Any]]:
+    """The rows of configurations ``q`` (C, J), numbered ``ids`` (C,), checked as the manifest
+    ``spec`` says (in this process, or in a Ray worker: :mod:`.robot_ray`)."""
+    collides, pairs = robot.check(q, environment=environment, return_pairs=True,
+                                  self_collision=spec.get("self_collision", True), batch=batch)
+    return [{"id": c, "status": "ok", "collides": hit, "names": [list(x) for x in p]}
+            for c, hit, p in zip(np.asarray(ids).tolist(), collides.tolist(), pairs)]
+
+
 def run_robot(manifest: str | Path, out: str | Path, *, batch: int | None = None,
-              retry_errors: bool = False, quiet: bool = False) -> int:
+              retry_errors: bool = False, quiet: bool = False, workers: int | None = None,
+              address: str | None = None) -> int:
     """Check every configuration of a robot manifest not yet in ``out``; rows into ``out``.
+
+    In this process, on one detector; on Ray workers (:mod:`.robot_ray`) when ``workers`` is
+    more than one or ``address`` names a cluster: each worker loads the robot once and checks
+    chunks of configurations, and the rows are written in order.
 
     Returns
     -------
@@ -134,41 +178,32 @@ def run_robot(manifest: str | Path, out: str | Path, *, batch: int | None = None
         all ``"ok"``: a robot manifest's errors are the run's, raised before it starts), 130
         when interrupted.
     """
-    from ..robot import Environment, Robot
+    from .manifest import id_key
     from .sink import open_sink
 
     spec = read_robot_manifest(manifest)
-    robot = Robot.from_urdf(spec["robot"], srdf=spec.get("srdf"),
-                            package_dirs=spec.get("package_dirs"),
-                            tolerance=spec.get("tolerance"))
-    env = None
-    if spec["environment"]:
-        import trimesh
-
-        env = Environment()
-        for k, body in enumerate(spec["environment"]):
-            try:
-                mesh = trimesh.load(body["mesh"], force="mesh")
-            except Exception as exc:
-                raise ValueError(f"{manifest}: environment body {k} ({body['mesh'].name}): "
-                                 f"{exc}") from None
-            env.add(body.get("name") or body["mesh"].stem, mesh, body.get("transform"))
+    robot, env = load_robot(spec, manifest)
     q = load_configurations(spec["configurations"], robot.joint_names)
+    on_ray = (workers is not None and workers > 1) or address is not None
     sink = open_sink(out, retry_errors=retry_errors)
-    from .manifest import id_key
-
     todo = np.array([c for c in range(len(q)) if id_key(c) not in sink.done], dtype=np.int64)
     t0 = time.perf_counter()
+    how = "in this process"
     try:
-        size = batch or 1000  # rows written (and resumable) every this many configurations
-        for start in range(0, len(todo), size):
-            which = todo[start:start + size]
-            collides, pairs = robot.check(q[which], environment=env, return_pairs=True,
-                                          self_collision=spec.get("self_collision", True),
-                                          batch=batch)
-            for c, hit, p in zip(which.tolist(), collides.tolist(), pairs):
-                sink.write({"id": c, "status": "ok", "collides": hit,
-                            "names": [list(x) for x in p]})
+        size = batch or CHUNK  # rows written (and resumable) every this many configurations
+        if on_ray:
+            from .robot_ray import RobotRun
+
+            with RobotRun(spec, q, todo, workers=workers, address=address, chunk=size,
+                          batch=batch) as run:
+                how = f"on {run.workers} Ray workers"
+                for row in run:
+                    sink.write(row)
+        else:
+            for start in range(0, len(todo), size):
+                which = todo[start:start + size]
+                for row in check_rows(robot, env, spec, which, q[which], batch):
+                    sink.write(row)
     except KeyboardInterrupt:
         print(f"interrupted: the results so far are in {out}; run the same command again "
               "to go on", file=sys.stderr)
@@ -178,5 +213,6 @@ def run_robot(manifest: str | Path, out: str | Path, *, batch: int | None = None
     if not quiet:
         seconds = time.perf_counter() - t0
         print(f"{len(todo)} configurations of {robot.name} in {seconds:.1f} s "
-              f"({len(todo) / max(seconds, 1e-9):.1f}/s); {len(q) - len(todo)} already in {out}")
+              f"({len(todo) / max(seconds, 1e-9):.1f}/s, {how}); {len(q) - len(todo)} already "
+              f"in {out}")
     return 0

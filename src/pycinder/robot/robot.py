@@ -415,9 +415,10 @@ class Robot(RobotModel):
                pads: np.ndarray | None, clearance: float | None = None,
                survivors: np.ndarray | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One query of a batch of configurations (``poses``: each body's pose in each): copies of the check's bodies, prepared once, in one scene whose only candidates
-        are each configuration's checked pairs (a :class:`~pycinder.focused.broad.prune.PairList`,
-        culled by their world boxes). Without ``survivors``, a copy per configuration of every
+        """One query of a batch of configurations (``poses``: each body's pose in each):
+        copies of the check's bodies, prepared once, in one scene whose only candidates are each
+        configuration's checked pairs (a :class:`~pycinder.focused.broad.prune.PairList`, culled
+        by their world boxes). Without ``survivors``, a copy per configuration of every
         body some checked pair names, the pairs culled by the host's boxes; with them (pass K2's
         (S, 3): configuration and positions in ``plan.used``), copies of the bodies of the
         pairs kept alone, and those pairs the candidates. Returns the pairs found: each one's
