@@ -163,9 +163,9 @@ class GpuPairCull:
             nbytes, np.uint8, timeout=k1.timeout,
             waiting_for=f"{k1.name}'s poses and pairs in {plural(c, 'configuration')}")
         rows = data[:pose_bytes].view(np.float32).reshape(c, k1.bodies, 3, 4)
-        bits = np.unpackbits(data[pose_bytes:].reshape(c, 4 * self.words), axis=1,
-                             bitorder="little")[:, :len(self.pairs)]
-        config, pair = np.nonzero(bits)
+        # Bits past a configuration's pairs are 0: the words are searched whole.
+        kept = np.flatnonzero(np.unpackbits(data[pose_bytes:], bitorder="little"))
+        config, pair = np.divmod(kept, 32 * self.words)
         survivors = np.empty((len(config), 3), np.int64)
         survivors[:, 0] = config
         survivors[:, 1:] = self.pairs.take(pair, axis=0)

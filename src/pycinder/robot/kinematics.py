@@ -155,12 +155,16 @@ class GpuKinematics:
         """(C, M, 2) float32: each moving joint's motion in each configuration ``q`` (C, J):
         a revolute joint's sine and versine (``1 - cos``, as ``2 sin^2(a / 2)``), a prismatic
         joint's offset and 0; computed in float64 and rounded once."""
-        col, mult, off, revolute = self._motion
-        q = np.asarray(q, np.float64)
-        value = np.where(col >= 0, q.take(np.maximum(col, 0), axis=1), 0.0) * mult + off
+        col, mult, off, revolute = self._motion  # a column of -1 (none) has multiplier 0
+        value = np.asarray(q, np.float64).take(col, axis=1)
+        value *= mult
+        value += off
         out = np.zeros((len(q), len(col), 2), np.float32)
-        out[..., 0] = np.where(revolute, np.sin(value), value)
-        out[..., 1] = np.where(revolute, 2.0 * np.sin(0.5 * value) ** 2, 0.0)
+        turn = value[:, revolute]
+        out[:, revolute, 0] = np.sin(turn)
+        half = np.sin(0.5 * turn)
+        out[:, revolute, 1] = 2.0 * half * half
+        out[:, ~revolute, 0] = value[:, ~revolute]
         return out
 
     def upload(self, q: np.ndarray) -> None:
@@ -231,8 +235,8 @@ def pose_matrices(rows: np.ndarray, configurations: int, bodies: int) -> np.ndar
 
 def _tables(model: RobotModel) -> tuple[np.ndarray, np.ndarray, tuple]:
     """The tree's :data:`JOINT` and :data:`BODY` records, and the host's share of the motions:
-    per moving joint its configuration column (-1: none), multiplier, offset and whether it
-    turns."""
+    per moving joint its configuration column, multiplier (0 for a joint that follows no
+    column: a mimic of a joint that is not actuated), offset and whether it turns."""
     joints = JOINT.zeros(len(model.joints))
     col, mult, off, revolute = [], [], [], []
     for k, (j, (parent, child, c, m, o)) in enumerate(zip(model.joints, model._kin)):
@@ -253,7 +257,8 @@ def _tables(model: RobotModel) -> tuple[np.ndarray, np.ndarray, tuple]:
     bodies = BODY.zeros(len(links))
     bodies["link"] = links
     bodies["origin"] = _rows(origins)
-    motion = (np.array(col, np.int64), np.array(mult, np.float64), np.array(off, np.float64),
+    col, mult = np.array(col, np.int64), np.array(mult, np.float64)
+    motion = (np.maximum(col, 0), np.where(col >= 0, mult, 0.0), np.array(off, np.float64),
               np.array(revolute, bool))
     return joints, bodies, motion
 
