@@ -17,12 +17,15 @@ import yourdfpy  # noqa: E402
 from pycinder.benchmarks import robots as R  # noqa: E402
 from pycinder.focused.broad.prune import PairList  # noqa: E402
 from pycinder.robot import AllowedCollisionMatrix, Robot  # noqa: E402
+from pycinder.robot import robot as robot_module  # noqa: E402
 from pycinder.robot.cull import GpuPairCull  # noqa: E402
 from pycinder.robot.kinematics import GpuKinematics  # noqa: E402
 
 
 @pytest.fixture(autouse=True)
-def _quiet():
+def _quiet(monkeypatch):
+    """Quiet; and every batch of a check starts on the GPU, however small."""
+    monkeypatch.setattr(robot_module, "GPU_FRONT_FROM", 1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # open meshes, yourdfpy's notes on table.urdf
         yield
@@ -221,6 +224,21 @@ def test_padded_checks_equal_the_host_path(robots, monkeypatch):
                            return_pairs=True)
     assert gpu[0].tolist() == host[0].tolist() and gpu[1] == host[1]
     assert gpu[0].sum() > panda.check(q, environment=env, self_collision=False).sum()
+
+
+def test_small_batches_take_the_host_path(robots, monkeypatch):
+    """A batch of fewer than GPU_FRONT_FROM configurations computes its poses on the host."""
+    panda, env = robots["panda"], R.environment("panda")
+    monkeypatch.setattr(robot_module, "GPU_FRONT_FROM", 10)
+    runs = []
+    real = GpuPairCull.run
+    monkeypatch.setattr(GpuPairCull, "run", lambda self, *a: runs.append(len(a[0])) or
+                        real(self, *a))
+    q = panda.random_configurations(13, seed=1)
+    panda.check(q, environment=env, batch=9)  # batches of 9 and 4
+    assert runs == []
+    panda.check(q, environment=env, batch=13)
+    assert runs == [13]
 
 
 def test_fine_tolerances_take_the_host_path(robots):

@@ -35,6 +35,12 @@ gets small batches, far from the GPU timeout, and a fast GPU large ones."""
 FIRST_BATCH = 8
 """Configurations of the first batched query of a check (see :data:`QUERY_SECONDS`)."""
 
+GPU_FRONT_FROM = 64
+"""Fewest configurations of a batch whose poses and pair cull run on the GPU (passes K1 and K2):
+a smaller batch computes them on the host, where the passes' own submission and map cost more
+host CPU than they save (measured on lavapipe: about even at 64 Panda configurations, 0.2-1 ms
+more a check of 1 to 8)."""
+
 PLANS_KEPT = 8
 """Check plans kept (one per environment, self-collision choice and matrix), each with its
 bodies prepared once it has run; the oldest is dropped first."""
@@ -384,7 +390,7 @@ class Robot(RobotModel):
             return
         clearance = None if pads is None else max(float(pads.max()), 1e-12)
         survivors = None
-        if front is None:
+        if front is None or len(qs) < GPU_FRONT_FROM:
             rows = self.poses(qs)[..., :3, :]
         else:
             with front.gpu.lock:
