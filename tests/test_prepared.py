@@ -109,6 +109,17 @@ def test_copies_of_prepared_bodies_answer_as_a_batch_of_their_scenes(detector):
         bodies.copies(np.array(index), bad, names)
     with pytest.raises(ValueError, match="index must be"):
         bodies.copies(np.array([0, 3]), np.stack([np.eye(4)] * 2))
+    # World boxes given with the copies are the scene's (not measured again): the same pairs
+    # with boxes grown a little; radii for the GPU's broad phase are still measured.
+    poses = np.concatenate(transforms)
+    lo, hi = scene.world_boxes()
+    boxed = bodies.copies(np.array(index), poses, boxes=(lo - 0.01, hi + 0.01))
+    assert np.array_equal(boxed.world_boxes()[0], lo - 0.01)
+    assert np.array_equal(boxed.bounding_radii(), scene.bounding_radii())
+    again = detector._find_within(boxed, np.array(within), None)
+    assert again.pairs.tolist() == mine.pairs.tolist()
+    with pytest.raises(ValueError, match="boxes must be two"):
+        bodies.copies(np.array(index), poses, boxes=(lo[:2], hi))
 
 
 def test_an_update_uploads_only_the_vertices_it_changed_and_ages_no_cached_shape(monkeypatch):

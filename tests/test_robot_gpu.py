@@ -14,6 +14,8 @@ pytest.importorskip("fcl", reason="differences are scored with python-fcl")
 
 import yourdfpy  # noqa: E402
 
+import pycinder  # noqa: E402
+
 from pycinder.benchmarks import robots as R  # noqa: E402
 from pycinder.focused.broad.prune import PairList  # noqa: E402
 from pycinder.robot import AllowedCollisionMatrix, Robot  # noqa: E402
@@ -144,13 +146,24 @@ def test_cull_keeps_every_overlapping_pair(robots, name, grow):
     robot, env = robots[name], R.environment(name)
     robot.allowed = adjacent_only(robot)
     plan, bodies = robot._plan(env, True)
-    front = robot._gpu_front(plan, bodies)
+    front = robot._gpu_front(plan, bodies, grow or None)
     assert isinstance(front, GpuPairCull)
     q = robot.random_configurations(96, seed=12)
-    rows, survivors = front.run(q, grow)
+    rows, boxes, survivors = front.run(q, grow)
     poses = robot._check_poses(q, env)  # float64, the host's
     assert rows.shape == (len(q), len(robot.bodies), 3, 4) and rows.dtype == np.float32
     np.testing.assert_allclose(rows, poses[:, :len(robot.bodies), :3], rtol=0, atol=2e-6)
+    # K1's boxes hold every vertex placed by K1's own poses, and no more than the placed
+    # body-space box does (within a hair).
+    assert boxes.shape == (len(q), len(robot.bodies), 2, 4)
+    placed = rows.astype(np.float64)
+    for b, body in enumerate(robot.bodies):
+        v = np.c_[body.mesh.vertices, np.ones(len(body.mesh.vertices))]
+        w = np.einsum("cij,vj->cvi", placed[:, b], v)
+        assert (boxes[:, b, 0, None, :3] <= w).all() and (w <= boxes[:, b, 1, None, :3]).all()
+    lo, hi = float64_boxes(robot, bodies, np.arange(len(robot.bodies)), poses, False)
+    assert np.abs(boxes[..., 0, :3] - lo).max() < 1e-5
+    assert np.abs(boxes[..., 1, :3] - hi).max() < 1e-5
     kept = {tuple(map(int, s)) for s in survivors}
     assert len(kept) == len(survivors)
     assert np.array_equal(survivors, survivors[np.lexsort((survivors[:, 2], survivors[:, 1],
@@ -177,7 +190,7 @@ def test_culled_pair_list_tests_no_box_but_keeps_its_contract():
 
 
 def host_path(robot, monkeypatch):
-    monkeypatch.setattr(type(robot), "_gpu_front", lambda self, plan, bodies: None)
+    monkeypatch.setattr(type(robot), "_gpu_front", lambda self, plan, bodies, clearance: None)
 
 
 @pytest.mark.parametrize("name", list(R.ROBOTS))
@@ -195,7 +208,7 @@ def test_verdicts_equal_the_host_path(robots, name, monkeypatch):
     try:
         q = robot.random_configurations(48 if name == "kuka" else 96, seed=21)
         plan, bodies = robot._plan(env, True)
-        assert robot._gpu_front(plan, bodies) is not None
+        assert robot._gpu_front(plan, bodies, None) is not None
         gpu, gpu_pairs = robot.check(q, environment=env, return_pairs=True)
         with monkeypatch.context() as m:
             host_path(robot, m)
@@ -242,13 +255,108 @@ def test_small_batches_take_the_host_path(robots, monkeypatch):
 
 
 def test_fine_tolerances_take_the_host_path(robots):
-    """Where K1's error estimate is more than a sixteenth of a pair's tolerance, a check takes
-    the host's float64 poses."""
+    """Where K1's error estimates are more than a sixteenth of a pair's tolerance (the
+    robot's, the detector's, or a padded check's quarter of its clearance), a check takes the
+    host's float64 poses; so does a batch whose prismatic joints leave their limits."""
     panda = robots["panda"]
     plan, bodies = panda._plan(None, True)
-    assert panda._gpu_front(plan, bodies) is not None
+    assert panda._gpu_front(plan, bodies, None) is not None
+    assert panda._gpu_front(plan, bodies, 0.01) is not None
+    assert panda._gpu_front(plan, bodies, 1e-5) is None  # tested within 2.5 micrometres
     panda.tolerance = 1e-6
     try:
-        assert panda._gpu_front(plan, bodies) is None
+        assert panda._gpu_front(plan, bodies, None) is None
     finally:
         panda.tolerance = None
+    detector = panda._detector
+    panda._detector = pycinder.Detector(records="none", broad_phase="numpy", tolerance=2e-6)
+    try:
+        assert panda._gpu_front(plan, bodies, None) is None
+    finally:
+        panda._detector = detector
+    k1 = panda._gpu_front(plan, bodies, None).kinematics
+    q = panda.random_configurations(4, seed=1)
+    assert k1.reaches(q)
+    q[2, -1] = 0.5  # the finger slides past its limit (0.04)
+    assert not k1.reaches(q)
+
+
+def test_checks_with_nothing_to_check_or_a_moved_environment(robots):
+    """A check with no pair to test answers (no pass is made); an environment of the same
+    meshes at new places is culled at its new places."""
+    panda = robots["panda"]
+    panda.allowed = adjacent_only(panda)
+    q = panda.random_configurations(70, seed=2)
+    assert not panda.check(q, self_collision=False).any()
+    box = trimesh.creation.box((0.3, 0.3, 0.3))
+    far, near = np.eye(4), np.eye(4)
+    far[:3, 3] = (5.0, 5.0, 5.0)
+    near[:3, 3] = (0.0, 0.0, 0.2)  # around the base
+    away = panda.check(q, environment=R.Environment([("box", box, far)]),
+                       self_collision=False)
+    around = panda.check(q, environment=R.Environment([("box", box, near)]),
+                         self_collision=False)
+    assert not away.any() and around.all()
+
+
+def test_kinematics_follow_objects_attached_while_matrices_are_computed(robots):
+    """compute_allowed_collisions swaps the attached objects out and back: the next check's
+    kinematics hold them again."""
+    panda = robots["panda"]
+    panda.attach("box", trimesh.creation.box((0.05, 0.05, 0.12)), "panda_hand")
+    try:
+        panda._kinematics = None
+        panda.compute_allowed_collisions(samples=2, always_samples=2)
+        q = panda.random_configurations(70, seed=3)
+        panda.check(q)  # a batch of 70 on the GPU, with the box
+        assert len(panda._kinematics.error_estimate()) == len(panda.bodies) + 1
+    finally:
+        panda.detach("box")
+        panda.allowed = adjacent_only(panda)
+
+
+def test_large_dispatches_cover_every_configuration(robots, monkeypatch):
+    """Dispatches laid out in rows of ROW workgroups (here 2, so that a batch of 300
+    configurations takes a grid) reach every configuration and word of K1 and K2."""
+    from pycinder.gpu import bindings
+    from pycinder.robot import cull, kinematics
+
+    panda, env = robots["panda"], R.environment("panda")
+    panda.allowed = adjacent_only(panda)
+    plan, bodies = panda._plan(env, True)
+    q = panda.random_configurations(300, seed=6)
+    rows, boxes, survivors = panda._gpu_front(plan, bodies, None).run(q)
+    for module in (bindings, cull, kinematics):
+        monkeypatch.setattr(module, "ROW", 2)
+    panda._forget_fronts()
+    again = panda._gpu_front(plan, bodies, None).run(q)
+    panda._forget_fronts()  # not kept for other tests
+    assert np.array_equal(again[0], rows) and np.array_equal(again[2], survivors)
+    assert len(survivors) > 300
+
+
+def test_a_batch_the_device_refuses_is_split_on_the_gpu_path(robots, monkeypatch):
+    """A batch whose query the device refuses is checked in halves, each half's poses and cull
+    made on the GPU again, with the answers of one query."""
+    from pycinder.errors import GpuMemoryError
+
+    panda, env = robots["panda"], R.environment("panda")
+    panda.allowed = adjacent_only(panda)
+    q = panda.random_configurations(12, seed=21)
+    whole = panda.check(q, environment=env, return_pairs=True, batch=12)
+    real, runs = type(panda.detector)._find_within, []
+    culls = []
+    real_run = GpuPairCull.run
+    monkeypatch.setattr(GpuPairCull, "run", lambda self, *a: culls.append(len(a[0])) or
+                        real_run(self, *a))
+
+    def refuse_large(det, scene, within, tolerance):
+        runs.append(len(np.unique(scene.names.config)))
+        if runs[-1] > 6:
+            raise GpuMemoryError("too large for this test's device")
+        return real(det, scene, within, tolerance)
+
+    monkeypatch.setattr(type(panda.detector), "_find_within", refuse_large)
+    split = panda.check(q, environment=env, return_pairs=True, batch=12)
+    assert culls == [12, 6, 6] and runs[0] == 12 and len(runs) == 3
+    assert split[0].tolist() == whole[0].tolist() and split[1] == whole[1]

@@ -125,7 +125,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
     if is_robot_manifest(manifest):  # one JSON object naming a URDF and its configurations
         return run_robot(manifest, args.out, batch=args.robot_batch,
                          retry_errors=args.retry_errors, workers=args.workers,
-                         address=args.address)
+                         address=args.address, gpus_per_worker=args.gpus_per_worker)
     sink = open_sink(args.out, retry_errors=args.retry_errors)
     try:
         total = skipped = earlier = 0

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from .ray_run import DEPTH, _ray, placement, start_ray
-from .robot_run import check_rows, load_robot
+from .robot_manifest import check_rows, load_robot
 
 TASK_RETRIES = 2
 """Times Ray runs a chunk again on its restarted worker after the worker died."""
@@ -66,6 +66,8 @@ class RobotRun(Iterator[dict]):
         Workers (default: a GPU each where the cluster has GPUs, else one).
     address : str, optional
         A Ray cluster's address (default: a local instance of ``workers`` CPUs).
+    gpus_per_worker : float, optional
+        GPUs each worker takes (default: one where the cluster has GPUs, else none).
     chunk : int
         Configurations a worker is given at once.
     batch : int, optional
@@ -73,7 +75,8 @@ class RobotRun(Iterator[dict]):
     """
 
     def __init__(self, spec: dict[str, Any], q: np.ndarray, todo: np.ndarray, *,
-                 workers: int | None = None, address: str | None = None, chunk: int = 1000,
+                 workers: int | None = None, address: str | None = None,
+                 gpus_per_worker: float | None = None, chunk: int = 1000,
                  batch: int | None = None) -> None:
         if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
             raise ValueError(f"chunk must be a whole number of at least 1, got {chunk!r}")
@@ -81,7 +84,7 @@ class RobotRun(Iterator[dict]):
         self._started = start_ray(ray, address, workers)
         self.closed = False
         try:
-            self.workers, gpus = placement(ray, workers, None)
+            self.workers, gpus = placement(ray, workers, gpus_per_worker)
             actor = ray.remote(RobotWorker).options(
                 num_cpus=1, num_gpus=gpus, max_restarts=-1, max_task_retries=TASK_RETRIES)
             self._actors = [actor.remote(spec) for _ in range(self.workers)]

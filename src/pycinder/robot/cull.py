@@ -2,16 +2,20 @@
 ``robot_cull.wgsl``), after the forward kinematics (pass K1, :mod:`pycinder.robot.kinematics`),
 in one submission with one map::
 
-    joint values (C, J) -> K1 kinematics: the robot's body poses (C, B)
+    joint values (C, J) -> K1 kinematics: the robot's body poses and world boxes (C, B)
                         -> K2 cull: per configuration, a bit per checked pair whose bodies'
                            world boxes overlap (or lie within a padded check's clearance)
-    -> the poses, and the surviving pairs (configuration, i, j), sorted
+    -> the poses, the boxes, and the surviving pairs (configuration, i, j), sorted
 
 The check's bodies (robot, attached, environment: those some checked pair names) and its pairs
-are uploaded once per check plan. A box is conservative: grown by twice the kinematics' error
-estimate for a body that moves with the robot, and by its own arithmetic's rounding, so no pair
-whose bodies overlap in float64 is culled. A pair whose boxes overlap only by those margins is
-kept: the planner finds it apart (``stats.separated``).
+are uploaded once per check plan. A box is conservative: K1's holds its body placed by K1's pose
+(its own arithmetic's rounding included), and K2 grows it by twice the kinematics' error
+estimate; an environment body's box is made on the host in float64 and rounded outwards. So no
+pair whose bodies overlap in float64 is culled, as far as the estimate holds (measured at most a
+quarter of it); the query itself tests the bodies at K1's poses, whose boxes hold them exactly.
+A pair whose boxes overlap only by those margins is kept: the planner finds it apart
+(``stats.separated``). The query's scene takes K1's boxes as its world boxes
+(``PreparedBodies.copies(boxes=)``): the host measures none.
 """
 
 from __future__ import annotations
@@ -24,25 +28,20 @@ import wgpu
 from ..gpu import native
 from ..gpu.bindings import Stage, dispatch
 from ..gpu.buffers import GrowableBuffer, Readback
-from ..gpu.layout import WORKGROUP
+from ..gpu.layout import ROW, WORKGROUP
 from ..gpu.structs import Struct
 from ..gpu.table import PassInfo
 from ..util.text import plural
 from .kinematics import GpuKinematics
 
 FIXED = 0xFFFF_FFFF
-"""A :data:`BODY`'s ``source`` where its pose is its own (an environment body)."""
-
-ROUNDING = 2.0**-20
-"""Bound on the relative rounding of a box's coordinates in the pass (a few products and sums in
-float32, each within ``2**-24``), as a fraction of the sum of their terms' magnitudes."""
+"""A :data:`BODY`'s ``source`` where its box is its own (an environment body)."""
 
 BODY = Struct("CullBody", [
-    ("pose", "array<vec4f, 3>", "world-from-body rows of a fixed body (source FIXED)"),
-    ("centre", "vec3f", "the body-space box's centre"),
+    ("lo", "vec3f", "a fixed body's world box minimum (rounded down)"),
     ("source", "u32", "its index among K1's bodies, or FIXED"),
-    ("half", "vec3f", "the body-space box's half extents"),
-    ("pad", "f32", "how far its world box is grown: twice K1's error estimate, or 0"),
+    ("hi", "vec3f", "a fixed body's world box maximum (rounded up)"),
+    ("pad", "f32", "how far K1's box is grown: twice K1's error estimate (0 for a fixed body)"),
 ], doc="One body of a robot check for pass K2 (pycinder/robot/cull.py).")
 
 PARAMS = Struct("CullParams", [
@@ -55,6 +54,26 @@ PARAMS = Struct("CullParams", [
     ("pad1", "u32", ""),
     ("pad2", "u32", ""),
 ], uniform=True, doc="Pass K2's sizes (pycinder/robot/cull.py).")
+
+
+def fixed_boxes(poses: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(U, 2, 3) float64 world boxes of body-space boxes ``lo``, ``hi`` (U, 3) placed by
+    ``poses`` (U, 4, 4): the oriented box's own."""
+    poses = np.asarray(poses, np.float64)
+    centre = np.einsum("nij,nj->ni", poses[:, :3, :3], 0.5 * (lo + hi)) + poses[:, :3, 3]
+    half = np.einsum("nij,nj->ni", np.abs(poses[:, :3, :3]), 0.5 * (hi - lo))
+    return np.stack([centre - half, centre + half], axis=1)
+
+
+def outwards(boxes: np.ndarray) -> np.ndarray:
+    """(U, 2, 3) float32 boxes holding float64 ``boxes`` (U, 2, 3): minima rounded down,
+    maxima up."""
+    out = boxes.astype(np.float32)
+    lo, hi = out[:, 0], out[:, 1]
+    lo[...] = np.where(lo > boxes[:, 0], np.nextafter(lo, np.float32(-np.inf)), lo)
+    hi[...] = np.where(hi < boxes[:, 1], np.nextafter(hi, np.float32(np.inf)), hi)
+    return out
+
 
 _U = wgpu.BufferUsage
 
@@ -69,7 +88,7 @@ class GpuPairCull:
     sources : (U,) int
         Per body of the check, its index among K1's bodies, or -1 for a fixed body.
     poses : (U, 4, 4) float
-        World from body of the fixed bodies (rows of the others are not read).
+        World from body of the fixed bodies (those of the others are not read).
     lo, hi : (U, 3) float
         Each body's box, in its own coordinates.
     pairs : (P, 2) int
@@ -85,18 +104,22 @@ class GpuPairCull:
                  lo: np.ndarray, hi: np.ndarray, pairs: np.ndarray) -> None:
         self.kinematics = kinematics
         self.gpu = gpu = kinematics.gpu
-        consts = {"WORKGROUP": WORKGROUP, "FIXED": FIXED, "ROUNDING": ROUNDING}
+        consts = {"WORKGROUP": WORKGROUP, "ROW": ROW, "FIXED": FIXED}
         self.stage = Stage(gpu, self.SHADER, self.ENTRY, label=self.INFO.title,
                            structs=(BODY, PARAMS), consts=consts)
         sources = np.asarray(sources, np.int64)
         lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
         table = BODY.zeros(len(sources))
-        table["pose"] = np.asarray(poses, np.float64)[:, :3, :]
-        table["centre"], table["half"] = 0.5 * (lo + hi), 0.5 * (hi - lo)
         moving = sources >= 0
+        self.fixed = fixed_boxes(poses, lo, hi)
+        """(U, 2, 3) float64: the fixed bodies' world boxes (rows of the others unused)."""
+        box = outwards(self.fixed)
+        table["lo"], table["hi"] = box[:, 0], box[:, 1]
         table["source"] = np.where(moving, sources, FIXED)
         table["pad"] = np.where(moving, 2.0 * kinematics.error_estimate()[
             np.maximum(sources, 0)], 0.0)
+        self._local = (lo, hi)
+        self._placed = np.asarray(poses, np.float64).copy()
         self.pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
         self.words = -(-len(self.pairs) // 32)
         device = gpu.device
@@ -107,14 +130,30 @@ class GpuPairCull:
                                                   data=np.ascontiguousarray(data).tobytes(),
                                                   usage=_U.STORAGE)
 
-        self.bodies = store("bodies", table)
+        self.table = table
+        self.bodies = device.create_buffer_with_data(label=f"{self.INFO.name} bodies",
+                                                     data=table.tobytes(),
+                                                     usage=_U.STORAGE | _U.COPY_DST)
         self.pair_buffer = store("pairs", self.pairs.astype(np.uint32))
         self.bits = GrowableBuffer(device, f"{self.INFO.name} bits", _U.STORAGE | _U.COPY_SRC)
         self.params = device.create_buffer(label=f"{self.INFO.name} parameters",
                                            size=PARAMS.size, usage=_U.UNIFORM | _U.COPY_DST)
         self.readback = Readback(device, f"{self.INFO.name} readback")
 
-    def run(self, q: np.ndarray, grow: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    def place(self, poses: np.ndarray) -> None:
+        """Place the fixed bodies at ``poses`` (U, 4, 4) (those of the others are not read): an
+        environment of the same meshes moved. Nothing is written when none moved."""
+        poses = np.asarray(poses, np.float64)
+        if np.array_equal(poses, self._placed):
+            return
+        self._placed = poses.copy()
+        self.fixed = fixed_boxes(poses, *self._local)
+        box = outwards(self.fixed)
+        self.table["lo"], self.table["hi"] = box[:, 0], box[:, 1]
+        self.gpu.device.queue.write_buffer(self.bodies, 0, self.table)
+
+    def run(self, q: np.ndarray, grow: float = 0.0
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """K1 and K2 over configurations ``q``: one submission, one map.
 
         Parameters
@@ -128,6 +167,9 @@ class GpuPairCull:
         -------
         rows : (C, B, 3, 4) float32
             K1's poses: world from body, its top three rows (:meth:`GpuKinematics.read`).
+        boxes : (C, B, 2, 4) float32
+            K1's world boxes: minimum and maximum (xyz; w unused), each holding its body
+            placed by ``rows``.
         survivors : (S, 3) int64
             The pairs kept: configuration (index into ``q``), and the pair's bodies (indices
             into the check's bodies), sorted by configuration, then as the pair list.
@@ -135,7 +177,8 @@ class GpuPairCull:
         k1 = self.kinematics
         c = len(q)
         if c == 0 or not len(self.pairs):
-            return k1.read(q)[..., :3, :].astype(np.float32), np.zeros((0, 3), np.int64)
+            return (np.zeros((c, k1.bodies, 3, 4), np.float32),
+                    np.zeros((c, k1.bodies, 2, 4), np.float32), np.zeros((0, 3), np.int64))
         k1.upload(q)
         words = c * self.words
         self.bits.ensure(4 * words)
@@ -145,34 +188,38 @@ class GpuPairCull:
         params["moving"], params["grow"] = k1.bodies, grow
         device = self.gpu.device
         device.queue.write_buffer(self.params, 0, params)
-        pose_bytes = c * k1.bodies * 48
-        nbytes = pose_bytes + 4 * words
+        pose_bytes, box_bytes = c * k1.bodies * 48, c * k1.bodies * 32
+        nbytes = pose_bytes + box_bytes + 4 * words
         staging = self.readback.ensure(nbytes)
         encoder = native.encoder(device, self.INFO.title)
         k1.encode(encoder)
-        group = self.stage.group(poses=k1.poses, bodies=self.bodies, pairs=self.pair_buffer,
+        group = self.stage.group(boxes=k1.boxes, bodies=self.bodies, pairs=self.pair_buffer,
                                  words=self.bits, params=self.params)
         cpass = encoder.begin_compute_pass(label=self.INFO.title)
         dispatch(cpass, self.stage, group, -(-words // WORKGROUP))
         cpass.end()
         if pose_bytes:
             encoder.copy_buffer_to_buffer(k1.poses.buffer, 0, staging, 0, pose_bytes)
-        encoder.copy_buffer_to_buffer(self.bits.buffer, 0, staging, pose_bytes, 4 * words)
+            encoder.copy_buffer_to_buffer(k1.boxes.buffer, 0, staging, pose_bytes, box_bytes)
+        encoder.copy_buffer_to_buffer(self.bits.buffer, 0, staging, pose_bytes + box_bytes,
+                                      4 * words)
         device.queue.submit([encoder.finish()])
         data = self.readback.read(
             nbytes, np.uint8, timeout=k1.timeout,
             waiting_for=f"{k1.name}'s poses and pairs in {plural(c, 'configuration')}")
         rows = data[:pose_bytes].view(np.float32).reshape(c, k1.bodies, 3, 4)
+        boxes = data[pose_bytes:pose_bytes + box_bytes].view(np.float32).reshape(
+            c, k1.bodies, 2, 4)
         # Bits past a configuration's pairs are 0: the words are searched whole.
-        kept = np.flatnonzero(np.unpackbits(data[pose_bytes:], bitorder="little"))
+        kept = np.flatnonzero(np.unpackbits(data[pose_bytes + box_bytes:], bitorder="little"))
         config, pair = np.divmod(kept, 32 * self.words)
         survivors = np.empty((len(config), 3), np.int64)
         survivors[:, 0] = config
         survivors[:, 1:] = self.pairs.take(pair, axis=0)
-        return rows, survivors
+        return rows, boxes, survivors
 
 
 PASSES = (GpuKinematics, GpuPairCull)
 """A robot check's passes on the GPU, in the order they run (the docs' pass table)."""
 
-__all__ = ["BODY", "FIXED", "PARAMS", "PASSES", "ROUNDING", "GpuPairCull"]
+__all__ = ["BODY", "FIXED", "PARAMS", "PASSES", "GpuPairCull", "fixed_boxes", "outwards"]

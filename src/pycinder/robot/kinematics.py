@@ -4,11 +4,14 @@ lives on the GPU::
 
     joint values (C, J)       -> motions (C, M): each moving joint's sine and versine, or offset
                                  (host, float64, rounded once; O(C x M) NumPy)
-    K1 kinematics             -> link poses (C, L) and body poses (C, B), one invocation per
-                                 configuration walking the joints in tree order (compute)
+    K1 kinematics             -> link poses (C, L), body poses (C, B) and the bodies' world
+                                 boxes (C, B), one invocation per configuration walking the
+                                 joints in tree order (compute)
 
 The kinematic tree is uploaded once: each joint's origin, axis, kind, parent and child link, and
-each body's link and origin (:data:`JOINT`, :data:`BODY`). Mimic joints take their motion from
+each body's link, origin and body-space box (:data:`JOINT`, :data:`BODY`). A world box holds the
+body's vertices placed by its pose as written (grown by :data:`ROUNDING` of its own
+arithmetic). Mimic joints take their motion from
 their own column of the motions (the host applies the multiplier and offset in float64).
 
 Precision
@@ -18,16 +21,18 @@ The passes run in single precision. A body's pose then differs from the float64 
 along its chain: :meth:`GpuKinematics.error_estimate` gives, per body, an estimate of how far any
 point of the body may move, ``2**-24 * 2 * (products + 1) * (reach + radius)`` (``products``: the
 affine products along its chain; ``reach``: the lengths of the joints' origins and prismatic
-travel along it; ``radius``: the farthest vertex from the body's origin). The tests measure every
-vertex of the four benchmark robots at random configurations against it. A check uses these poses
-only where that estimate is at most :data:`POSE_MARGIN` of its smallest tolerance (a sixteenth of a
-pixel, the margin single-precision tile coordinates are given), and the host's float64 poses
-otherwise.
+travel along it, by its limits; ``radius``: the farthest vertex from the body's origin). It is
+an estimate, not a proven bound: the tests measure every vertex of the four benchmark robots at
+random configurations against it (at most 0.24 of it). A check uses these poses only where, for
+every pair it checks, both bodies' estimates added are at most :data:`POSE_MARGIN` of the pair's
+tolerance (a sixteenth of a pixel, the margin single-precision tile coordinates are given), and
+where its prismatic joints keep within their limits (:meth:`GpuKinematics.reaches`); the host's
+float64 poses otherwise.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 import wgpu
@@ -36,7 +41,7 @@ from ..gpu import native
 from ..gpu.bindings import Stage, dispatch
 from ..gpu.buffers import DEFAULT_TIMEOUT, GrowableBuffer, Readback
 from ..gpu.device import Gpu, get_gpu
-from ..gpu.layout import WORKGROUP
+from ..gpu.layout import ROW, WORKGROUP
 from ..gpu.structs import Struct
 from ..gpu.table import PassInfo
 from ..util.text import plural
@@ -59,11 +64,16 @@ JOINT = Struct("KinJoint", [
 
 BODY = Struct("KinBody", [
     ("origin", "array<vec4f, 3>", "link-from-body rows: R's row i (xyz), t_i (w)"),
+    ("centre", "vec3f", "the body-space box's centre"),
     ("link", "u32", "the link the body moves with"),
+    ("half", "vec3f", "the body-space box's half extents"),
     ("pad0", "u32", ""),
-    ("pad1", "u32", ""),
-    ("pad2", "u32", ""),
 ], doc="One collision body (or attached object) of the robot (pycinder/robot/kinematics.py).")
+
+ROUNDING = 2.0**-20
+"""Bound on the relative rounding of a world box's coordinates in the pass (a few products and
+sums in float32, each within ``2**-24``), as a fraction of the sum of their terms'
+magnitudes."""
 
 PARAMS = Struct("KinParams", [
     ("configurations", "u32", "configurations of the dispatch"),
@@ -77,8 +87,8 @@ PARAMS = Struct("KinParams", [
 ], uniform=True, doc="The kinematics pass's sizes (pycinder/robot/kinematics.py).")
 
 POSE_MARGIN = 1 / 16
-"""Largest :meth:`GpuKinematics.error_estimate`, as a fraction of a check's smallest tolerance,
-at which a check takes its poses from the GPU."""
+"""Largest sum of a checked pair's two :meth:`GpuKinematics.error_estimate`, as a fraction of
+the pair's tolerance, at which a check takes its poses from the GPU."""
 
 _U = wgpu.BufferUsage
 
@@ -115,11 +125,15 @@ class GpuKinematics:
         self.gpu = gpu = gpu or get_gpu()
         self.timeout = float(timeout)
         self.name = model.name
-        consts = {"WORKGROUP": WORKGROUP, "JOINT_REVOLUTE": JOINT_REVOLUTE,
-                  "JOINT_PRISMATIC": JOINT_PRISMATIC}
+        consts = {"WORKGROUP": WORKGROUP, "ROW": ROW, "JOINT_REVOLUTE": JOINT_REVOLUTE,
+                  "JOINT_PRISMATIC": JOINT_PRISMATIC, "ROUNDING": ROUNDING}
         self.stage = Stage(gpu, self.SHADER, self.ENTRY, label=self.INFO.title,
                            structs=(JOINT, BODY, PARAMS), consts=consts)
         joints, bodies, self._motion = _tables(model)
+        self.attached = tuple(id(a.body) for a in model._attached.values())
+        """The objects attached to the model when this was made (by identity)."""
+        self._travel = np.array([_travel(model.joints[k]) for k in
+                                 np.flatnonzero(joints["kind"] != JOINT_FIXED)])
         self.links = len(model.links)
         self.bodies = len(bodies)
         self.products = _products(model, joints)
@@ -140,11 +154,27 @@ class GpuKinematics:
         self.poses = GrowableBuffer(device, f"{self.INFO.name} poses",
                                     _U.STORAGE | _U.COPY_SRC)
         """The body poses of the last batch: (C, B, 3) rows of vec4f (bind after encoding)."""
+        self.boxes = GrowableBuffer(device, f"{self.INFO.name} boxes",
+                                    _U.STORAGE | _U.COPY_SRC)
+        """The bodies' world boxes of the last batch: (C, B, 2) vec4f, minimum and maximum
+        (xyz), each holding the body's vertices placed by its pose as written."""
         self.params = device.create_buffer(label=f"{self.INFO.name} parameters",
                                            size=PARAMS.size, usage=_U.UNIFORM | _U.COPY_DST)
         self.readback = Readback(device, f"{self.INFO.name} readback")
         self.count = 0
         """Configurations uploaded last."""
+
+    def reaches(self, q: np.ndarray) -> bool:
+        """Whether every prismatic joint's offset in configurations ``q`` (C, J) lies within
+        the travel :meth:`error_estimate` assumes (its limits; a check's configurations need
+        not keep them): if not, the estimate does not hold for them."""
+        col, mult, off, revolute = self._motion
+        sliding = ~revolute
+        if not sliding.any():
+            return True
+        value = np.asarray(q, np.float64).take(col[sliding], axis=1) * mult[sliding] \
+            + off[sliding]
+        return bool((np.abs(value) <= self._travel[sliding]).all())
 
     def error_estimate(self) -> np.ndarray:
         """(B,) how far, at most by estimate, any point of each body lies from where float64
@@ -156,7 +186,8 @@ class GpuKinematics:
         a revolute joint's sine and versine (``1 - cos``, as ``2 sin^2(a / 2)``), a prismatic
         joint's offset and 0; computed in float64 and rounded once."""
         col, mult, off, revolute = self._motion  # a column of -1 (none) has multiplier 0
-        value = np.asarray(q, np.float64).take(col, axis=1)
+        q = np.asarray(q, np.float64)
+        value = q.take(col, axis=1) if q.shape[1] else np.zeros((len(q), len(col)))
         value *= mult
         value += off
         out = np.zeros((len(q), len(col), 2), np.float32)
@@ -176,6 +207,7 @@ class GpuKinematics:
         self.motions.write(motions)
         self.link_poses.ensure(max(c * self.links * 48, 48))
         self.poses.ensure(max(c * self.bodies * 48, 48))
+        self.boxes.ensure(max(c * self.bodies * 32, 32))
         params = PARAMS.zeros()
         params["configurations"], params["links"], params["joints"] = c, self.links, \
             self.joint_count
@@ -188,7 +220,7 @@ class GpuKinematics:
             return
         group = self.stage.group(joints=self.tree, bodies=self.body_table,
                                  motions=self.motions, links=self.link_poses, poses=self.poses,
-                                 params=self.params)
+                                 boxes=self.boxes, params=self.params)
         cpass = encoder.begin_compute_pass(label=self.INFO.title)
         dispatch(cpass, self.stage, group, -(-self.count // WORKGROUP))
         cpass.end()
@@ -257,10 +289,18 @@ def _tables(model: RobotModel) -> tuple[np.ndarray, np.ndarray, tuple]:
     bodies = BODY.zeros(len(links))
     bodies["link"] = links
     bodies["origin"] = _rows(origins)
+    bounds = np.array([m.bounds for m in _meshes(model)], np.float64).reshape(-1, 2, 3)
+    bodies["centre"] = 0.5 * (bounds[:, 0] + bounds[:, 1])
+    bodies["half"] = 0.5 * (bounds[:, 1] - bounds[:, 0])
     col, mult = np.array(col, np.int64), np.array(mult, np.float64)
     motion = (np.maximum(col, 0), np.where(col >= 0, mult, 0.0), np.array(off, np.float64),
               np.array(revolute, bool))
     return joints, bodies, motion
+
+
+def _meshes(model: RobotModel) -> list:
+    """Each body's mesh: the collision bodies', then the attached objects'."""
+    return [b.mesh for b in model.bodies] + [a.body.mesh for a in model._attached.values()]
 
 
 def _chains(model: RobotModel) -> list[list[int]]:
@@ -278,22 +318,26 @@ def _products(model: RobotModel, joints: np.ndarray) -> np.ndarray:
     return np.array([sum(1 + int(moving[k]) for k in chain) for chain in chains], np.int64)
 
 
+def _travel(joint: Any) -> float:
+    """How far a prismatic joint slides at most, by its limits (inf for a joint that turns:
+    any angle)."""
+    return max(abs(joint.lower), abs(joint.upper)) if joint.type == "prismatic" else np.inf
+
+
 def _error_estimate(model: RobotModel, joints: np.ndarray, bodies: np.ndarray,
                     products: np.ndarray) -> np.ndarray:
     """(B,) :meth:`GpuKinematics.error_estimate`."""
     chains = _chains(model)
-    travel = np.array([max(abs(j.lower), abs(j.upper)) if j.type == "prismatic" else 0.0
-                       for j in model.joints])
+    travel = np.array([_travel(j) if j.type == "prismatic" else 0.0 for j in model.joints])
     step = np.linalg.norm(joints["origin"][:, :, 3].astype(np.float64), axis=1) + travel
     reach = np.array([step[chain].sum() for chain in chains])
-    meshes = [b.mesh for b in model.bodies] + [a.body.mesh for a in model._attached.values()]
     origin = bodies["origin"][:, :, 3].astype(np.float64)
     radius = np.array([np.linalg.norm(np.asarray(m.vertices, np.float64), axis=1).max()
-                       if len(m.vertices) else 0.0 for m in meshes]) + \
+                       if len(m.vertices) else 0.0 for m in _meshes(model)]) + \
         np.linalg.norm(origin, axis=1)
     link = bodies["link"].astype(np.int64)
     return 2.0**-24 * 2 * (products[link] + 1) * (reach[link] + radius)
 
 
 __all__ = ["BODY", "JOINT", "JOINT_FIXED", "JOINT_PRISMATIC", "JOINT_REVOLUTE", "PARAMS",
-           "POSE_MARGIN", "GpuKinematics", "pose_matrices"]
+           "POSE_MARGIN", "ROUNDING", "GpuKinematics", "pose_matrices"]

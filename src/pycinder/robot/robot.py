@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import wgpu
 
 from ..focused.broad.prune import PairList
 from ..tolerance import DEFAULT_RELATIVE_TOLERANCE
@@ -58,7 +59,9 @@ class _Plan:
     prepared: PreparedBodies | None = None
     """The check's bodies, prepared once (made by the first batch)."""
     front: GpuPairCull | None = None
-    """Its passes K1 and K2 on the GPU (made by the first check that takes its poses there)."""
+    """Its passes K1 and K2 on the GPU (made by the first batch that takes its poses there)."""
+    sizes: np.ndarray | None = None
+    """(U,) the sizes of the bodies of :attr:`used` (see :func:`_size`), measured once."""
 
     @classmethod
     def of(cls, pairs: list[tuple[int, int]]) -> _Plan:
@@ -89,9 +92,28 @@ class _Poses:
     objects (their top three rows; pass K1's float32, or the host's float64)."""
     fixed: np.ndarray
     """(E, 4, 4) float64: world from body of the environment's bodies."""
+    boxes: np.ndarray | None = None
+    """(C, R, 2, 4) float32: world boxes of the robot's bodies (pass K1's), or None (measured
+    by the query's scene)."""
+    fixed_boxes: np.ndarray | None = None
+    """(B, 2, 3) float64: world boxes of the environment's bodies (rows of the check's bodies;
+    with :attr:`boxes`)."""
 
     def __len__(self) -> int:
         return len(self.rows)
+
+    def take_boxes(self, config: np.ndarray, body: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray] | None:
+        """World box minima and maxima (M, 3) float64 of bodies ``body`` (M,) in configurations
+        ``config`` (M,); None without :attr:`boxes`."""
+        if self.boxes is None:
+            return None
+        moving = len(self.rows[0]) if len(self.rows) else 0
+        out = np.empty((len(body), 2, 3))
+        robot = body < moving
+        out[robot] = self.boxes[config[robot], body[robot], :, :3]
+        out[~robot] = self.fixed_boxes[body[~robot]]
+        return out[:, 0], out[:, 1]
 
     def take(self, config: np.ndarray, body: np.ndarray) -> np.ndarray:
         """(M, 4, 4) float64 poses of bodies ``body`` (M,) (of the check) in configurations
@@ -271,47 +293,74 @@ class Robot(RobotModel):
         qs = self._configurations(qs)
         plan, bodies = self._plan(environment, self_collision)
         pads = self._paddings(padding, bodies)
-        front = self._gpu_front(plan, bodies)
         collides = np.zeros(len(qs), dtype=bool)
         pairs: list[list[tuple[str, str]]] = [[] for _ in range(len(qs))]
         for start, stop in self._batches(len(qs), batch, plan):
-            self._check_batch(qs[start:stop], start, plan, bodies, environment, collides,
-                              pairs if return_pairs else None, pads, front)
+            self._check_batch(qs[start:stop], start, plan, bodies, collides,
+                              pairs if return_pairs else None, pads)
         return (collides, pairs) if return_pairs else collides
 
-    def _gpu_front(self, plan: _Plan, bodies: list[Body]) -> GpuPairCull | None:
+    def _gpu_front(self, plan: _Plan, bodies: list[Body], clearance: float | None
+                   ) -> GpuPairCull | None:
         """Passes K1 and K2 of a check: the robot's poses and the plan's pairs culled by world
         boxes, on the GPU (:mod:`pycinder.robot.cull`; made once per plan, and again when the
-        device was renewed); None where, for some checked pair, K1's poses of its bodies may
-        lie farther from float64's than :data:`~pycinder.robot.kinematics.POSE_MARGIN` of the
-        pair's tolerance (:meth:`GpuKinematics.error_estimate`, both bodies' added): the host's
-        :meth:`poses` and box test then."""
+        objects attached or the device changed; the environment's poses placed anew). None
+        where the plan checks no pair, and where, for some checked pair, K1's poses of its
+        bodies may lie farther from float64's than
+        :data:`~pycinder.robot.kinematics.POSE_MARGIN` of the tolerance the query gives the
+        pair (:meth:`GpuKinematics.error_estimate`, both bodies' added): the host's
+        :meth:`poses` and box test then. ``clearance``: a padded check's (its queries test
+        at most a quarter of it finely)."""
         from .cull import GpuPairCull
         from .kinematics import POSE_MARGIN, GpuKinematics
 
+        if not len(plan.pairs):
+            return None
         gpu = self.detector.gpu
-        if self._kinematics is None or self._kinematics.gpu is not gpu:
-            self._kinematics = GpuKinematics(self, gpu, self.detector.request.timeout)
+        attached = tuple(id(a.body) for a in self._attached.values())
         kinematics = self._kinematics
+        if kinematics is None or kinematics.gpu is not gpu or kinematics.attached != attached:
+            with self.detector._device_lock():
+                kinematics = self._kinematics = GpuKinematics(self, gpu,
+                                                              self.detector.request.timeout)
+            kinematics.attached = attached
         robot = len(self.bodies) + len(self._attached)
         sources = np.where(plan.used < robot, plan.used, -1)
-        # Per checked pair, both bodies' estimates against the pair's tolerance.
+        # Per checked pair, both bodies' estimates against the tolerance its query gives it.
         error = np.where(sources >= 0, kinematics.error_estimate()[np.maximum(sources, 0)], 0.0)
         a, b = plan.pairs[:, 0], plan.pairs[:, 1]
-        if self.tolerance is None:
-            size = np.array([_size(bodies[i]) for i in plan.used])
-            tolerance = DEFAULT_RELATIVE_TOLERANCE * np.minimum(size[a], size[b])
+        given = self.tolerance if self.tolerance is not None else \
+            self.detector.request.tolerance
+        if given is not None:
+            tolerance = np.full(len(a), float(given))
+        elif clearance is not None:
+            tolerance = np.full(len(a), np.inf)
         else:
-            tolerance = np.full(len(a), float(self.tolerance))
+            if plan.sizes is None:
+                plan.sizes = np.array([_size(bodies[i]) for i in plan.used])
+            tolerance = DEFAULT_RELATIVE_TOLERANCE * np.minimum(plan.sizes[a], plan.sizes[b])
+        if clearance is not None:  # a padded check tests within a quarter of its clearance
+            tolerance = np.minimum(tolerance, clearance / 4)
         if not (error[a] + error[b] <= POSE_MARGIN * tolerance).all():
             return None
+        used = [bodies[i] for i in plan.used]
+        fixed = np.array([b.origin if k < 0 else np.eye(4)
+                          for b, k in zip(used, sources)]).reshape(-1, 4, 4)
         if plan.front is None or plan.front.kinematics is not kinematics:
-            used = [bodies[i] for i in plan.used]
-            fixed = np.array([b.origin if k < 0 else np.eye(4) for b, k in zip(used, sources)])
             bounds = np.array([b.mesh.bounds for b in used], np.float64).reshape(-1, 2, 3)
-            plan.front = GpuPairCull(kinematics, sources, fixed, bounds[:, 0], bounds[:, 1],
-                                     plan.pairs)
+            with self.detector._device_lock():
+                plan.front = GpuPairCull(kinematics, sources, fixed, bounds[:, 0],
+                                         bounds[:, 1], plan.pairs)
+        else:  # an environment of the same meshes may have moved them
+            with self.detector._device_lock():
+                plan.front.place(fixed)
         return plan.front
+
+    def _forget_fronts(self) -> None:
+        """Drop passes K1 and K2 (after a GPU error: the next check makes them anew)."""
+        self._kinematics = None
+        for plan in self._plans.values():
+            plan.front = None
 
     def _batches(self, count: int, batch: int | None, plan: _Plan) -> Iterator[tuple[int, int]]:
         """``(start, stop)`` of each query's configurations: ``batch`` at a time when given;
@@ -380,33 +429,40 @@ class Robot(RobotModel):
         return np.concatenate([poses, np.broadcast_to(env, (len(poses), *env.shape))], axis=1)
 
     def _check_batch(self, qs: np.ndarray, start: int, plan: _Plan, bodies: list[Body],
-                     environment: Environment | None, collides: np.ndarray,
-                     pairs: list[list[tuple[str, str]]] | None,
-                     pads: np.ndarray | None = None,
-                     front: GpuPairCull | None = None) -> None:
-        from ..errors import GpuMemoryError
+                     collides: np.ndarray, pairs: list[list[tuple[str, str]]] | None,
+                     pads: np.ndarray | None = None) -> None:
+        from ..errors import GpuError, GpuMemoryError
 
         if not len(plan.pairs) or not len(qs):
             return
         clearance = None if pads is None else max(float(pads.max()), 1e-12)
-        survivors = None
-        if front is None or len(qs) < GPU_FRONT_FROM:
-            rows = self.poses(qs)[..., :3, :]
-        else:
-            with front.gpu.lock:
-                rows, survivors = front.run(qs, clearance or 0.0)
-        fixed = np.array([b.origin for b in bodies[len(rows[0]):]]).reshape(-1, 4, 4)
-        poses = _Poses(rows, fixed)
+        front = None
+        if len(qs) >= GPU_FRONT_FROM:
+            front = self._gpu_front(plan, bodies, clearance)
         try:
+            survivors = boxes = fixed_boxes = None
+            if front is None or not front.kinematics.reaches(qs):
+                rows = self.poses(qs)[..., :3, :]
+            else:
+                try:
+                    with self.detector._device_lock():
+                        rows, boxes, survivors = front.run(qs, clearance or 0.0)
+                except GpuMemoryError:
+                    raise
+                except (GpuError, wgpu.GPUError) as exc:
+                    self._forget_fronts()
+                    raise self.detector._recover(exc) from exc
+                fixed_boxes = np.zeros((len(bodies), 2, 3))
+                fixed_boxes[plan.used] = front.fixed
+            fixed = np.array([b.origin for b in bodies[len(rows[0]):]]).reshape(-1, 4, 4)
+            poses = _Poses(rows, fixed, boxes, fixed_boxes)
             config, a, b = self._query(poses, start, plan, bodies, pads, clearance, survivors)
         except GpuMemoryError:
             if len(qs) == 1:
                 raise
             half = len(qs) // 2
-            self._check_batch(qs[:half], start, plan, bodies, environment, collides, pairs,
-                              pads, front)
-            self._check_batch(qs[half:], start + half, plan, bodies, environment, collides,
-                              pairs, pads, front)
+            self._check_batch(qs[:half], start, plan, bodies, collides, pairs, pads)
+            self._check_batch(qs[half:], start + half, plan, bodies, collides, pairs, pads)
             return
         collides[start + config] = True
         if pairs is not None:
@@ -449,7 +505,8 @@ class Robot(RobotModel):
             candidates = PairList(np.stack([slot[first], slot[second]], axis=1), culled=True)
         config, body = copy // per, copy % per
         scene = plan.prepared.copies(body, poses.take(config, used[body]),
-                                     _CopyNames(bodies, used[body], config, start))
+                                     _CopyNames(bodies, used[body], config, start),
+                                     boxes=poses.take_boxes(config, used[body]))
         tolerance = np.full(len(copy), self._tolerance_value)
         if pads is None:
             result = self.detector._find_within(scene, candidates, tolerance)

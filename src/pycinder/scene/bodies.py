@@ -551,6 +551,10 @@ class Scene:
     """Per-body arrays taken from the shapes (:attr:`local_lo`, :attr:`face_counts`, ...), made
     on first use; prepared bodies share one dict across the scenes of their queries (the shapes
     and ``body_shape`` of a scene never change)."""
+    boxes: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+    """World boxes (N, 3) minimum and maximum known to hold every body, made by whoever placed
+    the bodies (a robot check's pass K1, :mod:`pycinder.robot.kinematics`): :meth:`world_boxes`
+    gives them instead of measuring its own; None: measured."""
 
     def __len__(self) -> int:
         return len(self.body_shape)
@@ -598,13 +602,20 @@ class Scene:
         return self._per_shape("radius", lambda s: s.radius)
 
     def bounding_radii(self) -> np.ndarray:
-        """(N,) a radius about every body's box centre that holds the body, as its world box
-        uses it (see :meth:`world_boxes`)."""
+        """(N,) a radius about every body's box centre that holds the body, as its measured
+        world box uses it (see :meth:`world_boxes`)."""
         if self._radii is None:
-            self.world_boxes()
+            self._measured_boxes()
         return self._radii  # type: ignore[return-value]
 
     def world_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) world box minimum and maximum of every body: :attr:`boxes` where given, else
+        measured (:meth:`_measured_boxes`)."""
+        if self.boxes is not None:
+            return self.boxes
+        return self._measured_boxes()
+
+    def _measured_boxes(self) -> tuple[np.ndarray, np.ndarray]:
         """(N, 3) world box minimum and maximum of every body: :func:`world_boxes` of its box
         and a radius that holds it (:meth:`bounding_radii`), its bounding sphere's
         (:attr:`Shape.radius`) where a sphere could tighten the world box, else the half

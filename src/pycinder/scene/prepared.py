@@ -139,7 +139,8 @@ class PreparedBodies(Sequence):
         return self._scene(check_transforms(transforms, len(self), self.names))
 
     def copies(self, index: np.ndarray, transforms: np.ndarray,
-               names: Sequence[str | None] | None = None) -> Scene:
+               names: Sequence[str | None] | None = None, *,
+               boxes: tuple[np.ndarray, np.ndarray] | None = None) -> Scene:
         """The validated scene of copies of these bodies (many small scenes in one query: a
         robot's configurations), with no mesh checked again.
 
@@ -151,6 +152,9 @@ class PreparedBodies(Sequence):
             Each copy's world-from-body matrix (checked as a query's).
         names : sequence of str or None, optional
             Each copy's name, for messages (any sequence: it is read only for the copy named).
+        boxes : ((M, 3), (M, 3)) float, optional
+            World boxes known to hold each copy at ``transforms`` (a robot check's, made on the
+            GPU): the scene's :meth:`~Scene.world_boxes`, not measured again.
 
         Returns
         -------
@@ -160,7 +164,14 @@ class PreparedBodies(Sequence):
         if index.ndim != 1 or (len(index) and (index.min() < 0 or index.max() >= len(self))):
             raise ValueError(f"index must be (M,) body indices below {len(self)}")
         names = [None] * len(index) if names is None else names
-        return self._scene(check_transforms(transforms, len(index), names), index, names)
+        scene = self._scene(check_transforms(transforms, len(index), names), index, names)
+        if boxes is not None:
+            lo, hi = (np.asarray(b, np.float64) for b in boxes)
+            if lo.shape != (len(index), 3) or hi.shape != (len(index), 3):
+                raise ValueError(f"boxes must be two (M, 3) arrays for {len(index)} copies, "
+                                 f"got {lo.shape} and {hi.shape}")
+            scene.boxes = (lo, hi)
+        return scene
 
     def _scene(self, checked: np.ndarray, index: np.ndarray | None = None,
                names: Sequence[str | None] | None = None) -> Scene:

@@ -3,16 +3,16 @@
 // invocation per configuration and word of 32 pairs (no atomics: the bits are the same on
 // every run).
 //
-// A body's pose is K1's (pycinder/robot/kinematics.py) when it moves with the robot, else its
-// own fixed pose (an environment body). Boxes are conservative: grown by the body's `pad` (the
-// kinematics' error estimate, where the pose is K1's), by the rounding of their own arithmetic,
-// and by `grow` (a padded check's clearance), so that a pair whose bodies overlap (or lie within
-// `grow`) in float64 is never culled.
+// A body that moves with the robot takes its world box from pass K1
+// (pycinder/robot/kinematics.py), grown by its `pad` (twice K1's error estimate: the box then
+// holds the body placed by float64 kinematics too); a fixed body (an environment's) has its own
+// box, rounded outwards on the host. Every box is grown by `grow` (a padded check's clearance),
+// so that a pair whose bodies overlap (or lie within `grow`) in float64 is never culled.
 //
 // The structs CullBody and CullParams are generated from cull.py; so are the constants
-// WORKGROUP, FIXED and ROUNDING.
+// WORKGROUP, ROW and FIXED.
 
-@group(0) @binding(0) var<storage, read> poses: array<vec4f>;
+@group(0) @binding(0) var<storage, read> boxes: array<vec4f>;
 @group(0) @binding(1) var<storage, read> bodies: array<CullBody>;
 @group(0) @binding(2) var<storage, read> pairs: array<vec2u>;
 @group(0) @binding(3) var<storage, read_write> words: array<u32>;
@@ -25,30 +25,22 @@ struct Box {
 
 fn world_box(c: u32, u: u32) -> Box {
     let body = bodies[u];
-    var r0 = body.pose[0];
-    var r1 = body.pose[1];
-    var r2 = body.pose[2];
+    var lo = body.lo;
+    var hi = body.hi;
     if (body.source != FIXED) {
-        let base = 3u * (c * params.moving + body.source);
-        r0 = poses[base];
-        r1 = poses[base + 1u];
-        r2 = poses[base + 2u];
+        let at = 2u * (c * params.moving + body.source);
+        lo = boxes[at].xyz;
+        hi = boxes[at + 1u].xyz;
     }
-    let centre = vec3f(dot(r0.xyz, body.centre), dot(r1.xyz, body.centre),
-                       dot(r2.xyz, body.centre)) + vec3f(r0.w, r1.w, r2.w);
-    let half = vec3f(dot(abs(r0.xyz), body.half), dot(abs(r1.xyz), body.half),
-                     dot(abs(r2.xyz), body.half));
-    // Each coordinate is a few products and sums: its rounding is within ROUNDING of the sum of
-    // its terms' magnitudes.
-    let size = vec3f(dot(abs(r0.xyz), abs(body.centre)), dot(abs(r1.xyz), abs(body.centre)),
-                     dot(abs(r2.xyz), abs(body.centre))) + abs(vec3f(r0.w, r1.w, r2.w)) + half;
-    let grown = half + body.pad + params.grow + ROUNDING * size;
-    return Box(centre - grown, centre + grown);
+    let grown = body.pad + params.grow;
+    return Box(lo - grown, hi + grown);
 }
 
 @compute @workgroup_size(WORKGROUP)
-fn cull_pairs(@builtin(global_invocation_id) gid: vec3u) {
-    let i = gid.x;
+fn cull_pairs(@builtin(workgroup_id) wg: vec3u,
+           @builtin(local_invocation_index) lid: u32) {
+    // A large dispatch is a grid of rows of ROW workgroups (pycinder.gpu.bindings.workgroup_grid).
+    let i = (wg.y * ROW + wg.x) * WORKGROUP + lid;
     if (i >= params.configurations * params.words) {
         return;
     }

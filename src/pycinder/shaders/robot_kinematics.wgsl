@@ -8,8 +8,12 @@
 // computed on the host in float64 and rounded once: WGSL promises sin and cos only to 2^-11
 // absolute.
 //
+// Each body's world box follows from its pose and its body-space box, grown by the rounding of
+// its own arithmetic (ROUNDING of the sum of its terms' magnitudes): it holds the body's
+// vertices (as stored in float32) placed by the pose as written.
+//
 // The structs KinJoint, KinBody and KinParams are generated from kinematics.py; so are the
-// constants WORKGROUP, JOINT_REVOLUTE and JOINT_PRISMATIC.
+// constants WORKGROUP, ROW, JOINT_REVOLUTE, JOINT_PRISMATIC and ROUNDING.
 
 @group(0) @binding(0) var<storage, read> joints: array<KinJoint>;
 @group(0) @binding(1) var<storage, read> bodies: array<KinBody>;
@@ -17,6 +21,7 @@
 @group(0) @binding(3) var<storage, read_write> links: array<vec4f>;
 @group(0) @binding(4) var<storage, read_write> poses: array<vec4f>;
 @group(0) @binding(5) var<uniform> params: KinParams;
+@group(0) @binding(6) var<storage, read_write> boxes: array<vec4f>;
 
 struct Affine {
     r0: vec4f,
@@ -43,6 +48,24 @@ fn rotation(k: vec3f, s: f32, v: f32) -> Affine {
         vec4f(kk.z * k.x - s * k.y, kk.z * k.y + s * k.x, 1.0 + kk.z * k.z - v, 0.0));
 }
 
+struct Box {
+    lo: vec3f,
+    hi: vec3f,
+};
+
+// The world box of a body-space box (centre, half extents) placed by pose t, conservatively.
+fn world_box(t: Affine, centre: vec3f, half: vec3f) -> Box {
+    let mid = vec3f(dot(t.r0.xyz, centre), dot(t.r1.xyz, centre), dot(t.r2.xyz, centre))
+        + vec3f(t.r0.w, t.r1.w, t.r2.w);
+    let reach = vec3f(dot(abs(t.r0.xyz), half), dot(abs(t.r1.xyz), half),
+                      dot(abs(t.r2.xyz), half));
+    let size = vec3f(dot(abs(t.r0.xyz), abs(centre)), dot(abs(t.r1.xyz), abs(centre)),
+                     dot(abs(t.r2.xyz), abs(centre))) + abs(vec3f(t.r0.w, t.r1.w, t.r2.w))
+        + reach;
+    let grown = reach + ROUNDING * size;
+    return Box(mid - grown, mid + grown);
+}
+
 fn link_at(c: u32, link: u32) -> Affine {
     let base = 3u * (c * params.links + link);
     return Affine(links[base], links[base + 1u], links[base + 2u]);
@@ -56,8 +79,10 @@ fn set_link(c: u32, link: u32, t: Affine) {
 }
 
 @compute @workgroup_size(WORKGROUP)
-fn forward_kinematics(@builtin(global_invocation_id) gid: vec3u) {
-    let c = gid.x;
+fn forward_kinematics(@builtin(workgroup_id) wg: vec3u,
+           @builtin(local_invocation_index) lid: u32) {
+    // A large dispatch is a grid of rows of ROW workgroups (pycinder.gpu.bindings.workgroup_grid).
+    let c = (wg.y * ROW + wg.x) * WORKGROUP + lid;
     if (c >= params.configurations) {
         return;
     }
@@ -87,5 +112,8 @@ fn forward_kinematics(@builtin(global_invocation_id) gid: vec3u) {
         poses[base] = pose.r0;
         poses[base + 1u] = pose.r1;
         poses[base + 2u] = pose.r2;
+        let box = world_box(pose, body.centre, body.half);
+        boxes[2u * (c * params.bodies + b)] = vec4f(box.lo, 0.0);
+        boxes[2u * (c * params.bodies + b) + 1u] = vec4f(box.hi, 0.0);
     }
 }

@@ -234,7 +234,10 @@ class GpuTilePlan(TilePlan):
         """See :meth:`TilePlan.views`: gathered for tiles ``which`` alone, unless all were."""
         if self._gathered is not None:
             return super().views(which)
-        return self._views.gather(np.asarray(which, np.int64))
+        which = np.asarray(which)
+        if which.dtype == bool:
+            which = np.flatnonzero(which)
+        return self._views.gather(which.astype(np.int64))
 
     def _view(self, k: int) -> np.ndarray:
         gathered = self._gathered
