@@ -504,9 +504,13 @@ class Robot(RobotModel):
             slot = np.cumsum(kept) - 1  # a kept copy's index among the copies
             candidates = PairList(np.stack([slot[first], slot[second]], axis=1), culled=True)
         config, body = copy // per, copy % per
-        scene = plan.prepared.copies(body, poses.take(config, used[body]),
-                                     _CopyNames(bodies, used[body], config, start),
-                                     boxes=poses.take_boxes(config, used[body]))
+        names = _CopyNames(bodies, used[body], config, start)
+        transforms = poses.take(config, used[body])
+        if poses.boxes is None:  # the host's float64 poses: checked like any query's
+            scene = plan.prepared.copies(body, transforms, names)
+        else:  # pass K1's: finite and proper, with their world boxes
+            scene = plan.prepared._copies(body, transforms, names,
+                                          poses.take_boxes(config, used[body]))
         tolerance = np.full(len(copy), self._tolerance_value)
         if pads is None:
             result = self.detector._find_within(scene, candidates, tolerance)

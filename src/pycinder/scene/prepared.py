@@ -161,10 +161,18 @@ class PreparedBodies(Sequence):
         Scene
         """
         index = np.asarray(index, dtype=np.int64)
+        names = [None] * len(index) if names is None else names
+        return self._copies(index, check_transforms(transforms, len(index), names), names,
+                            boxes)
+
+    def _copies(self, index: np.ndarray, checked: np.ndarray, names: Sequence[str | None],
+                boxes: tuple[np.ndarray, np.ndarray] | None = None) -> Scene:
+        """:meth:`copies` of transforms ``checked`` (M, 4, 4) float64 that need no checking
+        (checked by :meth:`copies`, or made by pycinder itself: a robot check's poses from pass
+        K1, finite and proper by construction), which the scene takes over."""
         if index.ndim != 1 or (len(index) and (index.min() < 0 or index.max() >= len(self))):
             raise ValueError(f"index must be (M,) body indices below {len(self)}")
-        names = [None] * len(index) if names is None else names
-        scene = self._scene(check_transforms(transforms, len(index), names), index, names)
+        scene = self._scene(checked, index, names)
         if boxes is not None:
             lo, hi = (np.asarray(b, np.float64) for b in boxes)
             if lo.shape != (len(index), 3) or hi.shape != (len(index), 3):
