@@ -547,6 +547,7 @@ class Scene:
     transforms: np.ndarray
     names: list[str | None]
     _radii: np.ndarray | None = field(default=None, repr=False)
+    _centres: np.ndarray | None = field(default=None, repr=False)
     per_body: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     """Per-body arrays taken from the shapes (:attr:`local_lo`, :attr:`face_counts`, ...), made
     on first use; prepared bodies share one dict across the scenes of their queries (the shapes
@@ -601,6 +602,15 @@ class Scene:
         """(N,) radius of every body's body-space bounding sphere about its box's centre."""
         return self._per_shape("radius", lambda s: s.radius)
 
+    def box_centres(self) -> np.ndarray:
+        """(N, 3) the world centre of every body's body-space box, made once a scene (its
+        world box and its tolerance's floor both start from it)."""
+        if self._centres is None:
+            self._centres = np.einsum("nij,nj->ni", self.transforms[:, :3, :3],
+                                      0.5 * (self.local_lo + self.local_hi)) \
+                + self.transforms[:, :3, 3]
+        return self._centres
+
     def bounding_radii(self) -> np.ndarray:
         """(N,) a radius about every body's box centre that holds the body, as its measured
         world box uses it (see :meth:`world_boxes`)."""
@@ -628,7 +638,7 @@ class Scene:
         """
         lo, hi = self.local_lo, self.local_hi
         t3 = self.transforms[:, :3, :3]
-        centre = np.einsum("nij,nj->ni", t3, 0.5 * (lo + hi)) + self.transforms[:, :3, 3]
+        centre = self.box_centres()
         extent = 0.5 * (hi - lo)
         box = np.einsum("nij,nj->ni", np.abs(t3), extent)
         # Sums and maxima over an axis of 3 as NumPy reduces it ((x0 + x1) + x2), written out:
