@@ -108,22 +108,29 @@ class _Poses:
         ``config`` (M,); None without :attr:`boxes`."""
         if self.boxes is None:
             return None
-        moving = len(self.rows[0]) if len(self.rows) else 0
+        at, fixed = self._at(config, body)
         out = np.empty((len(body), 2, 3))
-        robot = body < moving
-        out[robot] = self.boxes[config[robot], body[robot], :, :3]
-        out[~robot] = self.fixed_boxes[body[~robot]]
+        out[:] = self.boxes.reshape(-1, 2, 4).take(at, axis=0)[:, :, :3]
+        out[fixed] = self.fixed_boxes[body[fixed]]
         return out[:, 0], out[:, 1]
+
+    def _at(self, config: np.ndarray, body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each (config, body)'s row among the robot's (C * R) rows (0 for a fixed body), and
+        which are fixed bodies."""
+        moving = self.rows.shape[1]
+        fixed = body >= moving
+        at = config * moving + body
+        at[fixed] = 0
+        return at, fixed
 
     def take(self, config: np.ndarray, body: np.ndarray) -> np.ndarray:
         """(M, 4, 4) float64 poses of bodies ``body`` (M,) (of the check) in configurations
         ``config`` (M,)."""
-        moving = len(self.rows[0]) if len(self.rows) else 0
+        at, fixed = self._at(config, body)
         out = np.empty((len(body), 4, 4))
-        robot = body < moving
-        out[robot, :3] = self.rows[config[robot], body[robot]]
-        out[robot, 3] = (0.0, 0.0, 0.0, 1.0)
-        out[~robot] = self.fixed[body[~robot] - moving]
+        out[:, :3] = self.rows.reshape(-1, 3, 4).take(at, axis=0)
+        out[:, 3] = (0.0, 0.0, 0.0, 1.0)
+        out[fixed] = self.fixed[body[fixed] - self.rows.shape[1]]
         return out
 
 
