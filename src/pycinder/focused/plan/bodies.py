@@ -134,7 +134,8 @@ def anchors(centres: np.ndarray) -> np.ndarray:
     (N, 3) float64
     """
     centres = np.asarray(centres, np.float64)
-    _, e = np.frexp(np.abs(centres).max(axis=1) if len(centres) else np.zeros(0))
+    size = np.abs(centres)
+    _, e = np.frexp(np.maximum(np.maximum(size[:, 0], size[:, 1]), size[:, 2]))
     step = np.ldexp(1.0, np.maximum(e, -80) - ANCHOR_BITS)[:, None]
     return np.round(centres / step) * step
 
