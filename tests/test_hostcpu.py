@@ -138,5 +138,5 @@ def test_a_robots_host_cpu_per_configuration_is_measured(monkeypatch):
     # copies of 64 configurations' bodies (those of the pairs pass K2 kept).
     assert len(queries) == 3 and min(queries) > 64
     stages = r["stages_us"]
-    assert {"kinematics and cull (K1, K2)", "broad phase", "validate"} <= set(stages)
+    assert {"kinematics and cull (K1, K2)", "broad phase", "tiles (plan)"} <= set(stages)
     assert all(v >= 0 for v in stages.values()) and sum(stages.values()) > 0

@@ -360,3 +360,22 @@ def test_a_batch_the_device_refuses_is_split_on_the_gpu_path(robots, monkeypatch
     split = panda.check(q, environment=env, return_pairs=True, batch=12)
     assert culls == [12, 6, 6] and runs[0] == 12 and len(runs) == 3
     assert split[0].tolist() == whole[0].tolist() and split[1] == whole[1]
+
+
+def test_environment_and_attached_transforms_are_checked_when_given(robots):
+    """A check may take an environment body's or an attached object's transform as it is: a
+    singular, non-affine or non-finite one is refused when given, naming the body."""
+    panda = robots["panda"]
+    flat = np.diag([1.0, 1.0, 0.0, 1.0])
+    skewed = np.eye(4)
+    skewed[3, 0] = 0.5
+    box = trimesh.creation.box((0.1, 0.1, 0.1))
+    with pytest.raises(ValueError, match="environment body 'wall': transform is singular"):
+        R.Environment([("wall", box, flat)])
+    with pytest.raises(ValueError, match="environment body 'wall': transform is not affine"):
+        R.Environment([("wall", box, skewed)])
+    with pytest.raises(ValueError, match="attached 'cup': transform contains NaN"):
+        panda.attach("cup", box, "panda_hand", np.full((4, 4), np.nan))
+    with pytest.raises(ValueError, match=r"attached 'cup': transform must be a \(4, 4\)"):
+        panda.attach("cup", box, "panda_hand", np.eye(3))
+    assert "cup" not in panda.attached

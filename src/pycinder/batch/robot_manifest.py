@@ -29,6 +29,7 @@ from ..util.optional import require
 KEYS = {"robot", "srdf", "configurations", "environment", "tolerance", "package_dirs",
         "self_collision"}
 
+
 def is_robot_manifest(path: str | Path) -> bool:
     """Whether ``path`` is a robot manifest: a ``.json`` file holding one object with a
     ``robot`` key."""

@@ -71,7 +71,9 @@ def run_robot(manifest: str | Path, out: str | Path, *, batch: int | None = None
     t0 = time.perf_counter()
     how = "in this process"
     try:
-        size = batch or CHUNK  # rows written (and resumable) every this many configurations
+        # Rows are written (and the run resumable) every this many configurations; on Ray,
+        # every chunk (at least CHUNK).
+        size = batch or CHUNK
         if on_ray and len(todo):
             from .robot_ray import RobotRun
 

@@ -10,9 +10,10 @@ in one submission with one map::
 The check's bodies (robot, attached, environment: those some checked pair names) and its pairs
 are uploaded once per check plan. A box is conservative: K1's holds its body placed by K1's pose
 (its own arithmetic's rounding included), and K2 grows it by twice the kinematics' error
-estimate; an environment body's box is made on the host in float64 and rounded outwards. So no
-pair whose bodies overlap in float64 is culled, as far as the estimate holds (measured at most a
-quarter of it); the query itself tests the bodies at K1's poses, whose boxes hold them exactly.
+estimate; an environment body's box is made on the host in float64, grown as K1 grows its own,
+and rounded outwards. So no pair whose bodies overlap in float64 is culled, as far as the
+estimate holds (measured at most a quarter of it); the query itself tests the bodies at K1's
+poses, whose boxes hold their vertices as stored.
 A pair whose boxes overlap only by those margins is kept: the planner finds it apart
 (``stats.separated``). The query's scene takes K1's boxes as its world boxes
 (``PreparedBodies.copies(boxes=)``): the host measures none.
@@ -32,7 +33,7 @@ from ..gpu.layout import ROW, WORKGROUP
 from ..gpu.structs import Struct
 from ..gpu.table import PassInfo
 from ..util.text import plural
-from .kinematics import GpuKinematics
+from .kinematics import ROUNDING, GpuKinematics
 
 FIXED = 0xFFFF_FFFF
 """A :data:`BODY`'s ``source`` where its box is its own (an environment body)."""
@@ -58,10 +59,15 @@ PARAMS = Struct("CullParams", [
 
 def fixed_boxes(poses: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """(U, 2, 3) float64 world boxes of body-space boxes ``lo``, ``hi`` (U, 3) placed by
-    ``poses`` (U, 4, 4): the oriented box's own."""
+    ``poses`` (U, 4, 4): the oriented box's own, grown as K1 grows its boxes (by
+    :data:`~pycinder.robot.kinematics.ROUNDING` of their terms' magnitudes), so that they hold
+    the bodies' vertices as stored in float32 too."""
     poses = np.asarray(poses, np.float64)
-    centre = np.einsum("nij,nj->ni", poses[:, :3, :3], 0.5 * (lo + hi)) + poses[:, :3, 3]
-    half = np.einsum("nij,nj->ni", np.abs(poses[:, :3, :3]), 0.5 * (hi - lo))
+    linear, middle = np.abs(poses[:, :3, :3]), 0.5 * (lo + hi)
+    centre = np.einsum("nij,nj->ni", poses[:, :3, :3], middle) + poses[:, :3, 3]
+    half = np.einsum("nij,nj->ni", linear, 0.5 * (hi - lo))
+    size = np.einsum("nij,nj->ni", linear, np.abs(middle)) + np.abs(poses[:, :3, 3]) + half
+    half += ROUNDING * size
     return np.stack([centre - half, centre + half], axis=1)
 
 
@@ -116,8 +122,10 @@ class GpuPairCull:
         box = outwards(self.fixed)
         table["lo"], table["hi"] = box[:, 0], box[:, 1]
         table["source"] = np.where(moving, sources, FIXED)
-        table["pad"] = np.where(moving, 2.0 * kinematics.error_estimate()[
-            np.maximum(sources, 0)], 0.0)
+        self.error = np.where(moving, kinematics.error_estimate()[np.maximum(sources, 0)],
+                              0.0)
+        """(U,) each body's K1 error estimate (0 for a fixed body)."""
+        table["pad"] = 2.0 * self.error
         self._local = (lo, hi)
         self._placed = np.asarray(poses, np.float64).copy()
         self.pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
@@ -146,11 +154,12 @@ class GpuPairCull:
         poses = np.asarray(poses, np.float64)
         if np.array_equal(poses, self._placed):
             return
-        self._placed = poses.copy()
-        self.fixed = fixed_boxes(poses, *self._local)
-        box = outwards(self.fixed)
-        self.table["lo"], self.table["hi"] = box[:, 0], box[:, 1]
-        self.gpu.device.queue.write_buffer(self.bodies, 0, self.table)
+        fixed = fixed_boxes(poses, *self._local)
+        table = self.table.copy()
+        box = outwards(fixed)
+        table["lo"], table["hi"] = box[:, 0], box[:, 1]
+        self.gpu.device.queue.write_buffer(self.bodies, 0, table)
+        self.table, self.fixed, self._placed = table, fixed, poses.copy()  # once written
 
     def run(self, q: np.ndarray, grow: float = 0.0
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -176,9 +185,11 @@ class GpuPairCull:
         """
         k1 = self.kinematics
         c = len(q)
-        if c == 0 or not len(self.pairs):
-            return (np.zeros((c, k1.bodies, 3, 4), np.float32),
-                    np.zeros((c, k1.bodies, 2, 4), np.float32), np.zeros((0, 3), np.int64))
+        if not len(self.pairs):
+            raise ValueError("pass K2 of a check with no pair to check: nothing to run")
+        if c == 0:
+            return (np.zeros((0, k1.bodies, 3, 4), np.float32),
+                    np.zeros((0, k1.bodies, 2, 4), np.float32), np.zeros((0, 3), np.int64))
         k1.upload(q)
         words = c * self.words
         self.bits.ensure(4 * words)

@@ -165,16 +165,17 @@ class GpuKinematics:
         """Configurations uploaded last."""
 
     def reaches(self, q: np.ndarray) -> bool:
-        """Whether every prismatic joint's offset in configurations ``q`` (C, J) lies within
-        the travel :meth:`error_estimate` assumes (its limits; a check's configurations need
-        not keep them): if not, the estimate does not hold for them."""
+        """Whether every moving joint's value in configurations ``q`` (C, J) is finite and every
+        prismatic joint's offset lies within the travel :meth:`error_estimate` assumes (its
+        limits; a check's configurations need not keep them): if not, the estimate does not
+        hold for them (a mimic's multiplier may also overflow a finite value)."""
         col, mult, off, revolute = self._motion
-        sliding = ~revolute
-        if not sliding.any():
+        q = np.asarray(q, np.float64)
+        if not len(col) or not q.shape[1]:
             return True
-        value = np.asarray(q, np.float64).take(col[sliding], axis=1) * mult[sliding] \
-            + off[sliding]
-        return bool((np.abs(value) <= self._travel[sliding]).all())
+        value = q.take(col, axis=1) * mult + off
+        # inf travel for a joint that turns: any finite angle
+        return bool(np.isfinite(value).all() and (np.abs(value) <= self._travel).all())
 
     def error_estimate(self) -> np.ndarray:
         """(B,) how far, at most by estimate, any point of each body lies from where float64

@@ -107,10 +107,7 @@ class Environment:
         """Add a body: ``mesh`` (a Trimesh or (vertices, faces)) at world ``transform``."""
         if name in self.names:
             raise ValueError(f"the environment already has a body named {name!r}")
-        t = np.eye(4) if transform is None else np.asarray(transform, np.float64)
-        if t.shape != (4, 4) or not np.isfinite(t).all():
-            raise ValueError(f"environment body {name!r}: transform must be a finite (4, 4) "
-                             f"matrix, got shape {t.shape}")
+        t = _checked_transform(transform, f"environment body {name!r}")
         self.bodies.append(Body(name, name, _as_trimesh(mesh, name), t, "mesh"))
 
     @classmethod
@@ -127,6 +124,21 @@ class Environment:
         for b, pose in zip(robot.bodies, poses):
             env.add(f"{prefix}/{b.name}", b.mesh, place @ pose)
         return env
+
+
+def _checked_transform(transform: Any, what: str) -> np.ndarray:
+    """A (4, 4) float64 transform (None: the identity), checked as a query's transforms are
+    (finite, affine, not singular, within range: :func:`pycinder.scene.bodies.check_transforms`),
+    so that every check may take it as it is; a ValueError names ``what``."""
+    from ..scene.bodies import check_transforms
+
+    t = np.eye(4) if transform is None else np.asarray(transform, np.float64)
+    if t.shape != (4, 4):
+        raise ValueError(f"{what}: transform must be a (4, 4) matrix, got shape {t.shape}")
+    try:
+        return check_transforms(t[None], 1, [what])[0]
+    except ValueError as exc:
+        raise ValueError(f"{what}: {str(exc).split(': ', 1)[-1]}") from None
 
 
 def _as_trimesh(mesh: Any, name: str) -> trimesh.Trimesh:
@@ -415,9 +427,7 @@ class RobotModel:
         for t in touch:
             if t not in self._link_index:
                 raise ValueError(f"{self.name}: attached {name!r} touches {t!r}: no such link")
-        origin = np.eye(4) if transform is None else np.asarray(transform, np.float64)
-        if origin.shape != (4, 4):
-            raise ValueError(f"attached {name!r}: transform must be (4, 4), got {origin.shape}")
+        origin = _checked_transform(transform, f"attached {name!r}")
         self._attached[name] = _Attached(Body(name, link, _as_trimesh(mesh, name), origin,
                                               "attached"), touch)
         self._plans.clear()

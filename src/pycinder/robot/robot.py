@@ -343,9 +343,12 @@ class Robot(RobotModel):
         elif clearance is not None:
             tolerance = np.full(len(a), np.inf)
         else:
-            if plan.sizes is None:
-                plan.sizes = np.array([_size(bodies[i]) for i in plan.used])
-            tolerance = DEFAULT_RELATIVE_TOLERANCE * np.minimum(plan.sizes[a], plan.sizes[b])
+            if plan.sizes is None:  # the robot's bodies' (an environment's may be placed anew)
+                plan.sizes = np.array([_size(bodies[i]) if k >= 0 else np.nan
+                                       for i, k in zip(plan.used, sources)])
+            size = np.where(sources >= 0, plan.sizes, [_size(bodies[i]) if k < 0 else 0.0
+                                                       for i, k in zip(plan.used, sources)])
+            tolerance = DEFAULT_RELATIVE_TOLERANCE * np.minimum(size[a], size[b])
         if clearance is not None:  # a padded check tests within a quarter of its clearance
             tolerance = np.minimum(tolerance, clearance / 4)
         if not (error[a] + error[b] <= POSE_MARGIN * tolerance).all():
@@ -363,9 +366,27 @@ class Robot(RobotModel):
                 plan.front.place(fixed)
         return plan.front
 
+    def _gpu_batch(self, qs: np.ndarray, plan: _Plan, bodies: list[Body],
+                   clearance: float | None) -> GpuPairCull | None:
+        """Passes K1 and K2 for a batch of configurations ``qs``, or None where the host makes
+        its poses and box test: fewer than :data:`GPU_FRONT_FROM` configurations, a
+        :meth:`_gpu_front` of None, or joint values outside what K1's estimate holds for."""
+        from ..errors import GpuError
+
+        if len(qs) < GPU_FRONT_FROM:
+            return None
+        try:
+            front = self._gpu_front(plan, bodies, clearance)
+        except GpuError:  # its buffers or pipelines could not be made: the next check anew
+            self._forget_fronts()
+            raise
+        return front if front is not None and front.kinematics.reaches(qs) else None
+
     def _forget_fronts(self) -> None:
-        """Drop passes K1 and K2 (after a GPU error: the next check makes them anew)."""
+        """Drop passes K1 and K2, and the padded checks' detectors (after a GPU error: the next
+        check makes them anew, on the detector's device)."""
         self._kinematics = None
+        self._padded.clear()
         for plan in self._plans.values():
             plan.front = None
 
@@ -413,7 +434,8 @@ class Robot(RobotModel):
 
         cache = self._padded
         if clearance not in cache:
-            cache.clear()
+            while len(cache) >= 2:  # a check's host batches' and GPU batches' (see _query)
+                cache.pop(next(iter(cache)))
             cache[clearance] = Detector(records="none", broad_phase="numpy",
                                         clearance=clearance)
         return cache[clearance]
@@ -443,27 +465,28 @@ class Robot(RobotModel):
         if not len(plan.pairs) or not len(qs):
             return
         clearance = None if pads is None else max(float(pads.max()), 1e-12)
-        front = None
-        if len(qs) >= GPU_FRONT_FROM:
-            front = self._gpu_front(plan, bodies, clearance)
         try:
-            survivors = boxes = fixed_boxes = None
-            if front is None or not front.kinematics.reaches(qs):
+            survivors = boxes = fixed_boxes = slack = None
+            front = self._gpu_batch(qs, plan, bodies, clearance)
+            if front is None:
                 rows = self.poses(qs)[..., :3, :]
             else:
-                try:
-                    with self.detector._device_lock():
+                with self.detector._device_lock():
+                    try:
                         rows, boxes, survivors = front.run(qs, clearance or 0.0)
-                except GpuMemoryError:
-                    raise
-                except (GpuError, wgpu.GPUError) as exc:
-                    self._forget_fronts()
-                    raise self.detector._recover(exc) from exc
+                    except GpuMemoryError:
+                        raise
+                    except (GpuError, wgpu.GPUError) as exc:
+                        self._forget_fronts()
+                        raise self.detector._recover(exc) from exc
                 fixed_boxes = np.zeros((len(bodies), 2, 3))
                 fixed_boxes[plan.used] = front.fixed
+                slack = np.zeros(len(bodies))
+                slack[plan.used] = front.error
             fixed = np.array([b.origin for b in bodies[len(rows[0]):]]).reshape(-1, 4, 4)
             poses = _Poses(rows, fixed, boxes, fixed_boxes)
-            config, a, b = self._query(poses, start, plan, bodies, pads, clearance, survivors)
+            config, a, b = self._query(poses, start, plan, bodies, pads, clearance, survivors,
+                                       slack)
         except GpuMemoryError:
             if len(qs) == 1:
                 raise
@@ -482,7 +505,7 @@ class Robot(RobotModel):
 
     def _query(self, poses: _Poses, start: int, plan: _Plan, bodies: list[Body],
                pads: np.ndarray | None, clearance: float | None = None,
-               survivors: np.ndarray | None = None
+               survivors: np.ndarray | None = None, slack: np.ndarray | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One query of a batch of configurations (``poses``: each body's pose in each):
         copies of the check's bodies, prepared once, in one scene whose only candidates are each
@@ -490,7 +513,9 @@ class Robot(RobotModel):
         by their world boxes). Without ``survivors``, a copy per configuration of every
         body some checked pair names, the pairs culled by the host's boxes; with them (pass K2's
         (S, 3): configuration and positions in ``plan.used``), copies of the bodies of the
-        pairs kept alone, and those pairs the candidates. Returns the pairs found: each one's
+        pairs kept alone, and those pairs the candidates, the scene's world boxes K1's; a
+        padded check then keeps a pair within its padding plus both bodies' K1 error estimates
+        (``slack`` (B,), per body of the check). Returns the pairs found: each one's
         configuration (index into the batch) and bodies ``a``, ``b`` (indices into
         ``bodies``), (P,) each; with padding, each pair kept by its own padding (environment
         pairs by the robot body's, the robot's own pairs by none: MoveIt's)."""
@@ -522,14 +547,18 @@ class Robot(RobotModel):
         if pads is None:
             result = self.detector._find_within(scene, candidates, tolerance)
         else:
-            result = self._padded_detector(clearance)._find_within(scene, candidates,
-                                                                   tolerance)
+            # At K1's poses each body may lie its error estimate (``slack``) off float64's:
+            # pairs that close to their padding are measured and kept.
+            reach = clearance if slack is None else clearance + 2.0 * float(slack.max())
+            result = self._padded_detector(reach)._find_within(scene, candidates, tolerance)
         found = result.pairs
         config, a, b = config[found[:, 0]], used[body[found[:, 0]]], used[body[found[:, 1]]]
         if pads is None:
             return config, a, b
         robot = len(self.bodies) + len(self._attached)
         limit = np.where((a >= robot) | (b >= robot), pads[a] + pads[b], 0.0)
+        if slack is not None:
+            limit = np.where(limit > 0, limit + slack[a] + slack[b], 0.0)
         keep = result.distances < limit + result.distance_errors
         return config[keep], a[keep], b[keep]
 

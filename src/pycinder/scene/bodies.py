@@ -540,6 +540,8 @@ class Scene:
         World from body, where body coordinates are those of the shapes' stored vertices (the
         transforms given, with each shape's offset folded in).
     names : list of str or None
+    boxes : ((N, 3), (N, 3)) float64 or None
+        World boxes given with the bodies (see below); None: measured.
     """
 
     shapes: list[Shape]
@@ -606,9 +608,10 @@ class Scene:
         """(N, 3) the world centre of every body's body-space box, made once a scene (its
         world box and its tolerance's floor both start from it)."""
         if self._centres is None:
-            self._centres = np.einsum("nij,nj->ni", self.transforms[:, :3, :3],
-                                      0.5 * (self.local_lo + self.local_hi)) \
-                + self.transforms[:, :3, 3]
+            centres = np.einsum("nij,nj->ni", self.transforms[:, :3, :3],
+                                0.5 * (self.local_lo + self.local_hi)) + self.transforms[:, :3, 3]
+            centres.flags.writeable = False  # shared by every reader
+            self._centres = centres
         return self._centres
 
     def bounding_radii(self) -> np.ndarray:

@@ -335,9 +335,13 @@ def _nested(scene: Scene, a: int, b: int, lo: np.ndarray, hi: np.ndarray,
     scene's world boxes; ``open_body``: :attr:`Scene.open`."""
     origin = 0.5 * (np.maximum(lo[a], lo[b]) + np.minimum(hi[a], hi[b]))
     for inner, outer in ((a, b), (b, a)):
-        if open_body[outer] or np.any(lo[inner] < lo[outer]) or np.any(hi[inner] > hi[outer]):
+        if open_body[outer]:
             continue
         point = body_vertices(scene, inner, origin)[0][0]
+        # A vertex outside the outer body's world box is outside it (whatever boxes the scene
+        # has: measured, or given larger by whoever placed the bodies).
+        if np.any(point + origin < lo[outer]) or np.any(point + origin > hi[outer]):
+            continue
         if contains(world_triangles(scene, outer, origin), point):
             return True
     return False
