@@ -254,25 +254,11 @@ def robot_manifest(tmp_path_factory):
     checked in this process."""
     pytest.importorskip("yourdfpy", reason="robot manifests need the robot extra")
     pytest.importorskip("pybullet_data", reason="the Panda comes from pybullet_data")
-    import numpy as np
-    import trimesh
-
-    from pycinder.benchmarks import robots as R
-    from pycinder.robot import AllowedCollisionMatrix
+    from robot_helpers import load_robots, write_panda_manifest
 
     folder = tmp_path_factory.mktemp("robot")
-    panda = R.load("panda")
-    panda.allowed = AllowedCollisionMatrix((a, b, "Adjacent") for a, b in panda.adjacent_links())
-    panda.write_srdf(folder / "panda.srdf")
-    np.save(folder / "q.npy", panda.random_configurations(40, seed=5))
-    trimesh.creation.box((1.5, 1.0, 0.05)).export(folder / "table.stl")
-    place = np.eye(4)
-    place[:3, 3] = (0.35, 0.0, -0.035)
-    manifest = folder / "robot.json"
-    manifest.write_text(json.dumps({
-        "robot": str(R.data_path() / R.ROBOTS["panda"]), "srdf": "panda.srdf",
-        "configurations": "q.npy",
-        "environment": [{"mesh": "table.stl", "transform": place.tolist(), "name": "table"}]}))
+    panda = load_robots()["panda"]
+    manifest, _ = write_panda_manifest(folder, panda, panda.random_configurations(40, seed=5))
     here = folder / "here.jsonl"
     assert main(["batch", str(manifest), "--out", str(here), "--robot-batch", "8"]) == 0
     return folder, manifest, here.read_text().splitlines()

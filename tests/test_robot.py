@@ -15,6 +15,8 @@ pytest.importorskip("fcl", reason="answers are compared with python-fcl's")
 from pycinder.benchmarks import robots as R  # noqa: E402
 from pycinder.robot import AllowedCollisionMatrix, Environment, Robot, matrix_from_samples
 
+from robot_helpers import TABLE_PLACE, adjacent_only, load_robots, write_panda_manifest
+
 CONFIGURATIONS = {"panda": 100, "kuka": 25, "xarm": 100, "a1": 100}
 """Random configurations per robot here (the benchmark runs 1,000; the KUKA's open meshes of
 1,100 to 3,000 triangles are tested as surfaces, the slowest on lavapipe)."""
@@ -38,13 +40,7 @@ def _quiet():
 
 @pytest.fixture(scope="module")
 def robots():
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return {name: R.load(name) for name in R.ROBOTS}
-
-
-def adjacent_only(robot: Robot) -> AllowedCollisionMatrix:
-    return AllowedCollisionMatrix((a, b, "Adjacent") for a, b in robot.adjacent_links())
+    return load_robots()
 
 
 def test_robots_load_with_open_meshes_as_they_are(robots):
@@ -384,20 +380,9 @@ def test_batch_runs_a_robot_manifest_with_resume(robots, tmp_path, capsys):
     from pycinder.cli import main
 
     panda = robots["panda"]
-    panda.allowed = adjacent_only(panda)
-    srdf = tmp_path / "panda.srdf"
-    panda.write_srdf(srdf)
     q = panda.random_configurations(12, seed=21)
-    np.save(tmp_path / "q.npy", q)
-    table = trimesh.creation.box((1.5, 1.0, 0.05))
-    table.export(tmp_path / "table.stl")
-    place = np.eye(4)
-    place[:3, 3] = (0.35, 0.0, -0.035)
-    manifest = tmp_path / "robot.json"
-    manifest.write_text(json.dumps({
-        "robot": str(R.data_path() / R.ROBOTS["panda"]), "srdf": "panda.srdf",
-        "configurations": "q.npy",
-        "environment": [{"mesh": "table.stl", "transform": place.tolist(), "name": "table"}]}))
+    manifest, table = write_panda_manifest(tmp_path, panda, q)
+    place = TABLE_PLACE
     out = tmp_path / "out.jsonl"
     assert main(["batch", str(manifest), "--out", str(out), "--robot-batch", "5"]) == 0
     rows = [json.loads(line) for line in out.read_text().splitlines()]

@@ -18,10 +18,12 @@ import pycinder  # noqa: E402
 
 from pycinder.benchmarks import robots as R  # noqa: E402
 from pycinder.focused.broad.prune import PairList  # noqa: E402
-from pycinder.robot import AllowedCollisionMatrix, Robot  # noqa: E402
+from pycinder.robot import Robot  # noqa: E402
 from pycinder.robot import robot as robot_module  # noqa: E402
 from pycinder.robot.cull import GpuPairCull  # noqa: E402
 from pycinder.robot.kinematics import GpuKinematics  # noqa: E402
+
+from robot_helpers import adjacent_only, load_robots  # noqa: E402
 
 
 @pytest.fixture(autouse=True)
@@ -35,13 +37,7 @@ def _quiet(monkeypatch):
 
 @pytest.fixture(scope="module")
 def robots():
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return {name: R.load(name) for name in R.ROBOTS}
-
-
-def adjacent_only(robot: Robot) -> AllowedCollisionMatrix:
-    return AllowedCollisionMatrix((a, b, "Adjacent") for a, b in robot.adjacent_links())
+    return load_robots()
 
 
 def vertices_of(robot: Robot) -> list[np.ndarray]:

@@ -1,16 +1,7 @@
 """``pycinder batch ROBOT.json --out OUT``: a robot's configurations, one row each, resumable.
 
-A robot manifest is one JSON object (a file ending in ``.json``, not JSON lines)::
-
-    {"robot": "panda.urdf", "srdf": "panda.srdf", "configurations": "samples.npy",
-     "environment": [{"mesh": "table.stl", "transform": [[1, 0, 0, 0.4], ...], "name": "table"}],
-     "tolerance": 0.001, "package_dirs": ["meshes"], "self_collision": true}
-
-``robot`` (a URDF) and ``configurations`` are required: an NPY file of (C, J) joint values, or a
-Parquet file with a column per actuated joint (named as the URDF names them) or J numeric
-columns in order. ``srdf`` (its ``<disable_collisions>`` pairs are honoured as given),
-``environment``, ``tolerance``, ``package_dirs`` and ``self_collision`` are optional; paths are
-relative to the manifest's folder.
+ROBOT.json is a robot manifest (:mod:`.robot_manifest`: one JSON object naming a URDF, its
+configurations and optionally an SRDF and an environment).
 
 OUT gets one row per configuration, in order, written as each batch of configurations is
 checked (:mod:`.sink`: JSON lines, or Parquet when OUT ends in ``.parquet``)::
