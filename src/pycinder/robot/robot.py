@@ -330,7 +330,6 @@ class Robot(RobotModel):
             with self.detector._device_lock():
                 kinematics = self._kinematics = GpuKinematics(self, gpu,
                                                               self.detector.request.timeout)
-            kinematics.attached = attached
         robot = len(self.bodies) + len(self._attached)
         sources = np.where(plan.used < robot, plan.used, -1)
         # Per checked pair, both bodies' estimates against the tolerance its query gives it.
