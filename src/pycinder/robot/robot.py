@@ -61,7 +61,8 @@ class _Plan:
     front: GpuPairCull | None = None
     """Its passes K1 and K2 on the GPU (made by the first batch that takes its poses there)."""
     sizes: np.ndarray | None = None
-    """(U,) the sizes of the bodies of :attr:`used` (see :func:`_size`), measured once."""
+    """(U,) the sizes of the robot's bodies among :attr:`used` (see :func:`_size`), measured
+    once; NaN for an environment's body (measured each check: it may be placed anew)."""
 
     @classmethod
     def of(cls, pairs: list[tuple[int, int]]) -> _Plan:
