@@ -122,8 +122,7 @@ class GpuPairCull:
         box = outwards(self.fixed)
         table["lo"], table["hi"] = box[:, 0], box[:, 1]
         table["source"] = np.where(moving, sources, FIXED)
-        self.error = np.where(moving, kinematics.error_estimate()[np.maximum(sources, 0)],
-                              0.0)
+        self.error = kinematics.errors_of(sources)
         """(U,) each body's K1 error estimate (0 for a fixed body)."""
         table["pad"] = 2.0 * self.error
         self._local = (lo, hi)

@@ -169,11 +169,7 @@ class GpuKinematics:
         prismatic joint's offset lies within the travel :meth:`error_estimate` assumes (its
         limits; a check's configurations need not keep them): if not, the estimate does not
         hold for them (a mimic's multiplier may also overflow a finite value)."""
-        col, mult, off, revolute = self._motion
-        q = np.asarray(q, np.float64)
-        if not len(col) or not q.shape[1]:
-            return True
-        value = q.take(col, axis=1) * mult + off
+        value = self._values(q)
         # inf travel for a joint that turns: any finite angle
         return bool(np.isfinite(value).all() and (np.abs(value) <= self._travel).all())
 
@@ -182,16 +178,29 @@ class GpuKinematics:
         kinematics puts it (see the module's docstring), in world units."""
         return self._estimate
 
-    def motions_of(self, q: np.ndarray) -> np.ndarray:
-        """(C, M, 2) float32: each moving joint's motion in each configuration ``q`` (C, J):
-        a revolute joint's sine and versine (``1 - cos``, as ``2 sin^2(a / 2)``), a prismatic
-        joint's offset and 0; computed in float64 and rounded once."""
-        col, mult, off, revolute = self._motion  # a column of -1 (none) has multiplier 0
+    def errors_of(self, sources: np.ndarray) -> np.ndarray:
+        """(U,) :meth:`error_estimate` of bodies ``sources`` (U,) (indices among this pass's
+        bodies), 0 where a source is -1 (a body that does not move with the robot)."""
+        sources = np.asarray(sources, np.int64)
+        return np.where(sources >= 0, self._estimate[np.maximum(sources, 0)], 0.0)
+
+    def _values(self, q: np.ndarray) -> np.ndarray:
+        """(C, M) float64 each moving joint's value (angle or offset) in configurations ``q``
+        (C, J): its column times its multiplier plus its offset."""
+        col, mult, off, _ = self._motion  # a column of -1 (none) has multiplier 0
         q = np.asarray(q, np.float64)
         value = q.take(col, axis=1) if q.shape[1] else np.zeros((len(q), len(col)))
         value *= mult
         value += off
-        out = np.zeros((len(q), len(col), 2), np.float32)
+        return value
+
+    def motions_of(self, q: np.ndarray) -> np.ndarray:
+        """(C, M, 2) float32: each moving joint's motion in each configuration ``q`` (C, J):
+        a revolute joint's sine and versine (``1 - cos``, as ``2 sin^2(a / 2)``), a prismatic
+        joint's offset and 0; computed in float64 and rounded once."""
+        revolute = self._motion[3]
+        value = self._values(q)
+        out = np.zeros((len(value), len(revolute), 2), np.float32)
         turn = value[:, revolute]
         out[:, revolute, 0] = np.sin(turn)
         half = np.sin(0.5 * turn)

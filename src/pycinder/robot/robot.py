@@ -14,7 +14,7 @@ import numpy as np
 import wgpu
 
 from ..focused.broad.prune import PairList
-from ..tolerance import DEFAULT_RELATIVE_TOLERANCE
+from ..tolerance import DEFAULT_RELATIVE_TOLERANCE, body_sizes
 from .acm import AllowedCollisionMatrix, matrix_from_samples
 from .model import Body, Environment, RobotModel
 
@@ -60,9 +60,6 @@ class _Plan:
     """The check's bodies, prepared once (made by the first batch)."""
     front: GpuPairCull | None = None
     """Its passes K1 and K2 on the GPU (made by the first batch that takes its poses there)."""
-    sizes: np.ndarray | None = None
-    """(U,) the sizes of the robot's bodies among :attr:`used` (see :func:`_size`), measured
-    once; NaN for an environment's body (measured each check: it may be placed anew)."""
 
     @classmethod
     def of(cls, pairs: list[tuple[int, int]]) -> _Plan:
@@ -333,8 +330,11 @@ class Robot(RobotModel):
                                                               self.detector.request.timeout)
         robot = len(self.bodies) + len(self._attached)
         sources = np.where(plan.used < robot, plan.used, -1)
+        used = [bodies[i] for i in plan.used]
+        origins = np.array([b.origin for b in used]).reshape(-1, 4, 4)
+        bounds = np.array([b.mesh.bounds for b in used], np.float64).reshape(-1, 2, 3)
         # Per checked pair, both bodies' estimates against the tolerance its query gives it.
-        error = np.where(sources >= 0, kinematics.error_estimate()[np.maximum(sources, 0)], 0.0)
+        error = kinematics.errors_of(sources)
         a, b = plan.pairs[:, 0], plan.pairs[:, 1]
         given = self.tolerance if self.tolerance is not None else \
             self.detector.request.tolerance
@@ -342,22 +342,15 @@ class Robot(RobotModel):
             tolerance = np.full(len(a), float(given))
         elif clearance is not None:
             tolerance = np.full(len(a), np.inf)
-        else:
-            if plan.sizes is None:  # the robot's bodies' (an environment's may be placed anew)
-                plan.sizes = np.array([_size(bodies[i]) if k >= 0 else np.nan
-                                       for i, k in zip(plan.used, sources)])
-            size = np.where(sources >= 0, plan.sizes, [_size(bodies[i]) if k < 0 else 0.0
-                                                       for i, k in zip(plan.used, sources)])
+        else:  # the default: of the smaller body's size, placed by its origin
+            size = body_sizes(bounds[:, 0], bounds[:, 1], origins)
             tolerance = DEFAULT_RELATIVE_TOLERANCE * np.minimum(size[a], size[b])
         if clearance is not None:  # a padded check tests within a quarter of its clearance
             tolerance = np.minimum(tolerance, clearance / 4)
         if not (error[a] + error[b] <= POSE_MARGIN * tolerance).all():
             return None
-        used = [bodies[i] for i in plan.used]
-        fixed = np.array([b.origin if k < 0 else np.eye(4)
-                          for b, k in zip(used, sources)]).reshape(-1, 4, 4)
+        fixed = np.where((sources < 0)[:, None, None], origins, np.eye(4))
         if plan.front is None or plan.front.kinematics is not kinematics:
-            bounds = np.array([b.mesh.bounds for b in used], np.float64).reshape(-1, 2, 3)
             with self.detector._device_lock():
                 plan.front = GpuPairCull(kinematics, sources, fixed, bounds[:, 0],
                                          bounds[:, 1], plan.pairs)
@@ -687,13 +680,6 @@ class Robot(RobotModel):
     def write_srdf(self, path: str | Path) -> None:
         """Write :attr:`allowed` as an SRDF file."""
         self.allowed.write_srdf(path, self.name)
-
-
-def _size(body: Body) -> float:
-    """A body's size as the default tolerance measures it: its box's diagonal, placed by its
-    origin (:func:`pycinder.tolerance.body_sizes`)."""
-    lo, hi = np.asarray(body.mesh.bounds, np.float64)
-    return float(np.linalg.norm(np.asarray(body.origin, np.float64)[:3, :3] @ (hi - lo)))
 
 
 def _owner(body: Body) -> str:
