@@ -43,7 +43,7 @@ from ...gpu.layout import TILE
 from ...util.text import plural
 from .atlas import BAND_SLACK, MAX_PAIRS, MAX_TILES, NO_FIT, SUMMARY, AtlasPlan, AtlasPlanner
 from .atlas import TILE as ATLAS_TILE
-from .tiles import TilePlan, check_pixels, empty_plan, plan_tiles
+from .tiles import LazyViewPlan, TilePlan, check_pixels, empty_plan, plan_tiles
 from .bodies import GpuBodies
 from .tilewords import TileWords
 from .windows import WINDOW, GpuWindows
@@ -215,7 +215,7 @@ class _Views:
         return axes, origin, pixel, r["slab"].astype(np.float64)
 
 
-class GpuTilePlan(TilePlan):
+class GpuTilePlan(LazyViewPlan):
     """A :class:`TilePlan` made by the GPU planner, whose tiles' views (``axes``, ``origin``,
     ``pixel``, ``slab``) are gathered on the host only when first read: to decode records, to
     cut tiles again, or to compare plans. A query that reads none of them (pairs only, or
@@ -224,11 +224,12 @@ class GpuTilePlan(TilePlan):
     def __init__(self, pair: np.ndarray, bodies: np.ndarray, window: np.ndarray,
                  flags: np.ndarray, round: np.ndarray, round_rows: list[int], atlas_width: int,
                  separated: int, views: _Views) -> None:
-        self.pair, self.bodies, self.window, self.flags, self.round = \
-            pair, bodies, window, flags, round
-        self.round_rows, self.atlas_width, self.separated = round_rows, atlas_width, separated
+        super().__init__(pair=pair, bodies=bodies, window=window, flags=flags, round=round,
+                         round_rows=round_rows, atlas_width=atlas_width, separated=separated)
         self._views = views
-        self._gathered: tuple | None = None
+
+    def _gather(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        return self._views.gather()
 
     def views(self, which: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """See :meth:`TilePlan.views`: gathered for tiles ``which`` alone, unless all were."""
@@ -238,17 +239,6 @@ class GpuTilePlan(TilePlan):
         if which.dtype == bool:
             which = np.flatnonzero(which)
         return self._views.gather(which.astype(np.int64))
-
-    def _view(self, k: int) -> np.ndarray:
-        gathered = self._gathered
-        if gathered is None:  # two threads may both gather: the same arrays either way
-            gathered = self._gathered = self._views.gather()
-        return gathered[k]
-
-    axes = property(lambda self: self._view(0), doc="(T, 3, 3) float64, see TilePlan")
-    origin = property(lambda self: self._view(1), doc="(T, 3) float64, see TilePlan")
-    pixel = property(lambda self: self._view(2), doc="(T,) float64, see TilePlan")
-    slab = property(lambda self: self._view(3), doc="(T, 2) float64, see TilePlan")
 
 
 __all__ = ["PASSES", "GpuPlanner", "GpuTilePlan"]

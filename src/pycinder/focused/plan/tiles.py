@@ -24,6 +24,7 @@ pixels along the view direction from the middle of the overlap box. World point
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -328,30 +329,45 @@ def concat_plans(plans: list[TilePlan]) -> TilePlan:
                       atlas_width=plans[0].atlas_width, separated=plans[0].separated)
 
 
-class ConcatPlan(TilePlan):
-    """The :class:`TilePlan` of :func:`concat_plans`: its parts' views are joined when first
-    read."""
+class LazyViewPlan(TilePlan):
+    """A :class:`TilePlan` whose tiles' views (``axes``, ``origin``, ``pixel``, ``slab``) are
+    made when first read (:meth:`_gather`); the other fields are given."""
 
-    def __init__(self, parts: list[TilePlan], *, pair: np.ndarray, bodies: np.ndarray,
-                 window: np.ndarray, flags: np.ndarray, round: np.ndarray, round_rows: list[int],
-                 atlas_width: int, separated: int) -> None:
+    def __init__(self, *, pair: np.ndarray, bodies: np.ndarray, window: np.ndarray,
+                 flags: np.ndarray, round: np.ndarray, round_rows: list[int], atlas_width: int,
+                 separated: int) -> None:
         self.pair, self.bodies, self.window, self.flags, self.round = \
             pair, bodies, window, flags, round
         self.round_rows, self.atlas_width, self.separated = round_rows, atlas_width, separated
+        self._gathered: tuple | None = None
+
+    def _gather(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``axes`` (T, 3, 3), ``origin`` (T, 3), ``pixel`` (T,) and ``slab`` (T, 2)."""
+        raise NotImplementedError
+
+    def _view(self, k: int) -> np.ndarray:
+        gathered = self._gathered
+        if gathered is None:  # two threads may both gather: the same arrays either way
+            gathered = self._gathered = self._gather()
+        return gathered[k]
+
+    axes = property(lambda self: self._view(0), doc="(T, 3, 3) float64, see TilePlan")
+    origin = property(lambda self: self._view(1), doc="(T, 3) float64, see TilePlan")
+    pixel = property(lambda self: self._view(2), doc="(T,) float64, see TilePlan")
+    slab = property(lambda self: self._view(3), doc="(T, 2) float64, see TilePlan")
+
+
+class ConcatPlan(LazyViewPlan):
+    """The :class:`TilePlan` of :func:`concat_plans`: its parts' views are joined when first
+    read."""
+
+    def __init__(self, parts: list[TilePlan], **fields: Any) -> None:
+        super().__init__(**fields)
         self._parts = parts
-        self._joined: dict[str, np.ndarray] = {}
 
-    def _view(self, name: str) -> np.ndarray:
-        joined = self._joined.get(name)
-        if joined is None:
-            joined = self._joined[name] = np.concatenate([getattr(p, name)
-                                                          for p in self._parts])
-        return joined
-
-    axes = property(lambda self: self._view("axes"), doc="(T, 3, 3) float64, see TilePlan")
-    origin = property(lambda self: self._view("origin"), doc="(T, 3) float64, see TilePlan")
-    pixel = property(lambda self: self._view("pixel"), doc="(T,) float64, see TilePlan")
-    slab = property(lambda self: self._view("slab"), doc="(T, 2) float64, see TilePlan")
+    def _gather(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        return tuple(np.concatenate([getattr(p, name) for p in self._parts])  # type: ignore
+                     for name in ("axes", "origin", "pixel", "slab"))
 
 
 def check_pixels(cat: dict, pairs: np.ndarray, tolerance: np.ndarray, max_pixels: float
