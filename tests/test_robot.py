@@ -402,3 +402,23 @@ def test_batch_runs_a_robot_manifest_with_resume(robots, tmp_path, capsys):
     bad.write_text(json.dumps({"robot": "x.urdf", "configurations": "q.npy", "speed": 2}))
     assert main(["batch", str(bad), "--out", str(tmp_path / "o.jsonl")]) == 2
     assert "unknown keys ['speed']" in capsys.readouterr().err
+
+
+def test_paced_queries_grow_to_the_adapters_cap(robots, monkeypatch):
+    """Without ``batch``, a check's queries start at FIRST_BATCH configurations and at most
+    double, up to GPU_BODIES_PER_QUERY bodies a query on a GPU and DEFAULT_BODIES_PER_QUERY on
+    a CPU adapter (queries that take no time here: each doubles)."""
+    from types import SimpleNamespace
+
+    from pycinder.robot import DEFAULT_BODIES_PER_QUERY, FIRST_BATCH, GPU_BODIES_PER_QUERY
+
+    panda = robots["panda"]
+    plan, _ = panda._plan(R.environment("panda"), True)
+    for cpu, most in ((True, DEFAULT_BODIES_PER_QUERY), (False, GPU_BODIES_PER_QUERY)):
+        monkeypatch.setattr(panda.detector, "gpu", SimpleNamespace(cpu_adapter=cpu))
+        sizes = [stop - start for start, stop in panda._batches(40_000, None, plan)]
+        cap = most // plan.bodies
+        assert sum(sizes) == 40_000 and sizes[0] == FIRST_BATCH
+        assert max(sizes) == cap and all(b <= 2 * a for a, b in zip(sizes, sizes[1:]))
+        assert sizes[:-1] == [min(FIRST_BATCH * 2**k, cap) for k in range(len(sizes) - 1)]
+    assert GPU_BODIES_PER_QUERY // plan.bodies >= 4096  # thousands of Panda configurations

@@ -34,8 +34,10 @@ the largest padding apart never is.
 
 from .acm import REASONS, AllowedCollisionMatrix, matrix_from_samples
 from .model import JOINT_TYPES, Body, Environment, RobotModel
-from .robot import DEFAULT_BODIES_PER_QUERY, FIRST_BATCH, QUERY_SECONDS, Robot
+from .robot import (DEFAULT_BODIES_PER_QUERY, FIRST_BATCH, GPU_BODIES_PER_QUERY, QUERY_SECONDS,
+                    Robot)
 
-__all__ = ["DEFAULT_BODIES_PER_QUERY", "FIRST_BATCH", "JOINT_TYPES", "QUERY_SECONDS", "REASONS",
+__all__ = ["DEFAULT_BODIES_PER_QUERY", "FIRST_BATCH", "GPU_BODIES_PER_QUERY", "JOINT_TYPES",
+           "QUERY_SECONDS", "REASONS",
            "AllowedCollisionMatrix", "Body", "Environment", "Robot", "RobotModel",
            "matrix_from_samples"]

@@ -24,14 +24,21 @@ if TYPE_CHECKING:
     from .cull import GpuPairCull
 
 DEFAULT_BODIES_PER_QUERY = 12_000
-"""Most bodies one batched query holds by default (configurations per query: this divided by
-the bodies one configuration holds)."""
+"""Most bodies one batched query holds by default on a CPU adapter (configurations per query:
+this divided by the bodies one configuration holds)."""
+
+GPU_BODIES_PER_QUERY = 200_000
+"""Most bodies one batched query holds by default on a GPU: 11,764 Panda configurations with
+its table and tray. On an NVIDIA H200 a Panda query checks 71,070 configurations a second in
+queries of 1,024, 124,714 in queries of 4,096 and 154,791 in queries of 16,384
+(``benchmarks/results/robots.md``); a query the device cannot hold is split."""
 
 QUERY_SECONDS = 2.0
 """Wall seconds a batched query of :meth:`Robot.check` aims at when no ``batch`` is given:
 batches start at :data:`FIRST_BATCH` configurations and grow (at most doubling) while queries
-take less, up to :data:`DEFAULT_BODIES_PER_QUERY` bodies, so that a slow adapter (a CPU driver)
-gets small batches, far from the GPU timeout, and a fast GPU large ones."""
+take less, up to :data:`GPU_BODIES_PER_QUERY` bodies on a GPU and
+:data:`DEFAULT_BODIES_PER_QUERY` on a CPU adapter, so that a slow adapter (a CPU driver) gets
+small batches, far from the GPU timeout, and a fast GPU large ones."""
 
 FIRST_BATCH = 8
 """Configurations of the first batched query of a check (see :data:`QUERY_SECONDS`)."""
@@ -275,8 +282,9 @@ class Robot(RobotModel):
         batch : int, optional
             Configurations per query. Default: paced, from :data:`FIRST_BATCH` configurations
             growing while queries take less than :data:`QUERY_SECONDS`, up to
-            :data:`DEFAULT_BODIES_PER_QUERY` bodies per query. A batch too large for the
-            device's pixel budget is split.
+            :data:`GPU_BODIES_PER_QUERY` bodies per query on a GPU
+            (:data:`DEFAULT_BODIES_PER_QUERY` on a CPU adapter). A batch too large for the
+            device's pixel budget or memory is split.
         padding : float or dict of str to float, optional
             MoveIt's padding, in world units: one for every link, or per link or attached
             object name (names left out: 0). It applies against the environment: a link and an
@@ -435,7 +443,9 @@ class Robot(RobotModel):
 
     def _batch_size(self, batch: int | None, plan: _Plan) -> int:
         if batch is None:
-            return max(1, DEFAULT_BODIES_PER_QUERY // max(plan.bodies, 1))
+            most = DEFAULT_BODIES_PER_QUERY if self.detector.gpu.cpu_adapter \
+                else GPU_BODIES_PER_QUERY
+            return max(1, most // max(plan.bodies, 1))
         if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
             raise ValueError(f"batch must be a positive whole number of configurations, got "
                              f"{batch!r}")
