@@ -1,7 +1,6 @@
 """pycinder.robot: URDF robots from pybullet_data, the allowed-collision matrix, and checks
 against python-fcl's exact answers, disagreements scored by exact geometry."""
 
-import os
 import warnings
 
 import numpy as np
