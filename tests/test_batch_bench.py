@@ -85,3 +85,66 @@ def test_robot_rows_hold_trimesh_beside_python_fcl():
     assert row["scored"]["missed"] == 0 and row["scored"]["false"] == 0
     text = "\n".join(batch.robots_markdown(rows))
     assert "| trimesh / s |" in text and " (6) |" in text
+
+
+def test_front_sweep_times_both_paths_and_restores_the_threshold(monkeypatch):
+    """run_front_sweep times each size through the host's poses and box test and through
+    passes K1 and K2: K1 and K2 ran on every query of the GPU's path and on none of the host's;
+    it leaves GPU_FRONT_FROM as it found it, also when a check fails."""
+    from pycinder.robot import robot as robot_module
+
+    paths = []  # (configurations, whether K1 and K2 ran) of every query
+    real = robot_module.Robot._gpu_batch
+
+    def noted(self, qs, *args):
+        front = real(self, qs, *args)
+        paths.append((len(qs), front is not None))
+        return front
+
+    monkeypatch.setattr(robot_module.Robot, "_gpu_batch", noted)
+    before = robot_module.GPU_FRONT_FROM
+    r = batch.run_front_sweep("xarm", (4,), rounds=1, samples=0)
+    assert robot_module.GPU_FRONT_FROM == before and r["robot"] == "xarm"
+    (row,) = r["sizes"]
+    assert row["batch_size"] == 4 and row["configurations"] == 256
+    assert row["host"]["k1k2"] == 0 and row["gpu"]["k1k2"] == 1
+    for path in ("host", "gpu"):
+        assert row[path]["per_s"] > 0 and row[path]["host_cpu_us"] > 0
+    # 2 checks a path (untimed, timed) of 1 and 64 queries of 4 configurations
+    assert sorted(set(paths)) == [(4, False), (4, True)]
+    assert paths.count((4, False)) == paths.count((4, True)) == 65
+    lines = batch.front_sweep_markdown([r], "here")
+    assert len(lines) == 3 and lines[2].startswith("| xarm | 4 | ")
+    assert "K1/K2 in" not in lines[2]
+    row["gpu"]["k1k2"] = 0.5
+    assert "K1/K2 in 50% of queries" in batch.front_sweep_markdown([r], "here")[2]
+
+    def fails(self, *args, **kwargs):
+        assert robot_module.GPU_FRONT_FROM != before
+        raise RuntimeError("a check that fails")
+
+    monkeypatch.setattr(robot_module.Robot, "check", fails)
+    with pytest.raises(RuntimeError, match="a check that fails"):
+        batch.run_front_sweep("xarm", (4,), rounds=1, samples=0)
+    assert robot_module.GPU_FRONT_FROM == before
+    with pytest.raises(ValueError, match="rounds at least 1"):
+        batch.run_front_sweep("xarm", (4,), rounds=0, samples=0)
+
+
+def test_paced_checks_time_each_cap_and_restore_it():
+    """run_paced checks the same configurations paced under each cap of bodies a query and
+    restores GPU_BODIES_PER_QUERY; on a CPU adapter, which keeps its own cap, both caps make
+    the same queries."""
+    from pycinder.robot import robot as robot_module
+
+    before = robot_module.GPU_BODIES_PER_QUERY
+    rows = batch.run_paced("xarm", 100, (12_000, 200_000), rounds=1, samples=0)
+    assert robot_module.GPU_BODIES_PER_QUERY == before
+    assert [r["cap"] for r in rows] == [12_000, 200_000]
+    for r in rows:
+        assert r["per_s"] > 0 and r["host_cpu_us"] > 0 and r["largest"] >= 8
+        assert r["queries"] >= 2  # paced: 8 configurations first
+    from pycinder.gpu.device import get_gpu
+
+    if get_gpu().cpu_adapter:
+        assert rows[0]["queries"] == rows[1]["queries"]

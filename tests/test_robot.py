@@ -421,3 +421,15 @@ def test_paced_queries_grow_to_the_adapters_cap(robots, monkeypatch):
         assert max(sizes) == cap and all(b <= 2 * a for a, b in zip(sizes, sizes[1:]))
         assert sizes[:-1] == [min(FIRST_BATCH * 2**k, cap) for k in range(len(sizes) - 1)]
     assert GPU_BODIES_PER_QUERY // plan.bodies >= 4096  # thousands of Panda configurations
+
+
+def test_a_check_with_nothing_to_query_starts_no_device():
+    """A check with no pair to test (self-collision off, no environment) or no configuration
+    answers without making the robot's detector (which would ask for a GPU)."""
+    robot = R.load("xarm")
+    q = robot.random_configurations(5, seed=1)
+    assert robot.check(q, self_collision=False).tolist() == [False] * 5
+    assert robot.check(q[:0]).shape == (0,)
+    collides, pairs = robot.check(q, self_collision=False, return_pairs=True)
+    assert not collides.any() and pairs == [[]] * 5
+    assert robot._detector is None

@@ -127,7 +127,8 @@ def ray_rates(entries: list[dict], workers: Sequence[int], batch: int, unbatched
                 pairs = {r["id"]: r.get("pairs") for r in results}
                 s = results.summary
                 rows.append({"workers": w, "batch_size": size, "scenes": s["scenes"],
-                             "seconds": s["seconds"] - s["startup_seconds"], "scenes_per_s": s["scenes_per_s"],
+                             "seconds": s["seconds"] - s["startup_seconds"],
+                             "scenes_per_s": s["scenes_per_s"],
                              "startup_s": start, "failed": s["failed"],
                              "mesh_loads": s.get("mesh_loads"), "pairs": pairs})
     finally:
@@ -406,6 +407,179 @@ def run_check_sweep(name: str = "panda", sizes: Sequence[int] = CHECK_SIZES, *,
         if out["overtakes"] is None and row["per_s"] > out["python-fcl"]["per_s"]:
             out["overtakes"] = size
     return out
+
+
+FRONT_SIZES = (1, 4, 8, 16, 32, 64, 128)
+"""Configurations per query of :func:`run_front_sweep`."""
+
+
+def run_front_sweep(name: str = "panda", sizes: Sequence[int] = FRONT_SIZES, *,
+                    rounds: int = 3, samples: int = 300, seed: int = 0,
+                    progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Where passes K1 and K2 pay: ``Robot.check`` of robot ``name`` with its environment at
+    each batch size, through the host's poses and box test and through passes K1 and K2,
+    alternating.
+
+    The path is chosen by setting the module global ``pycinder.robot.robot.GPU_FRONT_FROM``
+    (above the size: the host's; 1: K1 and K2), restored afterwards: it holds for every robot
+    of the process, so nothing else may check robots meanwhile. Each timed check holds at least
+    256 configurations (128 in queries of one), after one untimed check of the size.
+
+    Parameters
+    ----------
+    name : str
+        A robot of :data:`.robots.ROBOTS`.
+    sizes : sequence of int
+        Configurations per query.
+    rounds : int
+        Timed checks of each size and path; the best of them is kept.
+    samples : int
+        Random configurations of the allowed-collision matrix (0: the matrix it loads with).
+    seed : int
+        Seed of the configurations (the matrix's: ``seed + 1``).
+    progress : callable, optional
+        Called with a line of text before each size.
+
+    Returns
+    -------
+    dict
+        ``robot``, ``rounds`` and ``sizes``: per size, ``batch_size``, ``configurations`` and,
+        for ``host`` and ``gpu``, the best rate (``per_s``), the least host CPU microseconds a
+        configuration (``host_cpu_us``, every Python thread summed) and the share of queries
+        that ran K1 and K2 (``k1k2``: 0 on the host's path; below 1 on the GPU's where a query's
+        joint values or tolerances sent it to the host, see ``Robot._gpu_batch``).
+    """
+    from ..robot import robot as robot_module
+    from .hostcpu import cpu_ms, python_thread_clocks
+
+    if not sizes or min(sizes) < 1 or rounds < 1:
+        raise ValueError(f"sizes must be positive configurations per query and rounds at least "
+                         f"1, got {tuple(sizes)} and {rounds}")
+    say = progress or (lambda msg: None)
+    robot, env = load(name), environment(name)
+    if samples:
+        robot.allowed = robot.compute_allowed_collisions(samples, seed=seed + 1)
+    q = robot.random_configurations(max(256, 8 * max(sizes)), seed)
+    ran: list[bool] = []  # whether each query ran K1 and K2
+    real = robot._gpu_batch
+
+    def noted(*args: Any) -> Any:
+        front = real(*args)
+        ran.append(front is not None)
+        return front
+
+    threshold = robot_module.GPU_FRONT_FROM
+    robot._gpu_batch = noted  # type: ignore[method-assign]
+    out: dict[str, Any] = {"robot": name, "rounds": rounds, "sizes": []}
+    try:
+        for size in sizes:
+            say(f"front sweep: {name}, {size} per query")
+            count = max(256, 8 * size) if size > 1 else 128
+            best: dict[str, dict[str, float]] = {}
+            for _ in range(rounds):
+                for path, front in (("host", 2**62), ("gpu", 1)):
+                    robot_module.GPU_FRONT_FROM = front
+                    robot.check(q[:size], environment=env, batch=size)  # warm-up
+                    del ran[:]
+                    before, t0 = python_thread_clocks(), time.perf_counter()
+                    robot.check(q[:count], environment=env, batch=size)
+                    seconds = time.perf_counter() - t0
+                    cpu = cpu_ms(before, python_thread_clocks()) * 1e3 / count
+                    row = best.setdefault(path, {"per_s": 0.0, "host_cpu_us": float("inf"),
+                                                 "k1k2": 1.0})
+                    row["per_s"] = max(row["per_s"], _rate(count, seconds))
+                    row["host_cpu_us"] = min(row["host_cpu_us"], cpu)
+                    row["k1k2"] = min(row["k1k2"], sum(ran) / max(len(ran), 1))
+            out["sizes"].append({"batch_size": size, "configurations": count, **best})
+    finally:
+        robot_module.GPU_FRONT_FROM = threshold
+        del robot._gpu_batch
+    return out
+
+
+def front_sweep_markdown(results: Sequence[dict[str, Any]], device: str) -> list[str]:
+    """A table of :func:`run_front_sweep`'s results (one per robot) on ``device``: a row per
+    robot and size, each path's configurations a second with its host CPU microseconds a
+    configuration in brackets; a K1/K2 figure whose queries did not all run K1 and K2 says
+    what share did."""
+
+    def cell(r: dict[str, float], path: str) -> str:
+        text = f"{r['per_s']:,.0f} ({r['host_cpu_us']:.0f})"
+        if path == "gpu" and r["k1k2"] < 1:
+            text += f", K1/K2 in {r['k1k2']:.0%} of queries"
+        return text
+
+    lines = [f"| robot | configurations per query | {device}: host path / s (host CPU us) | "
+             f"{device}: K1, K2 / s (host CPU us) |", "|---|---|---|---|"]
+    for r in results:
+        for row in r["sizes"]:
+            lines.append(f"| {r['robot']} | {row['batch_size']} | {cell(row['host'], 'host')} | "
+                         f"{cell(row['gpu'], 'gpu')} |")
+    return lines
+
+
+PACED_CAPS = (12_000, 200_000)
+"""Bodies-a-query caps of :func:`run_paced`: a CPU adapter's and a GPU's
+(:data:`pycinder.robot.DEFAULT_BODIES_PER_QUERY`, :data:`pycinder.robot.GPU_BODIES_PER_QUERY`)."""
+
+
+def run_paced(name: str = "panda", configurations: int = 20_000,
+              caps: Sequence[int] = PACED_CAPS, *, rounds: int = 2, samples: int = 300,
+              seed: int = 0, progress: Callable[[str], None] | None = None
+              ) -> list[dict[str, Any]]:
+    """``Robot.check(qs, environment=...)`` with no ``batch`` (paced) on ``configurations``
+    random configurations of robot ``name``, with each cap of bodies a query in turn, in
+    ``rounds`` rounds, after one paced check of 4,096 configurations.
+
+    The cap is set through the module global ``pycinder.robot.robot.GPU_BODIES_PER_QUERY``
+    (restored afterwards), so on a CPU adapter, which keeps
+    :data:`~pycinder.robot.DEFAULT_BODIES_PER_QUERY`, every cap gives the same queries.
+
+    Returns
+    -------
+    list of dict
+        One per round and cap: ``robot``, ``round``, ``cap``, ``per_s``, ``host_cpu_us`` (every
+        Python thread summed, a configuration), ``queries`` and ``largest`` (configurations of
+        the largest query).
+    """
+    from ..robot import robot as robot_module
+    from .hostcpu import cpu_ms, python_thread_clocks
+
+    say = progress or (lambda msg: None)
+    robot, env = load(name), environment(name)
+    if samples:
+        robot.allowed = robot.compute_allowed_collisions(samples, seed=seed + 1)
+    q = robot.random_configurations(configurations, seed)
+    robot.check(q[:4096], environment=env)  # warm-up: pipelines, first buffers
+    sizes: list[int] = []
+    real = robot._batches
+
+    def noted(*args: Any) -> Any:
+        for start, stop in real(*args):
+            sizes.append(stop - start)
+            yield start, stop
+
+    cap_before = robot_module.GPU_BODIES_PER_QUERY
+    robot._batches = noted  # type: ignore[method-assign]
+    rows = []
+    try:
+        for k in range(rounds):
+            for cap in caps:
+                say(f"paced: {name}, round {k + 1}, cap {cap:,} bodies")
+                robot_module.GPU_BODIES_PER_QUERY = cap
+                del sizes[:]
+                before, t0 = python_thread_clocks(), time.perf_counter()
+                robot.check(q, environment=env)
+                seconds = time.perf_counter() - t0
+                rows.append({"robot": name, "round": k + 1, "cap": cap,
+                             "per_s": _rate(configurations, seconds),
+                             "host_cpu_us": cpu_ms(before, python_thread_clocks()) * 1e3
+                             / configurations,
+                             "queries": len(sizes), "largest": max(sizes, default=0)})
+    finally:
+        robot_module.GPU_BODIES_PER_QUERY = cap_before
+        del robot._batches
+    return rows
 
 
 def check_sweep_markdown(r: dict[str, Any]) -> list[str]:

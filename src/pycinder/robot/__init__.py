@@ -11,7 +11,9 @@
 A :class:`Robot` is read from a URDF with :meth:`Robot.from_urdf` (the ``robot`` extra brings
 yourdfpy). Its collision geometry is taken as the URDF gives it: meshes as they are (an open mesh
 is tested as a surface, see :mod:`pycinder.request`), boxes, cylinders and spheres as meshes.
-Forward kinematics is vectorised over configurations in NumPy.
+Forward kinematics runs on the GPU for a batch of :data:`~pycinder.robot.robot.GPU_FRONT_FROM`
+configurations or more (pass K1, :mod:`pycinder.robot.kinematics`), and is vectorised over
+configurations in NumPy below that.
 
 Pairs that need no check are kept in an :class:`AllowedCollisionMatrix`, made the way MoveIt's
 Setup Assistant makes it (:meth:`Robot.compute_allowed_collisions`: adjacent links, pairs in

@@ -43,11 +43,15 @@ small batches, far from the GPU timeout, and a fast GPU large ones."""
 FIRST_BATCH = 8
 """Configurations of the first batched query of a check (see :data:`QUERY_SECONDS`)."""
 
-GPU_FRONT_FROM = 64
+GPU_FRONT_FROM = 32
 """Fewest configurations of a batch whose poses and pair cull run on the GPU (passes K1 and K2):
 a smaller batch computes them on the host, where the passes' own submission and map cost more
-host CPU than they save (measured on lavapipe: about even at 64 Panda configurations, 0.2-1 ms
-more a check of 1 to 8)."""
+host CPU than they save. Measured against the host path, alternating
+(:func:`pycinder.benchmarks.batch.run_front_sweep`; ``benchmarks/results/robots.md``): on an
+NVIDIA H200 K1/K2 check more configurations a second from 32 a query for the Panda and from 16
+for the Unitree A1 (about even at 8), with less host CPU from 32 and 8; on lavapipe K1/K2 take
+less host CPU from 32 (115 against 128 us a Panda configuration) and 1.3-1.5 times the host
+path's in queries of one."""
 
 PLANS_KEPT = 8
 """Check plans kept (one per environment, self-collision choice and matrix), each with its
@@ -394,7 +398,10 @@ class Robot(RobotModel):
     def _batches(self, count: int, batch: int | None, plan: _Plan) -> Iterator[tuple[int, int]]:
         """``(start, stop)`` of each query's configurations: ``batch`` at a time when given;
         else paced (see :data:`QUERY_SECONDS`), the time between one range and the next being
-        the caller's query."""
+        the caller's query. None for a check with nothing to query (its cap asks the
+        detector's device, which such a check need not start)."""
+        if count == 0 or not len(plan.pairs):
+            return
         most = self._batch_size(batch, plan)
         size = most if batch is not None else min(FIRST_BATCH, most)
         start = 0
