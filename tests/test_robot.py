@@ -433,3 +433,5 @@ def test_a_check_with_nothing_to_query_starts_no_device():
     collides, pairs = robot.check(q, self_collision=False, return_pairs=True)
     assert not collides.any() and pairs == [[]] * 5
     assert robot._detector is None
+    with pytest.raises(ValueError, match="batch must be a positive whole number"):
+        robot.check(q, self_collision=False, batch=0)  # the option is checked all the same

@@ -400,9 +400,10 @@ class Robot(RobotModel):
         else paced (see :data:`QUERY_SECONDS`), the time between one range and the next being
         the caller's query. None for a check with nothing to query (its cap asks the
         detector's device, which such a check need not start)."""
+        given = None if batch is None else self._batch_size(batch, plan)  # checked always
         if count == 0 or not len(plan.pairs):
             return
-        most = self._batch_size(batch, plan)
+        most = self._batch_size(None, plan) if given is None else given
         size = most if batch is not None else min(FIRST_BATCH, most)
         start = 0
         while start < count:
