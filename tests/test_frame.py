@@ -181,3 +181,46 @@ def test_wgpu_py_calls_per_query_do_not_grow_with_bodies_pairs_or_rounds(planner
     assert pairs[0] == 1 and pairs[-1] > 1000, rows
     for d, r in zip(direct, rounds):
         assert direct[0] <= d <= direct[0] + 64 * (r - rounds[0]), rows
+
+
+@pytest.mark.parametrize("planner", ["numpy", "gpu"])
+def test_a_query_after_retries_plans_rounds_its_retries_fit(monkeypatch, planner):
+    """A pair whose lists overflow, in rounds too large for retry rounds (lists four times
+    longer) to fit the memory budget: the first query runs its undecided tiles again in a frame
+    of their own; the next ones, planned in rounds of the retry's budget (again.plan_budget),
+    retry them inside their one frame, with the same answer (exact geometry's: apart)."""
+    from pycinder.focused.frame.again import RETRY_PLAN_ROUNDS
+    from pycinder.focused.frame.atlas import ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS
+    from pycinder.testing import ground_truth, surface_distance
+
+    t = 0.001
+    meshes = [comb_of(6, 0.0), comb_of(6, 0.06, width=0.3)]
+    assert surface_distance(*meshes) > 3.9 * 0.005
+    assert ground_truth(meshes, None, tolerance=t).overlap.tolist() == []
+    probe = pycinder.Detector(tolerance=t, records="none", planner=planner)
+    probe.find_collisions(meshes)
+    plan = probe.strategy.recent_pixels  # the first frame's atlas pixels
+    # A budget of 3.2 times the plan: its largest round (6/7 of it here) fits the budget, not a
+    # retry round's quarter of it; RETRY_PLAN_ROUNDS quarters hold the plan.
+    budget = int(3.2 * plan)
+    assert plan <= RETRY_PLAN_ROUNDS * (budget // RETRY_LISTS)
+    per_pixel = PIXEL_BYTES + ENTRY_BYTES * LIST_CAPACITY
+    det = pycinder.Detector(tolerance=t, records="none", planner=planner,
+                            memory_budget=budget * per_pixel)
+    assert det.strategy.budget_pixels == budget
+    planned = 1 if planner == "numpy" else 2  # submissions of a query's plan and frame
+    det.find_collisions(meshes)  # warm-up: buffers grow here
+    det.strategy.recently_retried = False  # as after a query that ran nothing again
+    count = _Count(monkeypatch)
+    first = det.find_collisions(meshes)
+    assert first.pairs.tolist() == [] and first.stats.retries == 1
+    # a frame of its own (and a read of the tiles' counts to choose its tiles)
+    assert count.submits > planned and count.maps > planned
+    monkeypatch.undo()
+    det.find_collisions(meshes)  # its rounds of the retry's budget: buffers grow here
+    count = _Count(monkeypatch)
+    again = det.find_collisions(meshes)
+    assert again.pairs.tolist() == [] and again.stats.possibly_lost == 0
+    assert again.stats.retries == 1 and again.stats.reruns == 0
+    assert (count.submits, count.maps) == (planned, planned)  # retried inside the frame
+    assert det.strategy.recently_retried

@@ -134,9 +134,28 @@ def test_a_robots_host_cpu_per_configuration_is_measured(monkeypatch):
     r = hostcpu.robot_configurations("xarm", batch=64, batches=1)  # on the GPU: passes K1, K2
     assert r["robot"] == "xarm" and r["batch"] == 64
     assert r["host_cpu_us"] > 0 and r["wall_ms"] > 0
-    # One query a check (an untimed one, the timed one, the one timed by stage), each of the
+    # One query a check (two untimed ones, the timed one, the one timed by stage), each of the
     # copies of 64 configurations' bodies (those of the pairs pass K2 kept).
-    assert len(queries) == 3 and min(queries) > 64
+    assert len(queries) == 4 and min(queries) > 64
     stages = r["stages_us"]
     assert {"kinematics and cull (K1, K2)", "broad phase", "tiles (plan)"} <= set(stages)
     assert all(v >= 0 for v in stages.values()) and sum(stages.values()) > 0
+
+
+def test_a_robots_host_cpu_with_moveits_matrix(monkeypatch, capsys):
+    """``--robot NAME --matrix-samples N``: the same measure with MoveIt's allowed-collision
+    matrix made from N samples (fewer pairs to check than the matrix the robot loads with)."""
+    import pytest
+
+    pytest.importorskip("yourdfpy")
+    pytest.importorskip("pybullet_data")
+    from pycinder.robot import Robot
+
+    made = []
+    real = Robot.compute_allowed_collisions
+    monkeypatch.setattr(Robot, "compute_allowed_collisions",
+                        lambda self, n, **kw: made.append(n) or real(self, n, **kw))
+    hostcpu.main(["--robot", "xarm", "--batch", "32", "--matrix-samples", "20"])
+    out = capsys.readouterr().out
+    assert made == [20] and out.startswith("xarm (MoveIt's matrix from 20 samples), batches of 32")
+    assert "host CPU" in out and "kinematics and cull (K1, K2)" in out

@@ -687,11 +687,13 @@ def sweep_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
 
 
 def robot_configurations(name: str = "panda", batch: int = 1024, batches: int = 2,
-                         seed: int = 3) -> dict[str, Any]:
+                         seed: int = 3, samples: int = 0) -> dict[str, Any]:
     """Host CPU per configuration of ``Robot.check`` (:mod:`pycinder.benchmarks.robots`' robot
-    ``name`` with its table (and tray), the allowed-collision matrix it loads with), summed over
+    ``name`` with its table (and tray); the allowed-collision matrix it loads with, or with
+    ``samples``, MoveIt's from that many random configurations, as the robot benchmark makes
+    it: for the Panda 85 pairs to check a configuration instead of 121), summed over
     the process's Python threads, in ``batches`` timed checks of ``batch`` configurations each
-    (one query each), after one untimed check of as many. Returns the median microseconds per
+    (one query each), after two untimed checks of as many. Returns the median microseconds per
     configuration, the wall milliseconds per configuration, and the host CPU microseconds per
     configuration by stage (``stages_us``, :data:`STAGES`, over one more check)."""
     import warnings
@@ -701,7 +703,12 @@ def robot_configurations(name: str = "panda", batch: int = 1024, batches: int = 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # open meshes, yourdfpy's notes on the table's URDF
         robot, env = load(name), environment(name)
+        if samples:
+            robot.allowed = robot.compute_allowed_collisions(samples, seed=seed + 1)
         q = robot.random_configurations(batch * (batches + 1), seed=seed)
+        # Two untimed checks: a check after one whose lists overflowed plans its rounds anew
+        # (focused.frame.again.plan_budget) and grows its buffers once.
+        robot.check(q[:batch], environment=env, batch=batch)
         robot.check(q[:batch], environment=env, batch=batch)
         cpu, wall = [], []
         for k in range(1, batches + 1):
@@ -715,7 +722,8 @@ def robot_configurations(name: str = "panda", batch: int = 1024, batches: int = 
             robot.check(q[:batch], environment=env, batch=batch)
             clock.stop()
     stages = {s: ms * 1e3 / batch for s, ms in sorted(clock.ms.items(), key=lambda kv: -kv[1])}
-    return {"robot": name, "batch": batch, "host_cpu_us": statistics.median(cpu),
+    return {"robot": name, "batch": batch, "samples": samples,
+            "host_cpu_us": statistics.median(cpu),
             "wall_ms": statistics.median(wall), "stages_us": stages}
 
 
@@ -740,14 +748,21 @@ def main(argv: Sequence[str] | None = None) -> None:
     p.add_argument("--robot", metavar="NAME", help="instead: host CPU per configuration of "
                    "Robot.check on robot NAME with its environment, in checks of --batch "
                    "configurations (1,024 for the target)")
+    p.add_argument("--matrix-samples", type=int, default=0, metavar="N",
+                   help="with --robot: MoveIt's allowed-collision matrix from N random "
+                        "configurations, as the robot benchmark makes it (default 0: the matrix "
+                        "the robot loads with)")
     p.add_argument("--planner-sweep", nargs="*", type=int, metavar="N",
                    help="instead: both planners' frame wall and host CPU on ManyBodies scenes of "
                         f"N bodies (default {' '.join(map(str, SWEEP_SIZES))})")
     a = p.parse_args(argv)
     say = (lambda msg: print(msg, file=sys.stderr, flush=True))
     if a.robot:
-        r = robot_configurations(a.robot, a.batch)
-        print(f"{r['robot']}, batches of {r['batch']}: host CPU {r['host_cpu_us']:.0f} us a "
+        r = robot_configurations(a.robot, a.batch, samples=a.matrix_samples)
+        matrix = (f"MoveIt's matrix from {r['samples']} samples" if r["samples"]
+                  else "the matrix it loads with")
+        print(f"{r['robot']} ({matrix}), batches of {r['batch']}: host CPU "
+              f"{r['host_cpu_us']:.1f} us a "
               f"configuration, wall {r['wall_ms']:.3f} ms a configuration; by stage (us a "
               "configuration): " + ", ".join(f"{k} {v:.1f}" for k, v in r["stages_us"].items()))
         return

@@ -37,8 +37,8 @@ from ..tolerance import pair_tolerances
 from ..util.text import plural
 from .broad import GpuBroadPhase, in_range
 from .broad.prune import PairList, sweep_and_prune
-from .frame.again import (LARGER_LISTS, RETRIES, RoundTooLarge, retry_on_gpu, smaller_rounds,
-                          undecided_tiles)
+from .frame.again import (LARGER_LISTS, RETRIES, RoundTooLarge, plan_budget, retry_on_gpu,
+                          smaller_rounds, undecided_tiles)
 from .frame.atlas import ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS
 from .frame.frameio import sort_records
 from .frame.frames import FocusedFrames, FocusedOutput, FrameInputs, Submitted
@@ -82,10 +82,18 @@ class FocusedStrategy:
         self._planner: GpuPlanner | None = None  # made on first query with planner="gpu"
         self.recently_retried = False
         """Whether the last query ran tiles again (their samples were left undecided)."""
+        self.recent_pixels = 0
+        """Atlas pixels of the last query's first plan (see :meth:`_plan_budget`)."""
 
     def _budget(self, capacity: int) -> int:
         """Atlas pixels per round with lists of ``capacity`` crossings."""
         return self.budget_pixels * self.frames.capacity // capacity
+
+    def _plan_budget(self, records: RecordMode) -> int:
+        """Atlas pixels per round of this query's plan (see
+        :func:`~pycinder.focused.frame.again.plan_budget`)."""
+        return plan_budget(self.recently_retried, records, self.recent_pixels,
+                           self.budget_pixels, self._budget(self.frames.capacity * RETRY_LISTS))
 
     def tolerances(self, scene: Scene, pairs: np.ndarray, given: np.ndarray | None = None
                    ) -> np.ndarray:
@@ -170,6 +178,7 @@ class FocusedStrategy:
         # that stops the GPU, are the host's.
         planned_on_gpu = not stop_at_first and self.request.gpu_planner(len(pairs),
                                                                         self.gpu.cpu_adapter)
+        budget = self._plan_budget(mode)
         stats.planner = "gpu" if planned_on_gpu else "numpy"
         if planned_on_gpu:
             if self._planner is None:
@@ -178,16 +187,17 @@ class FocusedStrategy:
                 self._planner = GpuPlanner(self.gpu, self.request.timeout)
             plan, gpu_tiles = self._planner.plan(
                 pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
-                budget_pixels=self.budget_pixels, probe=mode.probe, open_bodies=scene.open,
+                budget_pixels=budget, probe=mode.probe, open_bodies=scene.open,
                 max_pixels=self.request.max_pixels, faces=scene.face_counts)
             stats.waited_ms += self._planner.waited_ms
         else:
             plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi,
-                              scene.transforms, budget_pixels=self.budget_pixels,
+                              scene.transforms, budget_pixels=budget,
                               probe=mode.probe, open_bodies=scene.open,
                               max_pixels=self.request.max_pixels, faces=scene.face_counts,
                               lead=lead)
         stats.separated = plan.separated
+        self.recent_pixels = sum(plan.round_rows) * plan.atlas_width
         if stop_at_first:
             plan.flags |= FLAG_STOP_AT_FIRST
         t2 = time.perf_counter()

@@ -8,7 +8,9 @@ cheapest to the dearest:
    (frames of an animation are alike), the frame ends with retry rounds: pass F7 flags the
    undecided tiles whose pair no tile found, and passes F1-F6 run again for them with lists
    :data:`~pycinder.focused.frame.atlas.RETRY_LISTS` times longer, in the same submission. The
-   strategy chooses this with :func:`retry_on_gpu`.
+   strategy chooses this with :func:`retry_on_gpu`. Retry rounds need lists that long over
+   their whole round: a query whose plan would fill few rounds of the retry's budget is planned
+   in rounds of that budget (:func:`plan_budget`), so that its retries fit in its own frame.
 2. **A buffer was too small (host, same frame).** A pass filled a buffer whose size the host
    chose (clipped triangles, listed edges, records): the frame is run again, whole, with the
    buffer grown (:func:`grown_caps`). Records are not worth a rerun past the device's largest
@@ -51,6 +53,28 @@ class RoundTooLarge(Exception):
     def __init__(self, needed: int, limit: int, what: str = "clipped triangles") -> None:
         super().__init__(f"{needed} {what} in one round, {limit} fit")
         self.needed, self.limit, self.what = needed, limit, what
+
+
+RETRY_PLAN_ROUNDS = 8
+"""Most rounds of the retry rounds' budget (a :data:`RETRY_LISTS` part of the budget) that the
+last query's plan may fill for this query to be planned in rounds of that budget
+(:func:`plan_budget`): more rounds to encode, fewer frames run again on the host."""
+
+
+def plan_budget(recently_retried: bool, records: RecordMode, recent_pixels: int, budget: int,
+                retry_budget: int) -> int:
+    """Atlas pixels per round of a query's plan: ``budget``, or ``retry_budget`` (the retry
+    rounds' budget, for lists :data:`RETRY_LISTS` times longer) where the last query ran tiles
+    again, this query's retry rounds may run (not with records of every tile), and the last
+    query's first plan (``recent_pixels`` atlas pixels) would fill at most
+    :data:`RETRY_PLAN_ROUNDS` rounds of ``retry_budget``. Its retry rounds then fit in its own
+    frame (:func:`retry_on_gpu`): a few more rounds instead of a second submission and map for
+    the tiles left undecided (a batch of 1,024 Panda configurations: 2 rounds become 5, and the
+    2-5 tiles of about 2,000 no longer run in a frame of their own)."""
+    if recently_retried and not records.every_tile \
+            and recent_pixels <= RETRY_PLAN_ROUNDS * retry_budget:
+        return retry_budget
+    return budget
 
 
 def retry_on_gpu(recently_retried: bool, records: RecordMode, plan: TilePlan,
@@ -177,5 +201,5 @@ def undecided_tiles(plan: TilePlan, tile_counts: np.ndarray, found: np.ndarray,
     return again, Undecided(retry, which, capacity, overflowed)
 
 
-__all__ = ["LARGER_LISTS", "RETRIES", "RoundTooLarge", "Undecided", "grown_caps",
-           "retry_on_gpu", "smaller_rounds", "undecided_tiles"]
+__all__ = ["LARGER_LISTS", "RETRIES", "RETRY_PLAN_ROUNDS", "RoundTooLarge", "Undecided",
+           "grown_caps", "plan_budget", "retry_on_gpu", "smaller_rounds", "undecided_tiles"]
