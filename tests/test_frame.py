@@ -186,16 +186,17 @@ def test_wgpu_py_calls_per_query_do_not_grow_with_bodies_pairs_or_rounds(planner
 @pytest.mark.parametrize("planner", ["numpy", "gpu"])
 def test_a_query_after_retries_plans_rounds_its_retries_fit(monkeypatch, planner):
     """A pair whose lists overflow, in rounds too large for retry rounds (lists four times
-    longer) to fit the memory budget: the first query runs its undecided tiles again in a frame
-    of their own; the next ones, planned in rounds of the retry's budget (again.plan_budget),
-    retry them inside their one frame, with the same answer (exact geometry's: apart)."""
+    longer) to fit the memory budget: a query after a larger plan runs its undecided tiles again
+    in a frame of its own; the next ones, planned in rounds of the retry's budget
+    (again.plan_budget), retry them inside their one frame, with the same answer (exact
+    geometry's: apart)."""
     from pycinder.focused.frame.again import RETRY_PLAN_ROUNDS
     from pycinder.focused.frame.atlas import ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS
     from pycinder.testing import ground_truth, surface_distance
 
     t = 0.001
     meshes = [comb_of(6, 0.0), comb_of(6, 0.06, width=0.3)]
-    assert surface_distance(*meshes) > 3.9 * 0.005
+    assert surface_distance(*meshes) > 4 * t
     assert ground_truth(meshes, None, tolerance=t).overlap.tolist() == []
     probe = pycinder.Detector(tolerance=t, records="none", planner=planner)
     probe.find_collisions(meshes)
@@ -203,17 +204,20 @@ def test_a_query_after_retries_plans_rounds_its_retries_fit(monkeypatch, planner
     # A budget of 3.2 times the plan: its largest round (6/7 of it here) fits the budget, not a
     # retry round's quarter of it; RETRY_PLAN_ROUNDS quarters hold the plan.
     budget = int(3.2 * plan)
-    assert plan <= RETRY_PLAN_ROUNDS * (budget // RETRY_LISTS)
+    retry_budget = budget // RETRY_LISTS
+    assert plan <= RETRY_PLAN_ROUNDS * retry_budget
     per_pixel = PIXEL_BYTES + ENTRY_BYTES * LIST_CAPACITY
     det = pycinder.Detector(tolerance=t, records="none", planner=planner,
                             memory_budget=budget * per_pixel)
     assert det.strategy.budget_pixels == budget
     planned = 1 if planner == "numpy" else 2  # submissions of a query's plan and frame
     det.find_collisions(meshes)  # warm-up: buffers grow here
-    det.strategy.recently_retried = False  # as after a query that ran nothing again
+    assert det.strategy.recently_retried
+    det.strategy.recent_pixels = RETRY_PLAN_ROUNDS * retry_budget + 1  # after a larger plan
     count = _Count(monkeypatch)
     first = det.find_collisions(meshes)
     assert first.pairs.tolist() == [] and first.stats.retries == 1
+    assert max(first.tiles.round_rows) * first.tiles.atlas_width > retry_budget
     # a frame of its own (and a read of the tiles' counts to choose its tiles)
     assert count.submits > planned and count.maps > planned
     monkeypatch.undo()
@@ -222,5 +226,42 @@ def test_a_query_after_retries_plans_rounds_its_retries_fit(monkeypatch, planner
     again = det.find_collisions(meshes)
     assert again.pairs.tolist() == [] and again.stats.possibly_lost == 0
     assert again.stats.retries == 1 and again.stats.reruns == 0
+    assert max(again.tiles.round_rows) * again.tiles.atlas_width <= retry_budget
     assert (count.submits, count.maps) == (planned, planned)  # retried inside the frame
     assert det.strategy.recently_retried
+
+
+def test_plan_budget_chooses_the_retry_budget_only_where_retries_then_fit():
+    """again.plan_budget: the retry rounds' budget after a query that ran tiles again, whose
+    plan fills at most RETRY_PLAN_ROUNDS of its rounds and whose bands fit one; else the
+    budget (and never with records of every tile)."""
+    from pycinder.focused.frame.again import RETRY_PLAN_ROUNDS, plan_budget
+    from pycinder.focused.plan.tiles import HEIGHT_CLASSES
+    from pycinder.request import record_mode
+
+    none, every = record_mode("none"), record_mode("all")
+    retry, budget = 128 * 1024, 4 * 128 * 1024
+    fits = RETRY_PLAN_ROUNDS * retry
+    assert plan_budget(True, none, fits, 1024, budget, retry) == retry
+    assert plan_budget(True, record_mode("found"), 1, 64, budget, retry) == retry
+    assert plan_budget(True, none, fits + 1, 1024, budget, retry) == budget  # too many rounds
+    assert plan_budget(False, none, fits, 1024, budget, retry) == budget  # nothing ran again
+    assert plan_budget(True, every, fits, 1024, budget, retry) == budget  # every tile's records
+    wide = retry // HEIGHT_CLASSES[-1] + 1  # a band of that width holds more than a round
+    assert plan_budget(True, none, 1, wide, budget, retry) == budget
+    assert plan_budget(True, none, 1, wide - 1, budget, retry) == retry
+
+
+def test_a_query_that_plans_no_tile_leaves_the_last_plans_size():
+    """A query whose pairs are all apart (no tile) is no plan to size the next one by."""
+    det = pycinder.Detector(records="none")
+    det.find_collisions([trimesh.creation.box((1, 1, 1)), trimesh.creation.icosphere(radius=0.4)],
+                        np.stack([np.eye(4), np.eye(4)]))
+    pixels, width = det.strategy.recent_pixels, det.strategy.recent_width
+    assert pixels > 0 and width > 0
+    far = np.stack([np.eye(4), np.eye(4)])
+    far[1, 0, 3] = 5.0
+    result = det.find_collisions([trimesh.creation.box((1, 1, 1)),
+                                  trimesh.creation.icosphere(radius=0.4)], far)
+    assert result.pairs.tolist() == []
+    assert (det.strategy.recent_pixels, det.strategy.recent_width) == (pixels, width)

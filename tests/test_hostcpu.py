@@ -155,7 +155,10 @@ def test_a_robots_host_cpu_with_moveits_matrix(monkeypatch, capsys):
     real = Robot.compute_allowed_collisions
     monkeypatch.setattr(Robot, "compute_allowed_collisions",
                         lambda self, n, **kw: made.append(n) or real(self, n, **kw))
-    hostcpu.main(["--robot", "xarm", "--batch", "32", "--matrix-samples", "20"])
+    hostcpu.main(["--robot", "xarm", "--batch", "64", "--matrix-samples", "20"])
     out = capsys.readouterr().out
-    assert made == [20] and out.startswith("xarm (MoveIt's matrix from 20 samples), batches of 32")
+    assert made == [20] and out.startswith("xarm (MoveIt's matrix from 20 samples), batches of 64")
     assert "host CPU" in out and "kinematics and cull (K1, K2)" in out
+    with pytest.raises(SystemExit):
+        hostcpu.main(["--robot", "xarm", "--matrix-samples", "-1"])
+    assert "--matrix-samples" in capsys.readouterr().err

@@ -690,8 +690,8 @@ def robot_configurations(name: str = "panda", batch: int = 1024, batches: int = 
                          seed: int = 3, samples: int = 0) -> dict[str, Any]:
     """Host CPU per configuration of ``Robot.check`` (:mod:`pycinder.benchmarks.robots`' robot
     ``name`` with its table (and tray); the allowed-collision matrix it loads with, or with
-    ``samples``, MoveIt's from that many random configurations, as the robot benchmark makes
-    it: for the Panda 85 pairs to check a configuration instead of 121), summed over
+    ``samples``, MoveIt's from that many random configurations, the robot benchmark's way: for
+    the Panda from 300, 85 pairs to check a configuration instead of 121), summed over
     the process's Python threads, in ``batches`` timed checks of ``batch`` configurations each
     (one query each), after two untimed checks of as many. Returns the median microseconds per
     configuration, the wall milliseconds per configuration, and the host CPU microseconds per
@@ -756,6 +756,9 @@ def main(argv: Sequence[str] | None = None) -> None:
                    help="instead: both planners' frame wall and host CPU on ManyBodies scenes of "
                         f"N bodies (default {' '.join(map(str, SWEEP_SIZES))})")
     a = p.parse_args(argv)
+    if a.matrix_samples < 0:
+        p.error(f"--matrix-samples must be 0 or more random configurations, got "
+                f"{a.matrix_samples}")
     say = (lambda msg: print(msg, file=sys.stderr, flush=True))
     if a.robot:
         r = robot_configurations(a.robot, a.batch, samples=a.matrix_samples)

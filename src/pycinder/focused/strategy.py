@@ -83,7 +83,9 @@ class FocusedStrategy:
         self.recently_retried = False
         """Whether the last query ran tiles again (their samples were left undecided)."""
         self.recent_pixels = 0
-        """Atlas pixels of the last query's first plan (see :meth:`_plan_budget`)."""
+        """Atlas pixels of the last submitted query's first plan (see :meth:`_plan_budget`)."""
+        self.recent_width = 0
+        """Its atlas width."""
 
     def _budget(self, capacity: int) -> int:
         """Atlas pixels per round with lists of ``capacity`` crossings."""
@@ -92,7 +94,7 @@ class FocusedStrategy:
     def _plan_budget(self, records: RecordMode) -> int:
         """Atlas pixels per round of this query's plan (see
         :func:`~pycinder.focused.frame.again.plan_budget`)."""
-        return plan_budget(self.recently_retried, records, self.recent_pixels,
+        return plan_budget(self.recently_retried, records, self.recent_pixels, self.recent_width,
                            self.budget_pixels, self._budget(self.frames.capacity * RETRY_LISTS))
 
     def tolerances(self, scene: Scene, pairs: np.ndarray, given: np.ndarray | None = None
@@ -197,13 +199,13 @@ class FocusedStrategy:
                               max_pixels=self.request.max_pixels, faces=scene.face_counts,
                               lead=lead)
         stats.separated = plan.separated
-        self.recent_pixels = sum(plan.round_rows) * plan.atlas_width
         if stop_at_first:
             plan.flags |= FLAG_STOP_AT_FIRST
         t2 = time.perf_counter()
         stats.add_ms("tiles", (t2 - t1) * 1e3)
         if len(plan) == 0:
             return PendingFocused(self, CollisionResult.empty(stats))
+        self.recent_pixels, self.recent_width = plan.atlas_pixels, plan.atlas_width
         pack = self.pack(scene, stats)
         retry = retry_on_gpu(self.recently_retried, mode, plan,
                              self._budget(self.frames.capacity * RETRY_LISTS))

@@ -9,8 +9,8 @@ cheapest to the dearest:
    undecided tiles whose pair no tile found, and passes F1-F6 run again for them with lists
    :data:`~pycinder.focused.frame.atlas.RETRY_LISTS` times longer, in the same submission. The
    strategy chooses this with :func:`retry_on_gpu`. Retry rounds need lists that long over
-   their whole round: a query whose plan would fill few rounds of the retry's budget is planned
-   in rounds of that budget (:func:`plan_budget`), so that its retries fit in its own frame.
+   their whole round: a query after one whose plan filled few rounds of the retry's budget is
+   planned in rounds of that budget (:func:`plan_budget`), so that its retries fit its frame.
 2. **A buffer was too small (host, same frame).** A pass filled a buffer whose size the host
    chose (clipped triangles, listed edges, records): the frame is run again, whole, with the
    buffer grown (:func:`grown_caps`). Records are not worth a rerun past the device's largest
@@ -37,7 +37,7 @@ import numpy as np
 
 from ...gpu.layout import C_MAX_EDGES, C_MAX_TRIS, C_RECORDS, UNDECIDED_BUDGET_BIT
 from ...request import RecordMode
-from ..plan.tiles import MAX_TILE, TilePlan, repack, split_depth
+from ..plan.tiles import HEIGHT_CLASSES, MAX_TILE, TilePlan, repack, split_depth
 from .atlas import RETRY_LISTS, Caps
 
 RETRIES = 5
@@ -56,23 +56,47 @@ class RoundTooLarge(Exception):
 
 
 RETRY_PLAN_ROUNDS = 8
-"""Most rounds of the retry rounds' budget (a :data:`RETRY_LISTS` part of the budget) that the
-last query's plan may fill for this query to be planned in rounds of that budget
-(:func:`plan_budget`): more rounds to encode, fewer frames run again on the host."""
+"""Most rounds of the retry rounds' budget (1/:data:`RETRY_LISTS` of the budget) that the last
+query's plan may fill for this query to be planned in rounds of that budget (:func:`plan_budget`):
+more rounds to encode, fewer frames run again on the host. Eight such rounds and their eight retry
+rounds, in two frames' slots, with and without open bodies, are the 64 recorded rounds a
+frame's replay keeps (``frames.RECORDED_ROUNDS``)."""
 
 
-def plan_budget(recently_retried: bool, records: RecordMode, recent_pixels: int, budget: int,
-                retry_budget: int) -> int:
-    """Atlas pixels per round of a query's plan: ``budget``, or ``retry_budget`` (the retry
-    rounds' budget, for lists :data:`RETRY_LISTS` times longer) where the last query ran tiles
-    again, this query's retry rounds may run (not with records of every tile), and the last
-    query's first plan (``recent_pixels`` atlas pixels) would fill at most
-    :data:`RETRY_PLAN_ROUNDS` rounds of ``retry_budget``. Its retry rounds then fit in its own
-    frame (:func:`retry_on_gpu`): a few more rounds instead of a second submission and map for
-    the tiles left undecided (a batch of 1,024 Panda configurations: 2 rounds become 5, and the
-    2-5 tiles of about 2,000 no longer run in a frame of their own)."""
+def plan_budget(recently_retried: bool, records: RecordMode, recent_pixels: int,
+                recent_width: int, budget: int, retry_budget: int) -> int:
+    """Atlas pixels per round of a query's plan, chosen so that its retry rounds fit its frame.
+
+    The retry rounds' budget where the last query ran tiles again, this query's retry rounds
+    may run (not with records of every tile), the last query's first plan would fill at most
+    :data:`RETRY_PLAN_ROUNDS` rounds of it, and a band of its atlas (the tallest tiles across
+    its width) fits one: a round holds at least one band. Its undecided tiles then run again
+    inside its own frame (:func:`retry_on_gpu`): a few more rounds instead of a second
+    submission and map, and a read of the tiles' counts, for them (a check of 1,024 Panda
+    configurations with MoveIt's matrix, on lavapipe: 2 rounds become 5-6). Otherwise the
+    budget. The last query stands for this one, as frames of an animation or batches of a
+    robot check are alike: a query much larger than the last may be planned in more rounds
+    than it needed, once.
+
+    Parameters
+    ----------
+    recently_retried : bool
+        The last query ran tiles again.
+    records : RecordMode
+    recent_pixels : int
+        Atlas pixels of the last query's first plan.
+    recent_width : int
+        Its atlas width.
+    budget, retry_budget : int
+        Atlas pixels per round with lists of the frame's length, and four times longer.
+
+    Returns
+    -------
+    int
+    """
     if recently_retried and not records.every_tile \
-            and recent_pixels <= RETRY_PLAN_ROUNDS * retry_budget:
+            and recent_pixels <= RETRY_PLAN_ROUNDS * retry_budget \
+            and HEIGHT_CLASSES[-1] * recent_width <= retry_budget:
         return retry_budget
     return budget
 
