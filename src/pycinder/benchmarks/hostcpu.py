@@ -706,10 +706,8 @@ def robot_configurations(name: str = "panda", batch: int = 1024, batches: int = 
         if samples:
             robot.allowed = robot.compute_allowed_collisions(samples, seed=seed + 1)
         q = robot.random_configurations(batch * (batches + 1), seed=seed)
-        # Two untimed checks: a check after one whose lists overflowed plans its rounds anew
-        # (focused.frame.again.plan_budget) and grows its buffers once.
-        robot.check(q[:batch], environment=env, batch=batch)
-        robot.check(q[:batch], environment=env, batch=batch)
+        for _ in range(2):  # the second plans after the first's overflow: buffers grow once
+            robot.check(q[:batch], environment=env, batch=batch)
         cpu, wall = [], []
         for k in range(1, batches + 1):
             before, t0 = python_thread_clocks(), time.perf_counter()
@@ -757,13 +755,12 @@ def main(argv: Sequence[str] | None = None) -> None:
                         f"N bodies (default {' '.join(map(str, SWEEP_SIZES))})")
     a = p.parse_args(argv)
     if a.matrix_samples < 0:
-        p.error(f"--matrix-samples must be 0 or more random configurations, got "
-                f"{a.matrix_samples}")
+        p.error(f"--matrix-samples must be 0 or more configurations, got {a.matrix_samples}")
     say = (lambda msg: print(msg, file=sys.stderr, flush=True))
     if a.robot:
         r = robot_configurations(a.robot, a.batch, samples=a.matrix_samples)
-        matrix = (f"MoveIt's matrix from {r['samples']} samples" if r["samples"]
-                  else "the matrix it loads with")
+        matrix = f"MoveIt's matrix from {a.matrix_samples} samples" if a.matrix_samples \
+            else "the matrix it loads with"
         print(f"{r['robot']} ({matrix}), batches of {r['batch']}: host CPU "
               f"{r['host_cpu_us']:.1f} us a "
               f"configuration, wall {r['wall_ms']:.3f} ms a configuration; by stage (us a "
