@@ -83,19 +83,14 @@ class FocusedStrategy:
         self.recently_retried = False
         """Whether the last query ran tiles again (their samples were left undecided)."""
         self.recent_pixels = 0
-        """Atlas pixels of the last submitted query's first plan (see :meth:`_plan_budget`)."""
+        """Atlas pixels of the last submitted query's first plan (see
+        :func:`~pycinder.focused.frame.again.plan_budget`)."""
         self.recent_width = 0
         """Its atlas width."""
 
     def _budget(self, capacity: int) -> int:
         """Atlas pixels per round with lists of ``capacity`` crossings."""
         return self.budget_pixels * self.frames.capacity // capacity
-
-    def _plan_budget(self, records: RecordMode) -> int:
-        """Atlas pixels per round of this query's plan (see
-        :func:`~pycinder.focused.frame.again.plan_budget`)."""
-        return plan_budget(self.recently_retried, records, self.recent_pixels, self.recent_width,
-                           self.budget_pixels, self._budget(self.frames.capacity * RETRY_LISTS))
 
     def tolerances(self, scene: Scene, pairs: np.ndarray, given: np.ndarray | None = None
                    ) -> np.ndarray:
@@ -180,7 +175,11 @@ class FocusedStrategy:
         # that stops the GPU, are the host's.
         planned_on_gpu = not stop_at_first and self.request.gpu_planner(len(pairs),
                                                                         self.gpu.cpu_adapter)
-        budget = self._plan_budget(mode)
+        # Rounds whose retry rounds (lists RETRY_LISTS times longer) fit this budget retry inside
+        # the frame; the plan's own rounds are sized by the last query (again.plan_budget).
+        retry_budget = self._budget(self.frames.capacity * RETRY_LISTS)
+        budget = plan_budget(self.recently_retried, mode, self.recent_pixels, self.recent_width,
+                             self.budget_pixels, retry_budget)
         stats.planner = "gpu" if planned_on_gpu else "numpy"
         if planned_on_gpu:
             if self._planner is None:
@@ -207,8 +206,7 @@ class FocusedStrategy:
             return PendingFocused(self, CollisionResult.empty(stats))
         self.recent_pixels, self.recent_width = plan.atlas_pixels, plan.atlas_width
         pack = self.pack(scene, stats)
-        retry = retry_on_gpu(self.recently_retried, mode, plan,
-                             self._budget(self.frames.capacity * RETRY_LISTS))
+        retry = retry_on_gpu(self.recently_retried, mode, plan, retry_budget)
         inputs = self._inputs(plan, scene, pack, len(pairs), mode, None, retry)
         inputs.gpu_tiles = gpu_tiles
         first = self.frames.submit(inputs)
