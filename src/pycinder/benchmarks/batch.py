@@ -36,7 +36,8 @@ import numpy as np
 
 from ..robot import Robot
 from .peers import FCL
-from .robots import ROBOTS, FclRobot, TrimeshRobot, environment, load, score, write_meshes
+from .robots import (ROBOTS, FclRobot, TrimeshRobot, environment, load, score,
+                     with_environment, write_meshes)
 from .scenes import Scene
 
 CONFIGURATIONS = 10_000
@@ -370,10 +371,9 @@ def run_check_sweep(name: str = "panda", sizes: Sequence[int] = CHECK_SIZES, *,
     from .hostcpu import cpu_ms, python_thread_clocks
 
     say = progress or (lambda msg: None)
-    robot, env = load(name), environment(name)
     if samples:
         say(f"check sweep: {name}, allowed-collision matrix from {samples} samples")
-        robot.allowed = robot.compute_allowed_collisions(samples, seed=seed + 1)
+    robot, env = with_environment(name, samples, seed)
     out: dict[str, Any] = {"robot": name, "matrix_samples": samples,
                            "pairs": len(robot.checked_pairs(env)), "sizes": []}
     most = max(max(sizes), least, peers)
@@ -456,9 +456,7 @@ def run_front_sweep(name: str = "panda", sizes: Sequence[int] = FRONT_SIZES, *,
         raise ValueError(f"sizes must be positive configurations per query and rounds at least "
                          f"1, got {tuple(sizes)} and {rounds}")
     say = progress or (lambda msg: None)
-    robot, env = load(name), environment(name)
-    if samples:
-        robot.allowed = robot.compute_allowed_collisions(samples, seed=seed + 1)
+    robot, env = with_environment(name, samples, seed)
     q = robot.random_configurations(max(256, 8 * max(sizes)), seed)
     ran: list[bool] = []  # whether each query ran K1 and K2
     real = robot._gpu_batch
@@ -546,9 +544,7 @@ def run_paced(name: str = "panda", configurations: int = 20_000,
     from .hostcpu import cpu_ms, python_thread_clocks
 
     say = progress or (lambda msg: None)
-    robot, env = load(name), environment(name)
-    if samples:
-        robot.allowed = robot.compute_allowed_collisions(samples, seed=seed + 1)
+    robot, env = with_environment(name, samples, seed)
     q = robot.random_configurations(configurations, seed)
     robot.check(q[:4096], environment=env)  # warm-up: pipelines, first buffers
     sizes: list[int] = []

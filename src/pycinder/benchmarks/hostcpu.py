@@ -698,13 +698,11 @@ def robot_configurations(name: str = "panda", batch: int = 1024, batches: int = 
     configuration by stage (``stages_us``, :data:`STAGES`, over one more check)."""
     import warnings
 
-    from .robots import environment, load
+    from .robots import with_environment
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # open meshes, yourdfpy's notes on the table's URDF
-        robot, env = load(name), environment(name)
-        if samples:
-            robot.allowed = robot.compute_allowed_collisions(samples, seed=seed + 1)
+        robot, env = with_environment(name, samples, seed)
         q = robot.random_configurations(batch * (batches + 1), seed=seed)
         for _ in range(2):  # the second plans after the first's overflow: buffers grow once
             robot.check(q[:batch], environment=env, batch=batch)

@@ -5,6 +5,7 @@ environments, python-fcl's answers with the same allowed-collision matrix, and e
   ``bench`` extra brings pybullet) as :class:`pycinder.robot.Robot`, meshes as they are (open
   ones tested as surfaces);
 * :func:`environment`: pybullet_data's table (and tray, for the arms) placed around each;
+* :func:`with_environment`: both, the robot with MoveIt's matrix from samples where asked;
 * :class:`FclRobot`: python-fcl's ``DynamicAABBTreeCollisionManager`` over the same bodies, its
   broad phase's candidates filtered by the same pairs to check before the narrow phase (as
   MoveIt's FCL checker consults its matrix);
@@ -69,6 +70,16 @@ def environment(name: str) -> Environment:
                                        prefix="tray").bodies:
             env.add(b.name, b.mesh, b.origin)
     return env
+
+
+def with_environment(name: str, samples: int = 0, seed: int = 0) -> tuple[Robot, Environment]:
+    """Robot ``name`` (:func:`load`) and its :func:`environment`; with ``samples``, the robot's
+    allowed-collision matrix made MoveIt's way from that many random configurations (seed
+    ``seed + 1``), as the benchmarks make it."""
+    robot, env = load(name), environment(name)
+    if samples:
+        robot.allowed = robot.compute_allowed_collisions(samples, seed=seed + 1)
+    return robot, env
 
 
 class FclRobot:
