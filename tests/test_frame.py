@@ -149,6 +149,30 @@ def test_undecided_tiles_are_retried_inside_the_submission(monkeypatch, records,
         monkeypatch.undo()
 
 
+@pytest.mark.parametrize("planner", ["numpy", "gpu"])
+def test_a_collision_only_the_retry_round_finds_is_found_inside_the_frame(monkeypatch, planner):
+    """Teeth 0.03 deep between the teeth of a wider comb: no sample of the frame's rounds finds
+    the pair (every one inside the other body lies at a pixel whose list overflowed), so its
+    tiles run again; after a query that ran tiles again, its retry round finds it, in the one
+    submission (exact geometry: they collide)."""
+    from pycinder.testing import ground_truth
+
+    t = 0.005
+    meshes = [comb_of(6, 0.0), comb_of(6, 0.03, width=0.3)]
+    assert ground_truth(meshes, None, tolerance=t).overlap.tolist() == [[0, 1]]
+    det = pycinder.Detector(tolerance=t, records="none", planner=planner)
+    first = det.find_collisions(meshes)  # the host runs the tiles again
+    assert first.pairs.tolist() == [[0, 1]] and first.stats.retries == 1
+    planned = 1 if planner == "numpy" else 2
+    for _ in range(2):  # buffers grow to the retry round in the first
+        count = _Count(monkeypatch)
+        result = det.find_collisions(meshes)
+        monkeypatch.undo()
+    assert result.pairs.tolist() == [[0, 1]] and result.stats.retries == 1
+    assert result.stats.undecided > 0 and result.stats.possibly_lost == 0
+    assert (count.submits, count.maps) == (planned, planned)
+
+
 @pytest.mark.parametrize("planner,submissions", [("numpy", 1), ("gpu", 2)])
 def test_wgpu_py_calls_per_query_do_not_grow_with_bodies_pairs_or_rounds(planner, submissions):
     """Prepared bodies, new transforms: from 2 bodies to 1,500 (1 pair to over 1,000, 1 tile to
@@ -183,85 +207,121 @@ def test_wgpu_py_calls_per_query_do_not_grow_with_bodies_pairs_or_rounds(planner
         assert direct[0] <= d <= direct[0] + 64 * (r - rounds[0]), rows
 
 
+def _combs_apart_and_deep(pairs: int = 6):
+    """``pairs`` combs, each between the teeth of a wider one, 10 apart: every third pair's teeth
+    0.03 deep (they collide), the others' 0.02 apart. Rays through their tiles cross 24 faces in
+    the box: lists of 8 overflow."""
+    base, other = comb_of(6, 0.0), comb_of(6, 0.06, width=0.3)
+    meshes, poses = [], []
+    for k in range(pairs):
+        for mesh in (base, other):
+            pose = np.eye(4)
+            pose[0, 3] = 10.0 * k
+            if mesh is other and k % 3 == 2:
+                pose[2, 3] = 0.03
+            meshes.append(mesh)
+            poses.append(pose)
+    return meshes, np.stack(poses)
+
+
 @pytest.mark.parametrize("planner", ["numpy", "gpu"])
-def test_a_query_after_retries_plans_rounds_its_retries_fit(monkeypatch, planner):
-    """A pair whose lists overflow, in rounds too large for retry rounds (lists four times
-    longer) to fit the memory budget: a query after a larger plan runs its undecided tiles again
-    in a frame of its own; the next ones, planned in rounds of the retry's budget
-    (again.plan_budget), retry them inside their one frame, with the same answer (exact
-    geometry's: apart)."""
-    from pycinder.focused.frame.again import RETRY_PLAN_ROUNDS
+def test_retry_rounds_hold_tiles_of_several_rounds_as_many_as_the_last_query_needed(
+        monkeypatch, planner):
+    """Six comb pairs whose tiles overflow their lists, in two rounds of a small memory budget:
+    after a query that ran tiles again, pass F7 lays the undecided tiles of every round out anew
+    in retry rounds of a quarter of the budget. One retry round holds too few of them: the rest
+    run again on the host, in frames of their own, and the next query has as many retry rounds
+    as the layout needed, so that all run again inside its one frame. The answers are exact
+    geometry's at every step, and a query run twice answers the same (the layout is decided in
+    tile order, not by atomics)."""
     from pycinder.focused.frame.atlas import ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS
-    from pycinder.testing import ground_truth, surface_distance
+    from pycinder.testing import ground_truth
 
     t = 0.001
-    meshes = [comb_of(6, 0.0), comb_of(6, 0.06, width=0.3)]
-    assert surface_distance(*meshes) > 4 * t
-    assert ground_truth(meshes, None, tolerance=t).overlap.tolist() == []
-    probe = pycinder.Detector(tolerance=t, records="none", planner=planner)
-    probe.find_collisions(meshes)
-    plan = probe.strategy.recent_pixels  # the first frame's atlas pixels
-    # A budget of 3.2 times the plan: its largest round (6/7 of it here) fits the budget, not a
-    # retry round's quarter of it; RETRY_PLAN_ROUNDS quarters hold the plan.
-    budget = int(3.2 * plan)
-    retry_budget = budget // RETRY_LISTS
-    assert plan <= RETRY_PLAN_ROUNDS * retry_budget
+    meshes, poses = _combs_apart_and_deep()
+    truth = ground_truth(meshes, poses, tolerance=t).overlap.tolist()
+    assert truth == [[4, 5], [10, 11]]
+    width = 2048
+    budget = 4 * 128 * width  # a retry round: 128 rows of the atlas
     per_pixel = PIXEL_BYTES + ENTRY_BYTES * LIST_CAPACITY
-    det = pycinder.Detector(tolerance=t, records="none", planner=planner,
+    det = pycinder.Detector(tolerance=t, records="found", planner=planner,
                             memory_budget=budget * per_pixel)
-    assert det.strategy.budget_pixels == budget
     planned = 1 if planner == "numpy" else 2  # submissions of a query's plan and frame
-    det.find_collisions(meshes)  # warm-up: buffers grow here
+    first = det.find_collisions(meshes, poses)
+    assert first.pairs.tolist() == truth and first.stats.retries > 0
+    assert first.tiles.atlas_width == width and len(first.tiles.round_rows) >= 2
+    undecided_rounds = np.unique(first.tiles.round[np.isin(first.tiles.pair, [0, 1, 3, 4])])
+    assert len(undecided_rounds) >= 2  # the apart pairs' tiles lie in several rounds
     assert det.strategy.recently_retried
-    det.strategy.recent_pixels = RETRY_PLAN_ROUNDS * retry_budget + 1  # after a larger plan
+    needed = det.strategy.retry_rows_needed
+    assert needed > budget // RETRY_LISTS // width  # more than one retry round
+    det.strategy.retry_rows_needed = 1  # as after a query that needed one retry round
     count = _Count(monkeypatch)
-    first = det.find_collisions(meshes)
-    assert first.pairs.tolist() == [] and first.stats.retries == 1
-    assert max(first.tiles.round_rows) * first.tiles.atlas_width > retry_budget
-    # a frame of its own (and a read of the tiles' counts to choose its tiles)
-    assert count.submits > planned and count.maps > planned
+    one = det.find_collisions(meshes, poses)
+    assert one.pairs.tolist() == truth and one.stats.possibly_lost == 0
+    assert one.stats.retries > 1 and count.submits > planned  # the rest on the host
+    assert det.strategy.retry_rows_needed >= needed // 2
     monkeypatch.undo()
-    det.find_collisions(meshes)  # its rounds of the retry's budget: buffers grow here
-    count = _Count(monkeypatch)
-    again = det.find_collisions(meshes)
-    assert again.pairs.tolist() == [] and again.stats.possibly_lost == 0
-    assert again.stats.retries == 1 and again.stats.reruns == 0
-    assert max(again.tiles.round_rows) * again.tiles.atlas_width <= retry_budget
-    assert (count.submits, count.maps) == (planned, planned)  # retried inside the frame
-    assert det.strategy.recently_retried
+    det.find_collisions(meshes, poses)  # buffers grow to the retry rounds here
+    results = []
+    for _ in range(2):
+        count = _Count(monkeypatch)
+        results.append(det.find_collisions(meshes, poses))
+        assert (count.submits, count.maps) == (planned, planned)  # all inside the frame
+        monkeypatch.undo()
+    for r in results:
+        assert r.pairs.tolist() == truth and r.stats.possibly_lost == 0
+        assert r.stats.retries == 1 and r.stats.reruns == 0 and r.stats.undecided > 0
+    assert results[0].records.tobytes() == results[1].records.tobytes()
+    _check_retry_layout(det, results[-1], budget // RETRY_LISTS // width)
 
 
-def test_plan_budget_chooses_the_retry_budget_only_where_retries_then_fit():
-    """again.plan_budget: the retry rounds' budget after a query that ran tiles again, whose
-    plan fills at most RETRY_PLAN_ROUNDS of its rounds and whose bands fit one; else the
-    budget (and never with records of every tile)."""
-    from pycinder.focused.frame.again import RETRY_PLAN_ROUNDS, plan_budget
-    from pycinder.focused.plan.tiles import HEIGHT_CLASSES
+def _check_retry_layout(det, result, rows):
+    """The last frame's tiles as pass F7 left them: every tile it laid out lies in its retry
+    round's ``rows`` rows and the atlas's width, and no two of a retry round overlap."""
+    from pycinder.gpu.layout import TILE
+
+    b, plan = det.strategy.frames.buffers, result.tiles
+    n, pairs = len(plan), result.stats.candidates
+    device = det.gpu.device
+    tiles = np.frombuffer(device.queue.read_buffer(b.tiles.buffer, 0, TILE.size * n),
+                          TILE.dtype)
+    counts = np.frombuffer(device.queue.read_buffer(b.tile_counts.buffer), np.uint32)
+    flags = counts[2 * n + pairs: 3 * n + pairs]
+    assert flags.any() and flags.max() >= 2  # tiles laid out in more than one retry round
+    for j in range(1, int(flags.max()) + 1):
+        used = np.zeros((rows, plan.atlas_width), np.int32)
+        for x, y, w, h in tiles["window"][flags == j]:
+            assert x + w <= plan.atlas_width and y + h <= rows
+            used[y:y + h, x:x + w] += 1
+        assert used.max() == 1
+    kept = flags == 0
+    assert np.array_equal(tiles["window"][kept], plan.window[kept])  # the others stay put
+
+
+def test_retry_rounds_are_sized_within_the_budget_and_by_the_last_need():
+    """again.retry_on_gpu: rows of a retry round (lists four times longer) within the retry's
+    budget, at most the plan's largest round, a multiple of the tallest class, at least its
+    tallest tile; none without a recent retry or with every tile's records. again.retry_rounds:
+    enough for the last need, from 1 to MAX_RETRY_ROUNDS."""
+    from pycinder.focused.frame.again import MAX_RETRY_ROUNDS, retry_on_gpu, retry_rounds
+    from pycinder.focused.plan.tiles import TilePlan
     from pycinder.request import record_mode
 
-    none, every = record_mode("none"), record_mode("all")
-    retry, budget = 128 * 1024, 4 * 128 * 1024
-    fits = RETRY_PLAN_ROUNDS * retry
-    assert plan_budget(True, none, fits, 1024, budget, retry) == retry
-    assert plan_budget(True, record_mode("found"), 1, 64, budget, retry) == retry
-    assert plan_budget(True, none, fits + 1, 1024, budget, retry) == budget  # too many rounds
-    assert plan_budget(False, none, fits, 1024, budget, retry) == budget  # nothing ran again
-    assert plan_budget(True, every, fits, 1024, budget, retry) == budget  # every tile's records
-    wide = retry // HEIGHT_CLASSES[-1] + 1  # a band of that width holds more than a round
-    assert plan_budget(True, none, 1, wide, budget, retry) == budget
-    assert plan_budget(True, none, 1, wide - 1, budget, retry) == retry
+    def plan(rows, tallest, width=1024):
+        window = np.array([[0, 0, 64, tallest]])
+        return TilePlan(pair=np.zeros(1, int), bodies=np.zeros((1, 2), int),
+                        axes=np.zeros((1, 3, 3)), origin=np.zeros((1, 3)), pixel=np.ones(1),
+                        window=window, slab=np.zeros((1, 2)), flags=np.zeros(1, int),
+                        round=np.zeros(1, int), round_rows=rows, atlas_width=width)
 
-
-def test_a_query_that_plans_no_tile_leaves_the_last_plans_size():
-    """A query whose pairs are all apart (no tile) is no plan to size the next one by."""
-    det = pycinder.Detector(records="none")
-    det.find_collisions([trimesh.creation.box((1, 1, 1)), trimesh.creation.icosphere(radius=0.4)],
-                        np.stack([np.eye(4), np.eye(4)]))
-    pixels, width = det.strategy.recent_pixels, det.strategy.recent_width
-    assert pixels > 0 and width > 0
-    far = np.stack([np.eye(4), np.eye(4)])
-    far[1, 0, 3] = 5.0
-    result = det.find_collisions([trimesh.creation.box((1, 1, 1)),
-                                  trimesh.creation.icosphere(radius=0.4)], far)
-    assert result.pairs.tolist() == []
-    assert (det.strategy.recent_pixels, det.strategy.recent_width) == (pixels, width)
+    none = record_mode("none")
+    assert retry_on_gpu(True, none, plan([1024, 512], 128), 300 * 1024) == 256
+    assert retry_on_gpu(True, record_mode("found"), plan([200], 64), 10**9) == 128
+    assert retry_on_gpu(True, none, plan([100], 64), 10**9) == 100  # a small plan: its rows
+    assert retry_on_gpu(True, none, plan([1024], 128), 100 * 1024) == 0  # a band does not fit
+    assert retry_on_gpu(False, none, plan([1024], 128), 300 * 1024) == 0
+    assert retry_on_gpu(True, record_mode("all"), plan([1024], 128), 300 * 1024) == 0
+    assert retry_rounds(0, 256) == 1
+    assert retry_rounds(257, 256) == 2
+    assert retry_rounds(10**6, 256) == MAX_RETRY_ROUNDS

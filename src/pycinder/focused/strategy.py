@@ -10,8 +10,9 @@ whose pair was not found by another tile is run again, with lists four times lon
 with its box cut in two along the view, until nothing is undecided; whatever is still undecided
 after that is counted in ``stats.possibly_lost`` and warned about. Once a query has run tiles
 again, the next ones run their first retry, with longer lists, on the GPU in the frame's own
-submission (records "none" and "found", when lists that long fit the memory budget); cutting
-boxes is planned by the host.
+submission: one retry round, its tiles laid out anew on the GPU (records "none" and "found",
+as many tiles as its rows hold within the memory budget); cutting boxes is planned by the
+host.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from ..tolerance import pair_tolerances
 from ..util.text import plural
 from .broad import GpuBroadPhase, in_range
 from .broad.prune import PairList, sweep_and_prune
-from .frame.again import (LARGER_LISTS, RETRIES, RoundTooLarge, plan_budget, retry_on_gpu,
+from .frame.again import (LARGER_LISTS, RETRIES, RoundTooLarge, retry_on_gpu, retry_rounds,
                           smaller_rounds, undecided_tiles)
 from .frame.atlas import ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS
 from .frame.frameio import sort_records
@@ -82,11 +83,9 @@ class FocusedStrategy:
         self._planner: GpuPlanner | None = None  # made on first query with planner="gpu"
         self.recently_retried = False
         """Whether the last query ran tiles again (their samples were left undecided)."""
-        self.recent_pixels = 0
-        """Atlas pixels of the last submitted query's first plan (see
-        :func:`~pycinder.focused.frame.again.plan_budget`)."""
-        self.recent_width = 0
-        """Its atlas width."""
+        self.retry_rows_needed = 0
+        """Rows of the retry rounds' layout the last query's tiles to run again needed (see
+        :func:`~pycinder.focused.frame.again.retry_rounds`)."""
 
     def _budget(self, capacity: int) -> int:
         """Atlas pixels per round with lists of ``capacity`` crossings."""
@@ -175,11 +174,6 @@ class FocusedStrategy:
         # that stops the GPU, are the host's.
         planned_on_gpu = not stop_at_first and self.request.gpu_planner(len(pairs),
                                                                         self.gpu.cpu_adapter)
-        # Rounds whose retry rounds (lists RETRY_LISTS times longer) fit this budget retry inside
-        # the frame; the plan's own rounds are sized by the last query (again.plan_budget).
-        retry_budget = self._budget(self.frames.capacity * RETRY_LISTS)
-        budget = plan_budget(self.recently_retried, mode, self.recent_pixels, self.recent_width,
-                             self.budget_pixels, retry_budget)
         stats.planner = "gpu" if planned_on_gpu else "numpy"
         if planned_on_gpu:
             if self._planner is None:
@@ -188,12 +182,12 @@ class FocusedStrategy:
                 self._planner = GpuPlanner(self.gpu, self.request.timeout)
             plan, gpu_tiles = self._planner.plan(
                 pairs, tol, scene.local_lo, scene.local_hi, lo, hi, scene.transforms,
-                budget_pixels=budget, probe=mode.probe, open_bodies=scene.open,
+                budget_pixels=self.budget_pixels, probe=mode.probe, open_bodies=scene.open,
                 max_pixels=self.request.max_pixels, faces=scene.face_counts)
             stats.waited_ms += self._planner.waited_ms
         else:
             plan = plan_tiles(pairs, tol, scene.local_lo, scene.local_hi, lo, hi,
-                              scene.transforms, budget_pixels=budget,
+                              scene.transforms, budget_pixels=self.budget_pixels,
                               probe=mode.probe, open_bodies=scene.open,
                               max_pixels=self.request.max_pixels, faces=scene.face_counts,
                               lead=lead)
@@ -204,11 +198,14 @@ class FocusedStrategy:
         stats.add_ms("tiles", (t2 - t1) * 1e3)
         if len(plan) == 0:
             return PendingFocused(self, CollisionResult.empty(stats))
-        self.recent_pixels, self.recent_width = plan.atlas_pixels, plan.atlas_width
         pack = self.pack(scene, stats)
-        retry = retry_on_gpu(self.recently_retried, mode, plan, retry_budget)
+        # Retry rounds (lists RETRY_LISTS times longer) within the memory budget, as many as the
+        # last query's tiles to run again needed.
+        retry = retry_on_gpu(self.recently_retried, mode, plan,
+                             self._budget(self.frames.capacity * RETRY_LISTS))
         inputs = self._inputs(plan, scene, pack, len(pairs), mode, None, retry)
         inputs.gpu_tiles = gpu_tiles
+        inputs.retry_rounds = retry_rounds(self.retry_rows_needed, retry)
         first = self.frames.submit(inputs)
         t3 = time.perf_counter()
         stats.add_ms("upload", (t3 - t2) * 1e3)
@@ -218,7 +215,7 @@ class FocusedStrategy:
 
     @staticmethod
     def _inputs(plan: TilePlan, scene: Scene, pack: ShapePack, n_pairs: int,
-                records: RecordMode, capacity: int | None, retry: bool = False) -> FrameInputs:
+                records: RecordMode, capacity: int | None, retry: int = 0) -> FrameInputs:
         return FrameInputs(plan, scene.transforms, scene.body_shape, pack, n_pairs,
                            scene.shapes, records, capacity or 0, retry)
 
@@ -255,11 +252,14 @@ class FocusedStrategy:
         rows: list[tuple[TilePlan, np.ndarray]] = []
         current, capacity, submitted = q.plan, self.frames.capacity, q.first
         lists_overflowed = False
-        for _ in range(RETRIES + 1):
+        for k in range(RETRIES + 1):
             current, out = self._run_plan(current, scene, q.pack, len(pairs), records, capacity,
                                           submitted)
             submitted = None
             self._count(stats, current, out)
+            if out.retry_rows_needed:
+                # The frame chose tiles to run again itself: its retry rounds' size, next time.
+                self.retry_rows_needed = out.retry_rows_needed
             if out.retried_tiles:
                 # The frame ran its undecided tiles again itself, with longer lists.
                 lists_overflowed = True
@@ -278,6 +278,8 @@ class FocusedStrategy:
                 break
             stats.retries += 1
             lists_overflowed |= retry.lists_overflowed
+            if k == 0 and not out.retry_rows_needed:  # the first frame had no retry rounds
+                self.retry_rows_needed = int(sum(retry.plan.round_rows))
             # The retry covers these tiles' whole boxes again: their records from this run
             # would come twice.
             done, kept = rows[-1]

@@ -1,6 +1,7 @@
 // Focused strategy, pass F1 (compute): cull clusters per tile.
 //
-// One thread per (tile, side, cluster of that side's body). A cluster's faces are kept when its
+// One thread per (tile, side, cluster of that side's body): of a round's tiles, or (cull_retry) of
+// the tiles pass F7 laid out in a retry round. A cluster's faces are kept when its
 // bounds meet the tile's window and are not wholly on the far side of the box from the counting
 // side (its faces could cross rays through the window there); its edges are kept when its
 // bounds meet the box itself (only there can an edge lie inside the other body or cross its
@@ -20,7 +21,8 @@
 @group(0) @binding(6) var<storage, read_write> counters: array<atomic<u32>>;
 @group(0) @binding(7) var<uniform> params: CullParams;
 // Per tile (found, undecided), then per candidate pair a hit flag (set by passes F4-F6), then
-// (in the retry round) per tile whether it is run again (set by retry.wgsl).
+// (for the retry rounds) per tile the retry round it is run again in and the list of those tiles
+// (set by retry.wgsl).
 @group(0) @binding(8) var<storage, read> counts: array<u32>;
 
 @compute @workgroup_size(WORKGROUP)
@@ -46,11 +48,30 @@ fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
         }
     }
     let e = lo;
-    let tile_index = e / 2u;
-    let side = e % 2u;
-    if (params.retry_offset != 0u && counts[params.retry_offset + tile_index] == 0u) {
-        return;  // the retry round runs only the tiles chosen for it
+    cull_cluster(e / 2u, e % 2u, entries[e].y + (i - entries[e].x));
+}
+
+// A retry round: one workgroup per (tile, side) of the tiles pass F7 laid out in the retry
+// rounds (listed in `counts` from `list_offset`), its threads over the side's clusters; a tile of
+// another retry round is left to it.
+@compute @workgroup_size(WORKGROUP)
+fn cull_retry(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: u32) {
+    let k = wg.y * ROW + wg.x;
+    if (k >= 2u * atomicLoad(&counters[C_RETRY_TILES])) {
+        return;
     }
+    let tile_index = counts[params.list_offset + k / 2u];
+    if (counts[params.retry_offset + tile_index] != params.retry_round) {
+        return;
+    }
+    let e = 2u * tile_index + k % 2u;
+    let n = entries[e + 1u].x - entries[e].x;
+    for (var j = lid; j < n; j += WORKGROUP) {
+        cull_cluster(tile_index, k % 2u, entries[e].y + j);
+    }
+}
+
+fn cull_cluster(tile_index: u32, side: u32, c: u32) {
     let t = tiles[tile_index];
     if ((t.flags & FLAG_SKIP_IF_HIT) != 0u && counts[params.pair_offset + t.pair] != 0u) {
         return;  // another tile of this pair already found it colliding
@@ -58,7 +79,6 @@ fn cull(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid: 
     if (frame_decided(t)) {
         return;  // the frame asks only whether anything collides, and something does
     }
-    let c = entries[e].y + (i - entries[e].x);
     // Half a pixel more, so rounding never culls what touches the window.
     let box = tile_box(t, side, bounds[2u * c].xyz, bounds[2u * c + 1u].xyz, 0.5);
     let mid_p = box[0];

@@ -5,12 +5,13 @@ cheapest to the dearest:
 
 1. **Lists overflowed, inside the frame (GPU).** A pixel listed more crossings within its tile's
    box than its list holds, so some samples were undecided. When the last query needed retries
-   (frames of an animation are alike), the frame ends with retry rounds: pass F7 flags the
-   undecided tiles whose pair no tile found, and passes F1-F6 run again for them with lists
+   (frames of an animation are alike), the frame ends with retry rounds: pass F7 chooses the
+   undecided tiles whose pair no tile found, from every round, and lays them out anew in the
+   retry rounds' rows, and passes F1-F6 run again for them with lists
    :data:`~pycinder.focused.frame.atlas.RETRY_LISTS` times longer, in the same submission. The
-   strategy chooses this with :func:`retry_on_gpu`. Retry rounds need lists that long over
-   their whole round: a query after one whose plan filled few rounds of the retry's budget is
-   planned in rounds of that budget (:func:`plan_budget`), so that its retries fit its frame.
+   strategy chooses this with :func:`retry_on_gpu`, which sizes a retry round within the
+   memory budget, and :func:`retry_rounds`, which makes as many as the last frame's tiles to run
+   again needed. Tiles that do not fit them stay undecided, for case 4.
 2. **A buffer was too small (host, same frame).** A pass filled a buffer whose size the host
    chose (clipped triangles, listed edges, records): the frame is run again, whole, with the
    buffer grown (:func:`grown_caps`). Records are not worth a rerun past the device's largest
@@ -55,63 +56,38 @@ class RoundTooLarge(Exception):
         self.needed, self.limit, self.what = needed, limit, what
 
 
-RETRY_PLAN_ROUNDS = 8
-"""Most rounds of the retry rounds' budget (1/:data:`RETRY_LISTS` of the budget) that the last
-query's plan may fill for this query to be planned in rounds of that budget (:func:`plan_budget`):
-more rounds to encode, fewer frames run again on the host. Eight such rounds and their eight retry
-rounds, in two frames' slots, with and without open bodies, are the 64 recorded rounds a
-frame's replay keeps (``frames.RECORDED_ROUNDS``)."""
-
-
-def plan_budget(recently_retried: bool, records: RecordMode, recent_pixels: int,
-                recent_width: int, budget: int, retry_budget: int) -> int:
-    """Atlas pixels per round of a query's plan, chosen so that its retry rounds fit its frame.
-
-    The retry rounds' budget where the last query ran tiles again, this query's retry rounds
-    may run (not with records of every tile), the last query's first plan would fill at most
-    :data:`RETRY_PLAN_ROUNDS` rounds of it, and a band of its atlas (the tallest tiles across
-    its width) fits one: a round holds at least one band. Its undecided tiles then run again
-    inside its own frame (:func:`retry_on_gpu`): a few more rounds instead of a second
-    submission and map, and a read of the tiles' counts, for them (a check of 1,024 Panda
-    configurations with MoveIt's matrix, on lavapipe: 2 rounds become 5-6). Otherwise the
-    budget. The last query stands for this one, as frames of an animation or batches of a
-    robot check are alike: a query much larger than the last may be planned in more rounds
-    than it needed, once.
-
-    Parameters
-    ----------
-    recently_retried : bool
-        The last query ran tiles again.
-    records : RecordMode
-    recent_pixels : int
-        Atlas pixels of the last query's first plan.
-    recent_width : int
-        Its atlas width.
-    budget, retry_budget : int
-        Atlas pixels per round with lists of the frame's length, and four times longer.
-
-    Returns
-    -------
-    int
-    """
-    if recently_retried and not records.every_tile \
-            and recent_pixels <= RETRY_PLAN_ROUNDS * retry_budget \
-            and HEIGHT_CLASSES[-1] * recent_width <= retry_budget:
-        return retry_budget
-    return budget
+MAX_RETRY_ROUNDS = 8
+"""Most retry rounds a frame ends with (see :func:`retry_rounds`)."""
 
 
 def retry_on_gpu(recently_retried: bool, records: RecordMode, plan: TilePlan,
-                 retry_budget: int) -> bool:
-    """Case 1: whether ``plan``'s frame ends with retry rounds of its own.
+                 retry_budget: int) -> int:
+    """Case 1: the atlas rows of each of ``plan``'s frame's retry rounds (0: the frame has
+    none).
 
-    Only when the last query ran tiles again (retry rounds that find nothing to retry still cost
-    their passes' fixed cost, about as much as a frame of two small bodies on a CPU adapter),
-    when lists of the retry's length fit ``retry_budget`` atlas pixels per round, and when not
-    every tile is tested (retry rounds leave out the tiles of pairs already found, whose records
-    would then be missing)."""
-    return recently_retried and not records.every_tile \
-        and max(plan.round_rows) * plan.atlas_width <= retry_budget
+    Only when the last query ran tiles again (a retry round that finds nothing to retry still
+    costs its passes' fixed cost, about as much as a frame of two small bodies on a CPU
+    adapter), and when not every tile is tested (retry rounds leave out the tiles of pairs
+    already found, whose records would then be missing). A retry round's rows hold lists
+    :data:`~pycinder.focused.frame.atlas.RETRY_LISTS` times longer within ``retry_budget`` atlas
+    pixels, at most as many as the plan's largest round (the frame's pixel buffer and render
+    target), a multiple of the tallest tiles' height where at least one (so that no shelf of the
+    layout lies across two retry rounds), and at least as many as the plan's tallest tile (none,
+    where those do not fit)."""
+    if not recently_retried or records.every_tile or not len(plan):
+        return 0
+    rows = min(retry_budget // plan.atlas_width, max(plan.round_rows))
+    if rows >= HEIGHT_CLASSES[-1]:
+        rows -= rows % HEIGHT_CLASSES[-1]
+    return rows if rows >= int(plan.window[:, 3].max()) else 0
+
+
+def retry_rounds(rows_needed: int, rows: int) -> int:
+    """The retry rounds of a frame whose retry rounds have ``rows`` rows each, when the last
+    frame's tiles to run again needed ``rows_needed`` rows of the retry rounds' layout (frames
+    of an animation, or batches of a robot check, are alike): enough for them, at least one and
+    at most :data:`MAX_RETRY_ROUNDS`. Tiles that do not fit run again on the host (case 4)."""
+    return min(max(-(-rows_needed // max(rows, 1)), 1), MAX_RETRY_ROUNDS)
 
 
 def grown_caps(counters: np.ndarray, caps: Caps, limits: Caps, records_read: bool
@@ -225,5 +201,5 @@ def undecided_tiles(plan: TilePlan, tile_counts: np.ndarray, found: np.ndarray,
     return again, Undecided(retry, which, capacity, overflowed)
 
 
-__all__ = ["LARGER_LISTS", "RETRIES", "RETRY_PLAN_ROUNDS", "RoundTooLarge", "Undecided",
-           "grown_caps", "plan_budget", "retry_on_gpu", "smaller_rounds", "undecided_tiles"]
+__all__ = ["LARGER_LISTS", "MAX_RETRY_ROUNDS", "RETRIES", "RoundTooLarge", "Undecided",
+           "grown_caps", "retry_on_gpu", "retry_rounds", "smaller_rounds", "undecided_tiles"]

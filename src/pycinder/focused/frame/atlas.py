@@ -14,16 +14,17 @@ import numpy as np
 import wgpu
 
 from ...gpu.buffers import GrowableBuffer, Readback
-from ...gpu.layout import COUNTERS, INDIRECT_ARGS, RECORD, TILE
+from ...gpu.layout import COUNTERS, INDIRECT_ARGS, RECORD, TILE, WORKGROUP
 from ...request import RecordMode
 from ...scene.pack import ShapePack
+from ..plan.tiles import HEIGHT_CLASSES
 from .blocks import ParamBlocks
 
 LIST_CAPACITY = 8
 """Crossings kept per pixel within a tile's box (both bodies together)."""
 
 RETRY_LISTS = 4
-"""The retry round's lists are this many times longer than the frame's."""
+"""The retry rounds' lists are this many times longer than the frame's."""
 
 PIXEL_BYTES = 12
 """Per atlas pixel: crossings listed, winding outside the box, tile."""
@@ -42,6 +43,16 @@ MERGED_WRITE_BYTES = 1 << 16
 shapes next to it in the positions buffer (one ``write_buffer`` for the run)."""
 
 _U = wgpu.BufferUsage
+
+
+GROUP_WORDS, CLASS_WORDS = 16, 4
+"""Words of ``tile_counts`` the retry rounds' layout (pass F7, ``retry.wgsl``) keeps per
+workgroup of its per-tile dispatches, and per height class of the tiles."""
+
+
+def layout_words(tiles: int) -> int:
+    """Words of ``tile_counts`` the retry rounds' layout needs for a frame of ``tiles`` tiles."""
+    return GROUP_WORDS * -(-tiles // WORKGROUP) + CLASS_WORDS * len(HEIGHT_CLASSES)
 
 
 @dataclass
@@ -66,8 +77,12 @@ class FrameState:
         Cull items the largest round may keep (face and edge items each).
     capacity : int
         List entries per pixel in the frame's rounds.
-    retry : bool
-        The frame ends with retry rounds (one per round, lists :data:`RETRY_LISTS` times longer).
+    retry_rows : int
+        Atlas rows of each of the frame's retry rounds, which end it (lists
+        :data:`RETRY_LISTS` times longer, for the tiles pass F7 chooses and lays out in them);
+        0: it has none.
+    retry_rounds : int
+        Its retry rounds.
     any_open : bool
         Some tile has an open body: pass F6 runs.
     records : RecordMode
@@ -85,7 +100,8 @@ class FrameState:
     round_tiles: np.ndarray
     items: int
     capacity: int
-    retry: bool
+    retry_rows: int
+    retry_rounds: int
     any_open: bool
     records: RecordMode
     slot: int
@@ -94,6 +110,11 @@ class FrameState:
     @property
     def rounds(self) -> int:
         return len(self.round_rows)
+
+    @property
+    def retry(self) -> bool:
+        """The frame ends with retry rounds."""
+        return self.retry_rows > 0 and self.retry_rounds > 0
 
     def capacity_of(self, retry: bool) -> int:
         """List entries per pixel of the frame's rounds (of its retry rounds)."""
@@ -108,6 +129,17 @@ class FrameState:
     def retry_offset(self) -> int:
         """Word of ``tile_counts`` where the per-tile retry flags start."""
         return 2 * self.tiles + self.pairs
+
+    @property
+    def layout_offset(self) -> int:
+        """Word of ``tile_counts`` where the retry rounds' layout starts (pass F7's words)."""
+        return 3 * self.tiles + self.pairs
+
+    @property
+    def list_offset(self) -> int:
+        """Word of ``tile_counts`` where the list of the tiles laid out in the retry rounds
+        starts (one word per tile of the frame)."""
+        return self.layout_offset + layout_words(self.tiles)
 
 
 @dataclass
@@ -140,8 +172,9 @@ class AtlasBuffers:
         self.clusters = grow("clusters")
         self.cluster_bounds = grow("cluster bounds", _U.STORAGE)
         self.which = grow("clusters to bound")
-        # One frame's tiles and what the passes hand each other.
-        self.tiles = grow("tiles")
+        # One frame's tiles and what the passes hand each other (the tiles as pass F7 left them
+        # can be read back, to check its layout).
+        self.tiles = grow("tiles", storage | _U.COPY_SRC)
         self.entries = grow("tile entries")
         self.face_items = grow("face items", _U.STORAGE)
         self.edge_items = grow("edge items", _U.STORAGE)
@@ -265,12 +298,14 @@ class AtlasBuffers:
         self.entries.write(entries)
         self.face_items.ensure(8 * max(state.items, 1))
         self.edge_items.ensure(8 * max(state.items, 1))
-        # Per tile (found, undecided), per pair a hit flag, per tile a retry flag.
-        self.tile_counts.ensure(8 * state.tiles + 4 * state.pairs + 4 * state.tiles + 4)
+        # Per tile (found, undecided), per pair a hit flag, per tile a retry flag, the retry
+        # rounds' layout and the list of their tiles.
+        self.tile_counts.ensure(4 * (state.list_offset + state.tiles))
         width = state.atlas_width
-        rows = max(state.round_rows) if state.round_rows else 1
+        rows = max(max(state.round_rows) if state.round_rows else 1, state.retry_rows)
         self.pixels.ensure(PIXEL_BYTES * width * rows)
-        self.lists.ensure(ENTRY_BYTES * state.capacity_of(state.retry) * width * rows)
+        self.lists.ensure(ENTRY_BYTES * width * max(state.capacity * rows,
+                                                    state.capacity_of(True) * state.retry_rows))
         self.active.ensure(4 * width * rows)
         caps, limits = self.caps, self.limits
         caps.tris = min(caps.tris, limits.tris)
@@ -305,22 +340,33 @@ class Round:
     Attributes
     ----------
     block : int
-        Its copy of the per-round parameter blocks (retry rounds come after the frame's rounds).
+        Its copy of the per-round parameter blocks (the retry rounds' come after the frame's
+        rounds').
     threads : int
         Cull threads.
     rows : int
         Atlas rows.
-    retry : bool
-        A retry round: only the tiles chosen for it are culled, with longer lists.
+    retry_round : int
+        A retry round's number, from 1: only the tiles pass F7 laid out in it are culled, with
+        longer lists; 0: a round of the frame.
     slot : int
         The frame's slot.
+    first_tile, end_tile : int
+        Its tiles, ``[first_tile, end_tile)`` of the frame (a retry round's: every tile, of
+        which it culls those laid out in it).
     """
 
     block: int
     threads: int
     rows: int
-    retry: bool
+    retry_round: int
     slot: int
+    first_tile: int
+    end_tile: int
+
+    @property
+    def retry(self) -> bool:
+        return self.retry_round > 0
 
     @property
     def kind(self) -> str:
@@ -338,5 +384,6 @@ class Encoding:
     state: FrameState
 
 
-__all__ = ["EDGE_ENTRY_BYTES", "ENTRY_BYTES", "LIST_CAPACITY", "PIXEL_BYTES", "RETRY_LISTS",
-           "SLOTS", "AtlasBuffers", "Caps", "Encoding", "FrameState", "Round"]
+__all__ = ["CLASS_WORDS", "EDGE_ENTRY_BYTES", "ENTRY_BYTES", "GROUP_WORDS", "LIST_CAPACITY",
+           "PIXEL_BYTES", "RETRY_LISTS", "SLOTS", "AtlasBuffers", "Caps", "Encoding",
+           "FrameState", "Round", "layout_words"]

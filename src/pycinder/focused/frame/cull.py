@@ -27,7 +27,10 @@ PARAMS = Struct("CullParams", [
     ("face_cap", "u32", "face items the buffer holds"),
     ("edge_cap", "u32", "edge items the buffer holds"),
     ("pair_offset", "u32", "where the per-pair hit flags start in `counts`"),
-    ("retry_offset", "u32", "a retry round: where the per-tile retry flags start (0: every tile)"),
+    ("retry_offset", "u32", "where the per-tile retry flags start in `counts`"),
+    ("retry_round", "u32", "a retry round's number from 1 (its tiles' retry flag); 0: a round"),
+    ("retry_row", "u32", "a retry round: its first row of the retry rounds' layout"),
+    ("list_offset", "u32", "where the list of the retry rounds' tiles starts in `counts`"),
     ("cull_x", "u32", "this round's cull workgroups (x, y, z: its indirect dispatch)"),
     ("cull_y", "u32", ""),
     ("cull_z", "u32", ""),
@@ -35,11 +38,11 @@ PARAMS = Struct("CullParams", [
 
 
 class Cull:
-    """F1: one thread per (tile, side, cluster of that side's body); a retry round culls only
-    the tiles chosen for it, with a dispatch written on the GPU (``retry.wgsl``'s
-    ``retry_args``); the others with a dispatch read from the round's parameters, so that the
-    round's commands do not depend on its size (see
-    :meth:`pycinder.focused.frame.frames.FocusedFrames._encode_round`)."""
+    """F1: one thread per (tile, side, cluster of that side's body) of a round, with a dispatch
+    read from the round's parameters, so that the round's commands do not depend on its size
+    (see :meth:`pycinder.focused.frame.frames.FocusedFrames._encode_round`); a retry round
+    culls only the tiles pass F7 laid out in it, a workgroup per side of each tile listed
+    (``cull_retry``), with a dispatch written on the GPU (``retry.wgsl``'s ``retry_args``)."""
 
     INFO: ClassVar[PassInfo] = PassInfo(
         "F1", "cull", "clusters per tile: face and edge work items", when="every round")
@@ -47,24 +50,30 @@ class Cull:
 
     def __init__(self, gpu: Gpu, arguments: Arguments, retry_dispatch: RetryDispatch) -> None:
         self.stage = Stage(gpu, "cull", "cull", label=self.INFO.title, structs=(PARAMS,))
+        self.retry_stage = Stage(gpu, "cull", "cull_retry", label=f"{self.INFO.title} (retry)",
+                                 structs=(PARAMS,))
         self.arguments = arguments
         self.retry_dispatch = retry_dispatch
 
-    def write_params(self, e: Encoding, r: Round, round_of_frame: int) -> None:
-        s, k = e.state, round_of_frame
+    def write_params(self, e: Encoding, r: Round) -> None:
+        s = e.state
         p = e.round_params("cull", r.block)
-        p["total"] = s.round_threads[k]
-        p["first_entry"] = 2 * s.round_tiles[k]
-        p["n_entries"] = 2 * (s.round_tiles[k + 1] - s.round_tiles[k])
+        p["total"] = r.threads
+        p["first_entry"] = 2 * r.first_tile
+        p["n_entries"] = 2 * (r.end_tile - r.first_tile)
         p["face_cap"] = p["edge_cap"] = s.items
         p["pair_offset"] = s.pair_offset
-        p["retry_offset"] = s.retry_offset if r.retry else 0
-        x, y = workgroup_grid(-(-int(s.round_threads[k]) // WORKGROUP))
+        p["retry_offset"] = s.retry_offset
+        p["retry_round"] = r.retry_round
+        p["retry_row"] = (r.retry_round - 1) * s.retry_rows if r.retry else 0
+        p["list_offset"] = s.list_offset
+        x, y = workgroup_grid(-(-r.threads // WORKGROUP))
         p["cull_x"], p["cull_y"], p["cull_z"] = x, y, 1
 
     def encode(self, scope: ComputeScope, e: Encoding, r: Round) -> None:
         b = e.buffers
-        group = self.stage.group(
+        stage = self.retry_stage if r.retry else self.stage
+        group = stage.group(
             f"round {r.block}", tiles=b.tiles, clusters=b.clusters, bounds=b.cluster_bounds,
             entries=b.entries, face_items=b.face_items, edge_items=b.edge_items,
             counters=b.counters, params=e.round_params.binding("cull", r.block),
@@ -75,7 +84,7 @@ class Cull:
             indirect = b.args_at("retry_cull")
         else:
             indirect = e.round_params.indirect("cull", r.block, "cull_x")
-        dispatch(cpass, self.stage, group, indirect=indirect)
+        dispatch(cpass, stage, group, indirect=indirect)
         self.arguments.encode(cpass, e, "after_cull")
 
 

@@ -14,7 +14,8 @@ from ...gpu.bindings import Profiler
 from ...gpu.buffers import Readback
 from ...gpu import native
 from ...gpu.device import Gpu
-from ...gpu.layout import C_AGAIN, C_RECORDS, C_RETRY_TILES, C_UNDECIDED, COUNTERS, RECORD, TILE
+from ...gpu.layout import (C_AGAIN, C_RECORDS, C_RETRY_ROWS, C_RETRY_TILES, C_UNDECIDED, COUNTERS,
+                           RECORD, TILE)
 from ...request import RecordMode
 from ...scene.pack import ShapePack
 from ..plan.tiles import TilePlan
@@ -54,6 +55,9 @@ class FocusedOutput:
         Samples undecided (list overflow), in every round and retry round of the frame.
     retried_tiles : int
         Tiles run again in the frame's own retry rounds.
+    retry_rows_needed : int
+        Atlas rows the retry rounds' layout needed for every tile pass F7 chose (laid out or
+        not: what the next frame's retry rounds are sized by).
     capacity : int
         The list capacity of the frame's last round (the retry's when it ran).
     """
@@ -68,6 +72,7 @@ class FocusedOutput:
     dropped_records: int = 0
     undecided: int = 0
     retried_tiles: int = 0
+    retry_rows_needed: int = 0
     capacity: int = LIST_CAPACITY
 
 
@@ -85,13 +90,17 @@ class FrameInputs:
     shapes: list | None
     records: RecordMode
     capacity: int
-    retry: bool
+    retry: int
+    """Atlas rows of each of the frame's retry rounds (0: none; see
+    :func:`~pycinder.focused.frame.again.retry_on_gpu`)."""
     gpu_tiles: wgpu.GPUBuffer | None = None
     """A GPU buffer holding the plan's tiles as the passes read them
     (:data:`~pycinder.gpu.layout.TILE`, written by the GPU planner's pass P3 in an earlier
     submission), copied into the frame's own on the GPU; None: the host composes them
     (:meth:`words`). A frame run again composes them on the host: a later plan may have
     replaced the planner's."""
+    retry_rounds: int = 1
+    """The frame's retry rounds (with :attr:`retry`)."""
 
     def words(self) -> np.ndarray:
         """(T,) :data:`~pycinder.gpu.layout.TILE` records of the plan, composed on the host
@@ -209,6 +218,7 @@ class FrameReadback:
         return FocusedOutput(pair_found, tile_counts, recs, counters,
                              lay.nbytes + tiles + more, gpu_ms,
                              undecided=int(counters[C_UNDECIDED]), retried_tiles=retried,
+                             retry_rows_needed=int(counters[C_RETRY_ROWS]),
                              capacity=s.capacity_of(bool(retried)))
 
     def _more(self, s: FrameState, tiles: int, more: int, n_records: int) -> np.ndarray:

@@ -4,7 +4,8 @@ submitted once, and read back with one map.
     F0 bounds (when vertices changed)
     per round:        F1 cull -> F2 clip -> F3 crossings -> F4 surface test -> F5 edge test
                       -> F6 crossing test (tiles with an open body)
-    when retrying:    F7 retry choice, then per round F1-F6 again for the chosen tiles
+    when retrying:    F7 retry choice and layout, then per retry round F1-F6 for the chosen
+                      tiles (from every round) laid out in it, with longer lists
     F8 count undecided
 
 Each pass is an object owning its pipelines, its parameters struct and its bindings by name
@@ -231,7 +232,8 @@ class FocusedFrames:
             round_rows=list(plan.round_rows), round_threads=round_threads,
             round_tiles=round_tiles,
             items=int(round_threads.max()) if len(round_threads) else 0,
-            capacity=int(inputs.capacity or self.capacity), retry=bool(inputs.retry),
+            capacity=int(inputs.capacity or self.capacity), retry_rows=int(inputs.retry),
+            retry_rounds=int(inputs.retry_rounds),
             any_open=bool((plan.flags & (FLAG_OPEN[0] | FLAG_OPEN[1])).any()),
             records=inputs.records, slot=sub.slot)
         return state, entries
@@ -254,10 +256,10 @@ class FocusedFrames:
         """Every pass's parameters of the frame, by name."""
         s = e.state
         self.frame_params.begin()
-        self.round_params.begin(s.rounds * (1 + s.retry))
-        for r, k in self._rounds(s):
-            self.cull.write_params(e, r, k)
-            self.surface_test.write_params(e, r, k)
+        self.round_params.begin(s.rounds + s.retry * s.retry_rounds)
+        for r in self._rounds(s):
+            self.cull.write_params(e, r)
+            self.surface_test.write_params(e, r)
         self.arguments.write_params(e)
         self.clip.write_params(e)
         self.crossings.write_params(e)
@@ -269,17 +271,18 @@ class FocusedFrames:
         self.frame_params.write()
 
     @staticmethod
-    def _rounds(s: FrameState, retry: bool | None = None) -> list[tuple[Round, int]]:
-        """The frame's rounds (``retry`` None: all; False: the first ones; True: the retry
-        rounds), each with the index of the round of the frame it covers."""
+    def _rounds(s: FrameState, retry: bool | None = None) -> list[Round]:
+        """The frame's rounds (``retry`` None: all; False: the first ones; True: its retry
+        rounds, after them)."""
         out = []
-        for is_retry in ((False, True) if retry is None else (retry,)):
-            if is_retry and not s.retry:
-                continue
+        if retry is not True:
             for k in range(s.rounds):
-                block = k + (s.rounds if is_retry else 0)
-                out.append((Round(block, int(s.round_threads[k]), s.round_rows[k], is_retry,
-                                  s.slot), k))
+                out.append(Round(k, int(s.round_threads[k]), s.round_rows[k], 0, s.slot,
+                                 int(s.round_tiles[k]), int(s.round_tiles[k + 1])))
+        if retry is not False and s.retry:
+            threads = int(s.round_threads.sum())  # of every tile: each round culls its own
+            for j in range(s.retry_rounds):
+                out.append(Round(s.rounds + j, threads, s.retry_rows, j + 1, s.slot, 0, s.tiles))
         return out
 
     def _encode_round(self, encoder: wgpu.GPUCommandEncoder, e: Encoding, r: Round,
@@ -349,7 +352,7 @@ class FocusedFrames:
     def _encode_and_submit(self, sub: Submitted, e: Encoding) -> None:
         """Encode the frame, submit it and start mapping its readback."""
         s, b = e.state, e.buffers
-        self.profiler.begin(3 + len(TIMED_PASSES) * s.rounds * (1 + s.retry))
+        self.profiler.begin(3 + len(TIMED_PASSES) * (s.rounds + s.retry * s.retry_rounds))
         encoder = native.encoder(self.gpu.device, "focused frame")
         if sub.gpu_tiles is not None:
             encoder.copy_buffer_to_buffer(sub.gpu_tiles, 0, b.tiles.buffer, 0,
@@ -359,13 +362,13 @@ class FocusedFrames:
         encoder.clear_buffer(b.counters)
         encoder.clear_buffer(b.tile_counts.buffer, 0, 8 * s.tiles + 4 * s.pairs)
         first = True
-        for r, _ in self._rounds(s, retry=False):
+        for r in self._rounds(s, retry=False):
             if r.threads:
                 self._encode_round(encoder, e, r, first)
                 first = False
         if s.retry:
             self.retry_choice.encode(encoder, self.profiler, e)
-            for r, _ in self._rounds(s, retry=True):
+            for r in self._rounds(s, retry=True):
                 if r.threads:
                     self._encode_round(encoder, e, r)
         if s.tiles:

@@ -1,6 +1,6 @@
 """Decisions after the rounds (``retry.wgsl``): F7 chooses the tiles of the frame's retry rounds
-(run in the same submission, one per round, with longer lists), and F8 counts the tiles the
-host must still run again. Tiles of pairs already found are never retried (no record comes
+(run in the same submission, with longer lists) and lays them out in them, and F8 counts the tiles
+the host must still run again. Tiles of pairs already found are never retried (no record comes
 twice); a tile that pass F6 left at its loop budget is not retried here (longer lists cannot
 help it): it stays undecided for the host, which cuts its box."""
 
@@ -15,7 +15,8 @@ from ...gpu.device import Gpu
 from ...gpu.layout import WORKGROUP
 from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
-from .atlas import Encoding, Round
+from ..plan.tiles import HEIGHT_CLASSES
+from .atlas import CLASS_WORDS, GROUP_WORDS, Encoding, Round
 from .cull import PARAMS as CULL_PARAMS
 
 PARAMS = Struct("RetryParams", [
@@ -23,7 +24,19 @@ PARAMS = Struct("RetryParams", [
     ("pair_offset", "u32", "where the per-pair hit flags start in `tile_counts`"),
     ("retry_offset", "u32", "where the per-tile retry flags start"),
     ("every_tile", "u32", "1: every tile's records are wanted (records \"all\"), found or not"),
+    ("atlas_width", "u32", "atlas pixels per row"),
+    ("retry_rows", "u32", "atlas rows of each retry round (0: the frame has none)"),
+    ("retry_rounds", "u32", "the frame's retry rounds"),
+    ("groups", "u32", "workgroups of the per-tile dispatches"),
+    ("group_offset", "u32", "where the layout's per-workgroup words start in `tile_counts`"),
+    ("layout_offset", "u32", "where its per-class words start"),
+    ("list_offset", "u32", "where the list of the tiles laid out starts"),
 ], uniform=True)
+
+if len(HEIGHT_CLASSES) != 5:  # retry.wgsl's class_height lists five
+    raise RuntimeError("retry.wgsl lays out tiles of five height classes")
+_CONSTS = {"CLASSES": len(HEIGHT_CLASSES), "GROUP_WORDS": GROUP_WORDS, "CLASS_WORDS": CLASS_WORDS,
+           **{f"HEIGHT_CLASS{k}": h for k, h in enumerate(HEIGHT_CLASSES)}}
 
 _STRUCTS = (CULL_PARAMS, PARAMS)
 
@@ -35,32 +48,56 @@ class _Decision:
     ENTRY: ClassVar[str]
 
     def __init__(self, gpu: Gpu) -> None:
-        self.stage = Stage(gpu, "retry", self.ENTRY, label=self.INFO.title, structs=_STRUCTS)
+        self.stage = self._stage(gpu, self.ENTRY, self.INFO.title)
+
+    @staticmethod
+    def _stage(gpu: Gpu, entry: str, label: str) -> Stage:
+        return Stage(gpu, "retry", entry, label=label, structs=_STRUCTS, consts=_CONSTS)
+
+    def _per_tile(self, cpass: wgpu.GPUComputePassEncoder, stage: Stage, e: Encoding) -> None:
+        """Dispatch ``stage`` with a thread per tile of the frame."""
+        dispatch(cpass, stage, self._group(stage, e), -(-e.state.tiles // WORKGROUP))
+
+    @staticmethod
+    def _group(stage: Stage, e: Encoding) -> object:
+        b = e.buffers
+        return stage.group(tiles=b.tiles, tile_counts=b.tile_counts, counters=b.counters,
+                           params=e.frame_params.binding("retry"))
 
     def encode(self, encoder: wgpu.GPUCommandEncoder, profiler: Profiler, e: Encoding) -> None:
-        b = e.buffers
         cpass = encoder.begin_compute_pass(label=self.INFO.title,
                                            **profiler.writes("decisions"))
-        dispatch(cpass, self.stage, self.stage.group(
-            tiles=b.tiles, tile_counts=b.tile_counts, counters=b.counters,
-            params=e.frame_params.binding("retry")), -(-e.state.tiles // WORKGROUP))
+        self._passes(cpass, e)
         cpass.end()
+
+    def _passes(self, cpass: wgpu.GPUComputePassEncoder, e: Encoding) -> None:
+        self._per_tile(cpass, self.stage, e)
 
 
 class RetryChoice(_Decision):
-    """F7: the tiles left undecided whose pair was not found are flagged for the retry rounds
-    (their undecided counts cleared: the retry counts its own)."""
+    """F7: the tiles left undecided whose pair was not found are chosen for the retry rounds and
+    laid out in their rows, in tile order (their undecided counts cleared: the retry counts its
+    own); those that do not fit stay undecided, for the host."""
 
     INFO: ClassVar[PassInfo] = PassInfo(
-        "F7", "retry choice", "flag undecided tiles of pairs not found; F1-F6 run again for "
-        "them with lists four times longer", when="when the frame retries")
+        "F7", "retry choice", "choose the undecided tiles of pairs not found and lay them out in "
+        "the retry rounds, where F1-F6 run again for them with lists four times longer",
+        when="when the frame retries")
     ENTRY: ClassVar[str] = "select_retry"
     PARAMS: ClassVar[Struct] = PARAMS
 
     def __init__(self, gpu: Gpu) -> None:
         super().__init__(gpu)
-        self.args = Stage(gpu, "retry", "retry_args", label="F7 retry dispatch",
-                          structs=_STRUCTS)
+        self.layout = self._stage(gpu, "retry_layout", "F7 retry layout")
+        self.place = self._stage(gpu, "place_retry", "F7 retry places")
+        self.args = self._stage(gpu, "retry_args", "F7 retry dispatch")
+
+    def _passes(self, cpass: wgpu.GPUComputePassEncoder, e: Encoding) -> None:
+        super()._passes(cpass, e)
+        dispatch(cpass, self.layout, self.layout.group(
+            tile_counts=e.buffers.tile_counts, counters=e.buffers.counters,
+            params=e.frame_params.binding("retry")), 1)
+        self._per_tile(cpass, self.place, e)
 
     def write_params(self, e: Encoding) -> None:
         p, s = e.frame_params("retry"), e.state
@@ -68,9 +105,18 @@ class RetryChoice(_Decision):
         p["pair_offset"] = s.pair_offset
         p["retry_offset"] = s.retry_offset
         p["every_tile"] = int(s.records.every_tile)
+        p["atlas_width"] = s.atlas_width
+        p["retry_rows"] = s.retry_rows
+        p["retry_rounds"] = s.retry_rounds
+        groups = -(-s.tiles // WORKGROUP)
+        p["groups"] = groups
+        p["group_offset"] = s.layout_offset
+        p["layout_offset"] = s.layout_offset + GROUP_WORDS * groups
+        p["list_offset"] = s.list_offset
 
     def cull_dispatch(self, cpass: wgpu.GPUComputePassEncoder, e: Encoding, r: Round) -> None:
-        """The indirect dispatch of retry round ``r``'s cull (nothing when no tile is retried)."""
+        """The indirect dispatch of retry round ``r``'s cull (nothing when no tile is laid out
+        in it)."""
         b = e.buffers
         dispatch(cpass, self.args, self.args.group(
             f"round {r.block}", counters=b.counters, args=b.args,

@@ -49,11 +49,11 @@ class SurfaceTest:
                            structs=(PARAMS,))
         self.arguments = arguments
 
-    def write_params(self, e: Encoding, r: Round, round_of_frame: int) -> None:
+    def write_params(self, e: Encoding, r: Round) -> None:
         s = e.state
         p = e.round_params("surface", r.block)
         p["atlas_width"] = s.atlas_width
-        p["rows"] = s.round_rows[round_of_frame]
+        p["rows"] = r.rows
         p["capacity"] = s.capacity_of(r.retry)
         p["record_cap"] = record_cap(e)
         p["pair_offset"] = s.pair_offset
