@@ -71,6 +71,9 @@ class _Plan:
     """The check's bodies, prepared once (made by the first batch)."""
     front: GpuPairCull | None = None
     """Its passes K1 and K2 on the GPU (made by the first batch that takes its poses there)."""
+    bounds: np.ndarray | None = None
+    """(U, 2, 3) float64: the bounds of the meshes of :attr:`used`, read once (a plan is kept by
+    its bodies' meshes)."""
 
     @classmethod
     def of(cls, pairs: list[tuple[int, int]]) -> _Plan:
@@ -344,7 +347,9 @@ class Robot(RobotModel):
         sources = np.where(plan.used < robot, plan.used, -1)
         used = [bodies[i] for i in plan.used]
         origins = np.array([b.origin for b in used]).reshape(-1, 4, 4)
-        bounds = np.array([b.mesh.bounds for b in used], np.float64).reshape(-1, 2, 3)
+        if plan.bounds is None:
+            plan.bounds = np.array([b.mesh.bounds for b in used], np.float64).reshape(-1, 2, 3)
+        bounds = plan.bounds
         # Per checked pair, both bodies' estimates against the tolerance its query gives it.
         error = kinematics.errors_of(sources)
         a, b = plan.pairs[:, 0], plan.pairs[:, 1]

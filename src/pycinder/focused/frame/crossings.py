@@ -51,16 +51,21 @@ class Crossings:
 
     def ensure_target(self, width: int, rows: int) -> None:
         """A render target of at least ``width`` x ``rows`` pixels (raises ValueError over the
-        device's texture limit)."""
-        if self.target is not None and self.target.width >= width and self.target.height >= rows:
+        device's texture limit). A new one is made a power of two in each direction (within the
+        limit) and never smaller than the last: frames whose atlases differ a little keep it, and
+        the rounds recorded with it (one byte a pixel)."""
+        old = self.target
+        if old is not None and old.width >= width and old.height >= rows:
             return
-        height = max(rows, self.target.height if self.target is not None else 0)
+        if old is not None:
+            width, rows = max(width, old.width), max(rows, old.height)
         limit = self.gpu.max_resolution
-        if width > limit or height > limit:
-            raise ValueError(f"an atlas of {width} x {height} pixels is over this device's "
+        if width > limit or rows > limit:
+            raise ValueError(f"an atlas of {width} x {rows} pixels is over this device's "
                              f"texture limit of {limit}; lower memory_budget")
+        size = [min(1 << (max(n, 1) - 1).bit_length(), limit) for n in (width, rows)]
         self.target = self.gpu.device.create_texture(
-            label="atlas", size=(width, height, 1), format="r8unorm",
+            label="atlas", size=(size[0], size[1], 1), format="r8unorm",
             usage=wgpu.TextureUsage.RENDER_ATTACHMENT)
         self.view = self.target.create_view()
         self.generation += 1
