@@ -227,22 +227,22 @@ def _combs_apart_and_deep(pairs: int = 6):
 @pytest.mark.parametrize("planner", ["numpy", "gpu"])
 def test_retry_rounds_hold_tiles_of_several_rounds_as_many_as_the_last_query_needed(
         monkeypatch, planner):
-    """Six comb pairs whose tiles overflow their lists, in two rounds of a small memory budget:
+    """18 comb pairs whose tiles overflow their lists, in rounds of a small memory budget:
     after a query that ran tiles again, pass F7 lays the undecided tiles of every round out anew
     in retry rounds of a quarter of the budget. One retry round holds too few of them: the rest
     run again on the host, in frames of their own, and the next query has as many retry rounds
     as the layout needed, so that all run again inside its one frame. The answers are exact
-    geometry's at every step, and a query run twice answers the same (the layout is decided in
-    tile order, not by atomics)."""
+    geometry's at every step, and the layout is the rule's (decided in tile order, not by
+    atomics), as computed on the host."""
     from pycinder.focused.frame.atlas import ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS
     from pycinder.testing import ground_truth
 
     t = 0.001
-    meshes, poses = _combs_apart_and_deep()
+    meshes, poses = _combs_apart_and_deep(18)
     truth = ground_truth(meshes, poses, tolerance=t).overlap.tolist()
-    assert truth == [[4, 5], [10, 11]]
+    assert truth == [[2 * k, 2 * k + 1] for k in range(18) if k % 3 == 2]
     width = 2048
-    budget = 4 * 128 * width  # a retry round: 128 rows of the atlas
+    budget = 4 * 256 * width  # a retry round: 256 rows of the atlas
     per_pixel = PIXEL_BYTES + ENTRY_BYTES * LIST_CAPACITY
     det = pycinder.Detector(tolerance=t, records="found", planner=planner,
                             memory_budget=budget * per_pixel)
@@ -250,7 +250,7 @@ def test_retry_rounds_hold_tiles_of_several_rounds_as_many_as_the_last_query_nee
     first = det.find_collisions(meshes, poses)
     assert first.pairs.tolist() == truth and first.stats.retries > 0
     assert first.tiles.atlas_width == width and len(first.tiles.round_rows) >= 2
-    undecided_rounds = np.unique(first.tiles.round[np.isin(first.tiles.pair, [0, 1, 3, 4])])
+    undecided_rounds = np.unique(first.tiles.round[np.isin(first.tiles.pair, [0, 1, 3, 4, 6, 7])])
     assert len(undecided_rounds) >= 2  # the apart pairs' tiles lie in several rounds
     assert det.strategy.recently_retried
     needed = det.strategy.retry_rows_needed
@@ -263,47 +263,60 @@ def test_retry_rounds_hold_tiles_of_several_rounds_as_many_as_the_last_query_nee
     assert det.strategy.retry_rows_needed >= needed // 2
     monkeypatch.undo()
     det.find_collisions(meshes, poses)  # buffers grow to the retry rounds here
-    results = []
-    for _ in range(2):
-        count = _Count(monkeypatch)
-        results.append(det.find_collisions(meshes, poses))
-        assert (count.submits, count.maps) == (planned, planned)  # all inside the frame
-        monkeypatch.undo()
-    for r in results:
-        assert r.pairs.tolist() == truth and r.stats.possibly_lost == 0
-        assert r.stats.retries == 1 and r.stats.reruns == 0 and r.stats.undecided > 0
-    assert results[0].records.tobytes() == results[1].records.tobytes()
-    _check_retry_layout(det, results[-1], budget // RETRY_LISTS // width)
+    count = _Count(monkeypatch)
+    result = det.find_collisions(meshes, poses)
+    assert (count.submits, count.maps) == (planned, planned)  # all inside the frame
+    monkeypatch.undo()
+    assert result.pairs.tolist() == truth and result.stats.possibly_lost == 0
+    assert result.stats.retries == 1 and result.stats.reruns == 0 and result.stats.undecided > 0
+    _check_retry_layout(det, result, budget // RETRY_LISTS // width)
 
 
 def _check_retry_layout(det, result, rows):
-    """The last frame's tiles as pass F7 left them: every tile it laid out lies in its retry
-    round's ``rows`` rows and the atlas's width, and no two of a retry round overlap."""
-    from pycinder.gpu.layout import TILE
+    """The last frame's tiles as pass F7 left them (every tile it chose laid out, as the
+    query's submissions say): each tile it laid out lies in its retry round's ``rows`` rows and
+    the atlas's width, no two of a retry round overlap, chosen tiles of several of F7's
+    workgroups were laid out, and each lies where the layout's rule puts it, computed here:
+    height classes from the tallest, slots as wide as a class's widest tile, tiles in order."""
+    from pycinder.focused.plan.tiles import HEIGHT_CLASSES
+    from pycinder.gpu.layout import TILE, WORKGROUP
 
     b, plan = det.strategy.frames.buffers, result.tiles
-    n, pairs = len(plan), result.stats.candidates
+    n, pairs, width = len(plan), result.stats.candidates, plan.atlas_width
     device = det.gpu.device
     tiles = np.frombuffer(device.queue.read_buffer(b.tiles.buffer, 0, TILE.size * n),
                           TILE.dtype)
     counts = np.frombuffer(device.queue.read_buffer(b.tile_counts.buffer), np.uint32)
     flags = counts[2 * n + pairs: 3 * n + pairs]
     assert flags.any() and flags.max() >= 2  # tiles laid out in more than one retry round
+    assert len(np.unique(np.flatnonzero(flags) // WORKGROUP)) >= 2
     for j in range(1, int(flags.max()) + 1):
-        used = np.zeros((rows, plan.atlas_width), np.int32)
+        used = np.zeros((rows, width), np.int32)
         for x, y, w, h in tiles["window"][flags == j]:
-            assert x + w <= plan.atlas_width and y + h <= rows
+            assert x + w <= width and y + h <= rows
             used[y:y + h, x:x + w] += 1
         assert used.max() == 1
     kept = flags == 0
     assert np.array_equal(tiles["window"][kept], plan.window[kept])  # the others stay put
+    classes = np.searchsorted(HEIGHT_CLASSES, plan.window[:, 3])
+    row = 0
+    for c in reversed(range(len(HEIGHT_CLASSES))):
+        chosen = np.flatnonzero(~kept & (classes == c))
+        widest = max(int(plan.window[chosen, 2].max()) if len(chosen) else 1, 1)
+        per_shelf = width // widest
+        for rank, i in enumerate(chosen):
+            at = row + rank // per_shelf * HEIGHT_CLASSES[c]
+            assert flags[i] == at // rows + 1
+            assert tiles["window"][i, :2].tolist() == [rank % per_shelf * widest, at % rows]
+        row += -(-len(chosen) // per_shelf) * HEIGHT_CLASSES[c]
+    assert det.strategy.retry_rows_needed == row
 
 
 def test_retry_rounds_are_sized_within_the_budget_and_by_the_last_need():
     """again.retry_on_gpu: rows of a retry round (lists four times longer) within the retry's
-    budget, at most the plan's largest round, a multiple of the tallest class, at least its
-    tallest tile; none without a recent retry or with every tile's records. again.retry_rounds:
-    enough for the last need, from 1 to MAX_RETRY_ROUNDS."""
+    budget, at most the plan's largest round, a multiple of the tallest class (else a power of
+    two), at least its tallest tile's class; none without a recent retry or with every tile's
+    records. again.retry_rounds: enough for the last need, from 1 to MAX_RETRY_ROUNDS."""
     from pycinder.focused.frame.again import MAX_RETRY_ROUNDS, retry_on_gpu, retry_rounds
     from pycinder.focused.plan.tiles import TilePlan
     from pycinder.request import record_mode
@@ -318,10 +331,47 @@ def test_retry_rounds_are_sized_within_the_budget_and_by_the_last_need():
     none = record_mode("none")
     assert retry_on_gpu(True, none, plan([1024, 512], 128), 300 * 1024) == 256
     assert retry_on_gpu(True, record_mode("found"), plan([200], 64), 10**9) == 128
-    assert retry_on_gpu(True, none, plan([100], 64), 10**9) == 100  # a small plan: its rows
+    # a small plan: a power of two of its rows, at least its tallest tile's class
+    assert retry_on_gpu(True, none, plan([100], 40), 10**9) == 64
+    assert retry_on_gpu(True, none, plan([50], 40), 10**9) == 0
     assert retry_on_gpu(True, none, plan([1024], 128), 100 * 1024) == 0  # a band does not fit
     assert retry_on_gpu(False, none, plan([1024], 128), 300 * 1024) == 0
     assert retry_on_gpu(True, record_mode("all"), plan([1024], 128), 300 * 1024) == 0
     assert retry_rounds(0, 256) == 1
     assert retry_rounds(257, 256) == 2
     assert retry_rounds(10**6, 256) == MAX_RETRY_ROUNDS
+
+
+def test_cull_items_past_what_the_rounds_hold_grow_them_and_the_frame_runs_again(monkeypatch):
+    """again.grown_caps: a round (a retry round, whose tiles come from every round) that culled
+    more items than the frame's rounds hold makes the frame run again with room for them, or is
+    too large past the device's buffers; through a frame whose items were sized too small, the
+    answer is still exact geometry's."""
+    from pycinder.focused.frame import frames
+    from pycinder.focused.frame.again import RoundTooLarge, grown_caps
+    from pycinder.focused.frame.atlas import Caps
+    from pycinder.gpu.layout import C_MAX_EDGE_ITEMS, C_MAX_FACE_ITEMS, COUNTERS
+    from pycinder.testing import ground_truth
+
+    counters = np.zeros(COUNTERS, np.int64)
+    counters[C_MAX_FACE_ITEMS], counters[C_MAX_EDGE_ITEMS] = 500, 200
+    limits = Caps(items=1000)
+    assert grown_caps(counters, Caps(), limits, False, items=300).items == 500
+    assert grown_caps(counters, Caps(), limits, False, items=500) is None
+    with pytest.raises(RoundTooLarge, match="cull items"):
+        grown_caps(counters, Caps(), Caps(items=400), False, items=300)
+
+    state = frames.FocusedFrames._state
+
+    def too_few_items(self, sub):
+        s, entries = state(self, sub)
+        if sub.reruns == 0:
+            s.items = 1
+        return s, entries
+
+    monkeypatch.setattr(frames.FocusedFrames, "_state", too_few_items)
+    t = 0.005
+    meshes = [comb_of(6, 0.0), comb_of(6, 0.03, width=0.3)]
+    result = pycinder.Detector(tolerance=t, records="none").find_collisions(meshes)
+    assert result.pairs.tolist() == ground_truth(meshes, None, tolerance=t).overlap.tolist()
+    assert result.pairs.tolist() == [[0, 1]] and result.stats.reruns > 0

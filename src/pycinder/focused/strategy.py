@@ -10,9 +10,9 @@ whose pair was not found by another tile is run again, with lists four times lon
 with its box cut in two along the view, until nothing is undecided; whatever is still undecided
 after that is counted in ``stats.possibly_lost`` and warned about. Once a query has run tiles
 again, the next ones run their first retry, with longer lists, on the GPU in the frame's own
-submission: one retry round, its tiles laid out anew on the GPU (records "none" and "found",
-as many tiles as its rows hold within the memory budget); cutting boxes is planned by the
-host.
+submission: retry rounds whose tiles are laid out anew on the GPU (records "none" and "found",
+as many retry rounds as the last query's tiles needed, each within a quarter of the memory
+budget); the tiles that do not fit them, and cutting boxes, are planned by the host.
 """
 
 from __future__ import annotations
@@ -278,7 +278,7 @@ class FocusedStrategy:
                 break
             stats.retries += 1
             lists_overflowed |= retry.lists_overflowed
-            if k == 0 and not out.retry_rows_needed:  # the first frame had no retry rounds
+            if k == 0 and not q.first.inputs.retry:  # the first frame had no retry rounds
                 self.retry_rows_needed = int(sum(retry.plan.round_rows))
             # The retry covers these tiles' whole boxes again: their records from this run
             # would come twice.
@@ -361,9 +361,10 @@ class FocusedStrategy:
                   records: RecordMode, capacity: int, submitted: Submitted | None = None
                   ) -> tuple[TilePlan, FocusedOutput]:
         """Run ``plan``'s passes (or read ``submitted``, the plan's frame already on the GPU);
-        when a round is too large for the device's buffers, plan the same tiles in smaller rounds
-        and run them again (:func:`pycinder.focused.frame.again.smaller_rounds`). Returns the plan
-        run."""
+        when a round is too large for the device's buffers, run the frame again without its
+        retry rounds where it had any (their tiles come from every round: they may be what was
+        too large), else plan the same tiles in smaller rounds and run them again
+        (:func:`pycinder.focused.frame.again.smaller_rounds`). Returns the plan run."""
         budget, width = self._budget(capacity), plan.atlas_width
         while True:
             try:
@@ -374,7 +375,10 @@ class FocusedStrategy:
                 return plan, self.frames.run(self._inputs(plan, scene, pack, n_pairs, records,
                                                           capacity))
             except RoundTooLarge as exc:
+                had_retry_rounds = submitted is not None and bool(submitted.inputs.retry)
                 submitted = None
+                if had_retry_rounds:
+                    continue
                 smaller = smaller_rounds(plan, exc, budget, width)
                 if smaller is None:
                     raise GpuMemoryError(

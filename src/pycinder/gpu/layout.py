@@ -93,11 +93,13 @@ COUNTER_NAMES = (
     "C_MAX_EDGES",
     "C_FOUND",             # non-zero once any pair of the frame is found
     "C_RETRY_ROWS",        # rows the retry rounds' layout needs for every tile chosen (pass F7)
+    "C_RETRY_CHOSEN",      # tiles pass F7 chose to run again (C_RETRY_TILES of them fit)
 )
 COUNTERS = len(COUNTER_NAMES)
 (C_FACE_ITEMS, C_EDGE_ITEMS, C_TRIS, C_ACTIVE, C_RECORDS, C_UNDECIDED, C_SAMPLES, C_RETRY_TILES,
  C_MAX_FACE_ITEMS, C_MAX_EDGE_ITEMS, C_MAX_TRIS, C_TOTAL_TRIS, C_TOTAL_FACE_ITEMS,
- C_TOTAL_EDGE_ITEMS, C_CUTS, C_AGAIN, C_EDGES, C_MAX_EDGES, C_FOUND, C_RETRY_ROWS) = range(COUNTERS)
+ C_TOTAL_EDGE_ITEMS, C_CUTS, C_AGAIN, C_EDGES, C_MAX_EDGES, C_FOUND, C_RETRY_ROWS,
+ C_RETRY_CHOSEN) = range(COUNTERS)
 ROUND_COUNTERS = 4
 """The first counters, reset before every round (and C_CUTS, C_EDGES)."""
 

@@ -90,6 +90,7 @@ fn select_retry(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
     chosen_class[lid] = chosen;
     workgroupBarrier();
     if (chosen != 0u) {
+        atomicAdd(&counters[C_RETRY_CHOSEN], 1u);
         atomicAdd(&class_count[chosen - 1u], 1u);
         atomicMax(&class_widest[chosen - 1u], width);
         var rank = 0u;  // among the workgroup's chosen tiles of its class
@@ -140,7 +141,8 @@ fn place_retry(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index
         return;
     }
     let c = (word & 0xFFu) - 1u;
-    let rank = tile_counts[params.group_offset + GROUP_WORDS * group_of(wg) + 8u + c] + (word >> 8u);
+    let first = tile_counts[params.group_offset + GROUP_WORDS * group_of(wg) + 8u + c];
+    let rank = first + (word >> 8u);
     let at = params.layout_offset + CLASS_WORDS * c;
     let per_shelf = tile_counts[at + 1u];
     let row = tile_counts[at] + rank / per_shelf * class_height(c);

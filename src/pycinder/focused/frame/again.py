@@ -36,7 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...gpu.layout import C_MAX_EDGES, C_MAX_TRIS, C_RECORDS, UNDECIDED_BUDGET_BIT
+from ...gpu.layout import (C_MAX_EDGE_ITEMS, C_MAX_EDGES, C_MAX_FACE_ITEMS, C_MAX_TRIS, C_RECORDS,
+                           UNDECIDED_BUDGET_BIT)
 from ...request import RecordMode
 from ..plan.tiles import HEIGHT_CLASSES, MAX_TILE, TilePlan, repack, split_depth
 from .atlas import RETRY_LISTS, Caps
@@ -71,15 +72,20 @@ def retry_on_gpu(recently_retried: bool, records: RecordMode, plan: TilePlan,
     already found, whose records would then be missing). A retry round's rows hold lists
     :data:`~pycinder.focused.frame.atlas.RETRY_LISTS` times longer within ``retry_budget`` atlas
     pixels, at most as many as the plan's largest round (the frame's pixel buffer and render
-    target), a multiple of the tallest tiles' height where at least one (so that no shelf of the
-    layout lies across two retry rounds), and at least as many as the plan's tallest tile (none,
-    where those do not fit)."""
+    target), a multiple of the tallest height class where at least one, else a power of two
+    (so that no shelf of the layout, each at a multiple of its class's height, lies across two
+    retry rounds), and at least the height class of the plan's tallest tile (none, where those
+    do not fit)."""
     if not recently_retried or records.every_tile or not len(plan):
         return 0
     rows = min(retry_budget // plan.atlas_width, max(plan.round_rows))
     if rows >= HEIGHT_CLASSES[-1]:
         rows -= rows % HEIGHT_CLASSES[-1]
-    return rows if rows >= int(plan.window[:, 3].max()) else 0
+    elif rows > 0:
+        rows = 1 << (rows.bit_length() - 1)  # a class height: shelves of any lower one align
+    tallest = int(plan.window[:, 3].max())
+    shelf = next((h for h in HEIGHT_CLASSES if h >= tallest), HEIGHT_CLASSES[-1])
+    return rows if rows >= shelf else 0
 
 
 def retry_rounds(rows_needed: int, rows: int) -> int:
@@ -90,26 +96,35 @@ def retry_rounds(rows_needed: int, rows: int) -> int:
     return min(max(-(-rows_needed // max(rows, 1)), 1), MAX_RETRY_ROUNDS)
 
 
-def grown_caps(counters: np.ndarray, caps: Caps, limits: Caps, records_read: bool
-               ) -> Caps | None:
+def grown_caps(counters: np.ndarray, caps: Caps, limits: Caps, records_read: bool,
+               items: int = 0) -> Caps | None:
     """Case 2: the buffers to grow before the frame runs again (None: it need not).
 
     Parameters
     ----------
     counters : (COUNTERS,) int
-        The frame's counters (the largest counts of any round).
+        The frame's counters (the largest counts of any round or retry round).
     caps, limits : Caps
         What the buffers hold now, and the most they may ever hold.
     records_read : bool
         The frame's records are read back (otherwise their count does not matter).
+    items : int
+        The cull items the frame's rounds could keep (a retry round may have culled more: its
+        tiles come from every round).
 
     Raises
     ------
     RoundTooLarge
         Case 3: a round needs more than ``limits`` allow.
     """
-    grown = Caps(caps.tris, caps.records, caps.edges)
+    grown = Caps(caps.tris, caps.records, caps.edges, caps.items)
     changed = False
+    culled = max(int(counters[C_MAX_FACE_ITEMS]), int(counters[C_MAX_EDGE_ITEMS]))
+    if culled > items:
+        if culled > limits.items:
+            raise RoundTooLarge(culled, limits.items, "cull items")
+        grown.items = culled
+        changed = True
     for name, counter, what in (("tris", C_MAX_TRIS, "clipped triangles"),
                                 ("edges", C_MAX_EDGES, "edges to sample")):
         needed, limit = int(counters[counter]), getattr(limits, name)

@@ -74,7 +74,8 @@ class FrameState:
     round_tiles : (R + 1,) int
         The first tile of each round (and the number of tiles at the end).
     items : int
-        Cull items the largest round may keep (face and edge items each).
+        Cull items a round may keep (face and edge items each): the largest round's cull
+        threads, or more where a retry round needed more (:attr:`Caps.items`).
     capacity : int
         List entries per pixel in the frame's rounds.
     retry_rows : int
@@ -144,11 +145,16 @@ class FrameState:
 
 @dataclass
 class Caps:
-    """Items the buffers that passes fill on the GPU hold now (grown when a frame needs more)."""
+    """Items the buffers that passes fill on the GPU hold now (grown when a frame needs more).
+
+    ``items``: the cull's face and edge items a round may keep, at least (a frame's own rounds
+    need their cull threads at most; a retry round, whose tiles come from every round, may need
+    more: then it grows)."""
 
     tris: int = 1 << 16
     records: int = 1 << 16
     edges: int = 1 << 16
+    items: int = 0
 
 
 class AtlasBuffers:
@@ -283,7 +289,8 @@ class AtlasBuffers:
         """The most items each grown buffer may ever hold on this device."""
         return Caps(tris=self.tris.limit // TRIANGLE_BYTES,
                     records=self.records().limit // RECORD.size,
-                    edges=self.edge_list.limit // EDGE_ENTRY_BYTES)
+                    edges=self.edge_list.limit // EDGE_ENTRY_BYTES,
+                    items=self.face_items.limit // 8)
 
     def ensure_frame(self, state: FrameState, entries: np.ndarray,
                      tiles: np.ndarray | None) -> None:

@@ -14,8 +14,8 @@ from ...gpu.bindings import Profiler
 from ...gpu.buffers import Readback
 from ...gpu import native
 from ...gpu.device import Gpu
-from ...gpu.layout import (C_AGAIN, C_RECORDS, C_RETRY_ROWS, C_RETRY_TILES, C_UNDECIDED, COUNTERS,
-                           RECORD, TILE)
+from ...gpu.layout import (C_AGAIN, C_RECORDS, C_RETRY_CHOSEN, C_RETRY_ROWS, C_RETRY_TILES,
+                           C_UNDECIDED, COUNTERS, RECORD, TILE)
 from ...request import RecordMode
 from ...scene.pack import ShapePack
 from ..plan.tiles import TilePlan
@@ -59,7 +59,8 @@ class FocusedOutput:
         Atlas rows the retry rounds' layout needed for every tile pass F7 chose (laid out or
         not: what the next frame's retry rounds are sized by).
     capacity : int
-        The list capacity of the frame's last round (the retry's when it ran).
+        The list capacity the frame's undecided tiles last ran with: the retry rounds' where
+        every tile chosen for them fitted, else the frame's.
     """
 
     pair_found: np.ndarray
@@ -215,11 +216,14 @@ class FrameReadback:
                 recs = second[tiles // 4:]
         recs = np.ascontiguousarray(recs).view(RECORD.dtype)
         retried = int(counters[C_RETRY_TILES])
+        # The tiles' lists were longer only where every tile chosen fitted the retry rounds: the
+        # others ran with the frame's lists (the host runs them again with longer ones first).
+        longer = retried > 0 and retried == int(counters[C_RETRY_CHOSEN])
         return FocusedOutput(pair_found, tile_counts, recs, counters,
                              lay.nbytes + tiles + more, gpu_ms,
                              undecided=int(counters[C_UNDECIDED]), retried_tiles=retried,
                              retry_rows_needed=int(counters[C_RETRY_ROWS]),
-                             capacity=s.capacity_of(bool(retried)))
+                             capacity=s.capacity_of(longer))
 
     def _more(self, s: FrameState, tiles: int, more: int, n_records: int) -> np.ndarray:
         """The second map: ``tiles`` bytes of per-tile counts, then ``more`` bytes of records."""

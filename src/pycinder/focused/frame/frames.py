@@ -185,7 +185,8 @@ class FocusedFrames:
             out = self.readback.read(sub)
             records_read = sub.inputs.records.read
             try:
-                grown = grown_caps(out.counters, b.caps, b.limits, records_read)
+                grown = grown_caps(out.counters, b.caps, b.limits, records_read,
+                                   sub.state.items)
             except Exception:
                 up.in_flight[sub.slot] = None
                 raise
@@ -231,7 +232,8 @@ class FocusedFrames:
             tiles=len(plan), pairs=inputs.pairs, atlas_width=plan.atlas_width,
             round_rows=list(plan.round_rows), round_threads=round_threads,
             round_tiles=round_tiles,
-            items=int(round_threads.max()) if len(round_threads) else 0,
+            items=max(int(round_threads.max()) if len(round_threads) else 0,
+                      self.buffers.caps.items),
             capacity=int(inputs.capacity or self.capacity), retry_rows=int(inputs.retry),
             retry_rounds=int(inputs.retry_rounds),
             any_open=bool((plan.flags & (FLAG_OPEN[0] | FLAG_OPEN[1])).any()),
