@@ -686,7 +686,7 @@ def sweep_lines(rows: Sequence[dict[str, Any]]) -> list[str]:
     return out
 
 
-def robot_configurations(name: str = "panda", batch: int = 1024, batches: int = 2,
+def robot_configurations(name: str = "panda", batch: int = 1024, batches: int = 5,
                          seed: int = 3, samples: int = 0) -> dict[str, Any]:
     """Host CPU per configuration of ``Robot.check`` (:mod:`pycinder.benchmarks.robots`' robot
     ``name`` with its table (and tray); the allowed-collision matrix it loads with, or with
