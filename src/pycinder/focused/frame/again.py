@@ -13,14 +13,16 @@ cheapest to the dearest:
    memory budget, and :func:`retry_rounds`, which makes as many as the last frame's tiles to run
    again needed. Tiles that do not fit them stay undecided, for case 4.
 2. **A buffer was too small (host, same frame).** A pass filled a buffer whose size the host
-   chose (clipped triangles, listed edges, records): the frame is run again, whole, with the
-   buffer grown (:func:`grown_caps`). Records are not worth a rerun past the device's largest
+   chose (clipped triangles, listed edges, records, and cull items, which a retry round may need
+   more of than the frame's rounds): the frame is run again, whole, with the buffer grown
+   (:func:`grown_caps`). Records are not worth a rerun past the device's largest
    buffer: the extra records are dropped and counted (pairs come from the per-pair flags, which
    are complete).
-3. **A round too large (host, same tiles).** One round needs more clipped triangles or listed
-   edges than the device's largest buffer holds: :func:`grown_caps` raises
-   :class:`RoundTooLarge`, and the same tiles are planned in smaller rounds, down to one atlas
-   band each, then narrower bands (:func:`smaller_rounds`).
+3. **A round too large (host, same tiles).** One round needs more clipped triangles, listed
+   edges or cull items than the device's largest buffer holds: :func:`grown_caps` raises
+   :class:`RoundTooLarge`; a frame with retry rounds runs again without them (their tiles come
+   from every round), and otherwise the same tiles are planned in smaller rounds, down to one
+   atlas band each, then narrower bands (:func:`smaller_rounds`).
 4. **Tiles left undecided (host, those tiles).** After the frame, tiles still undecided whose
    answer could change (their pair not found elsewhere, or every tile's records wanted) run
    again (:func:`undecided_tiles`): first with lists four times longer, then with their boxes
@@ -97,7 +99,7 @@ def retry_rounds(rows_needed: int, rows: int) -> int:
 
 
 def grown_caps(counters: np.ndarray, caps: Caps, limits: Caps, records_read: bool,
-               items: int = 0) -> Caps | None:
+               items: int) -> Caps | None:
     """Case 2: the buffers to grow before the frame runs again (None: it need not).
 
     Parameters

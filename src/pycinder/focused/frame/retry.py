@@ -59,7 +59,7 @@ class _Decision:
         dispatch(cpass, stage, self._group(stage, e), -(-e.state.tiles // WORKGROUP))
 
     @staticmethod
-    def _group(stage: Stage, e: Encoding) -> object:
+    def _group(stage: Stage, e: Encoding) -> wgpu.GPUBindGroup:
         b = e.buffers
         return stage.group(tiles=b.tiles, tile_counts=b.tile_counts, counters=b.counters,
                            params=e.frame_params.binding("retry"))
