@@ -91,24 +91,7 @@ fn ceil_div(a: u32, b: u32) -> u32 {
 // ---------------------------------------------------------------------------------------------
 // Tiles of a window.
 
-// The height class of a tile h pixels tall: the smallest class that holds it (searchsorted).
-fn class_of(h: u32) -> u32 {
-    if (h <= CLASS_ROWS_0) { return 0u; }
-    if (h <= CLASS_ROWS_1) { return 1u; }
-    if (h <= CLASS_ROWS_2) { return 2u; }
-    if (h <= CLASS_ROWS_3) { return 3u; }
-    return 4u;
-}
-
-fn class_rows(c: u32) -> u32 {
-    switch c {
-        case 0u: { return CLASS_ROWS_0; }
-        case 1u: { return CLASS_ROWS_1; }
-        case 2u: { return CLASS_ROWS_2; }
-        case 3u: { return CLASS_ROWS_3; }
-        default: { return CLASS_ROWS_4; }
-    }
-}
+//!include height_classes.wgsl
 
 // Pieces of a window cut into a grid of tiles of at most MAX_TILE_W x MAX_TILE_H (saturated).
 fn pieces(w: u32, h: u32) -> u32 {

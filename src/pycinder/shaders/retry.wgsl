@@ -9,10 +9,10 @@
 // Tiles of pairs already found are never retried, so no record comes twice.
 //
 // The chosen tiles, from every round, are laid out anew in rows of their own, cut into the frame's
-// `retry_rounds` retry rounds of `retry_rows` rows each. Each height class (the smallest of
-// HEIGHT_CLASSES at least as tall as the tile) has its own shelves, the tallest class first (so
-// each class's shelves start at a multiple of its height, and none crosses into the next retry
-// round where `retry_rows` is a multiple of the tallest class); a class's shelves are cut into
+// `retry_rounds` retry rounds of `retry_rows` rows each. Each height class (height_classes.wgsl's
+// class_of) has its own shelves, the tallest class first (so each class's shelves start at a
+// multiple of its height, and none crosses into the next retry round where `retry_rows` is a
+// multiple of the tallest class, or a power of two at least as tall); a class's shelves are cut into
 // slots as wide as its widest chosen tile, filled in tile order. Three dispatches, so that the
 // layout is the same on every run (no atomic decides a place):
 //   select_retry:  per tile, whether it is chosen; per workgroup, its chosen tiles of each class
@@ -29,6 +29,7 @@
 // (in no set order) for pass F1's dispatch of each retry round.
 //!include tiles.wgsl
 //!include stop.wgsl
+//!include height_classes.wgsl
 
 
 @group(0) @binding(0) var<storage, read_write> tiles: array<Tile>;
@@ -49,19 +50,6 @@
 var<workgroup> chosen_class: array<u32, WORKGROUP>;  // 0: not chosen; else class + 1
 var<workgroup> class_count: array<atomic<u32>, CLASSES>;
 var<workgroup> class_widest: array<atomic<u32>, CLASSES>;
-
-fn class_height(c: u32) -> u32 {
-    return array<u32, 5>(HEIGHT_CLASS0, HEIGHT_CLASS1, HEIGHT_CLASS2, HEIGHT_CLASS3,
-                         HEIGHT_CLASS4)[c];
-}
-
-fn class_of(height: u32) -> u32 {
-    var c = 0u;
-    while (c + 1u < CLASSES && class_height(c) < height) {
-        c++;
-    }
-    return c;
-}
 
 fn group_of(wg: vec3u) -> u32 {
     return wg.y * ROW + wg.x;
@@ -125,7 +113,7 @@ fn retry_layout() {
         tile_counts[at] = row;
         tile_counts[at + 1u] = per_shelf;
         tile_counts[at + 2u] = widest;
-        row += (chosen + per_shelf - 1u) / per_shelf * class_height(c);
+        row += (chosen + per_shelf - 1u) / per_shelf * class_rows(c);
     }
     atomicStore(&counters[C_RETRY_ROWS], row);
 }
@@ -145,10 +133,10 @@ fn place_retry(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index
     let rank = first + (word >> 8u);
     let at = params.layout_offset + CLASS_WORDS * c;
     let per_shelf = tile_counts[at + 1u];
-    let row = tile_counts[at] + rank / per_shelf * class_height(c);
+    let row = tile_counts[at] + rank / per_shelf * class_rows(c);
     let retry_round = row / params.retry_rows;
     let local_row = row % params.retry_rows;
-    if (retry_round >= params.retry_rounds || local_row + class_height(c) > params.retry_rows) {
+    if (retry_round >= params.retry_rounds || local_row + class_rows(c) > params.retry_rows) {
         tile_counts[params.retry_offset + i] = 0u;  // no room: left undecided, for the host
         return;
     }

@@ -15,7 +15,7 @@ from ...gpu.device import Gpu
 from ...gpu.layout import WORKGROUP
 from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
-from ..plan.tiles import HEIGHT_CLASSES
+from ..plan.tiles import HEIGHT_CLASS_CONSTS, HEIGHT_CLASSES
 from .atlas import CLASS_WORDS, GROUP_WORDS, Encoding, Round
 from .cull import PARAMS as CULL_PARAMS
 
@@ -33,10 +33,8 @@ PARAMS = Struct("RetryParams", [
     ("list_offset", "u32", "where the list of the tiles laid out starts"),
 ], uniform=True)
 
-if len(HEIGHT_CLASSES) != 5:  # retry.wgsl's class_height lists five
-    raise RuntimeError("retry.wgsl lays out tiles of five height classes")
 _CONSTS = {"CLASSES": len(HEIGHT_CLASSES), "GROUP_WORDS": GROUP_WORDS, "CLASS_WORDS": CLASS_WORDS,
-           **{f"HEIGHT_CLASS{k}": h for k, h in enumerate(HEIGHT_CLASSES)}}
+           **HEIGHT_CLASS_CONSTS}
 
 _STRUCTS = (CULL_PARAMS, PARAMS)
 

@@ -100,7 +100,8 @@ from ...gpu import native
 from ...gpu.device import Gpu, get_gpu
 from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
-from .tiles import ATLAS_WIDTH, HEIGHT_CLASSES, MAX_TILE, MIN_ATLAS_WIDTH, PROBE, PROBE_PLAN
+from .tiles import (ATLAS_WIDTH, HEIGHT_CLASS_CONSTS, HEIGHT_CLASSES, MAX_TILE, MIN_ATLAS_WIDTH,
+                    PROBE, PROBE_PLAN)
 
 GROUP = 256
 """Threads of the one-workgroup stages (``count``, ``bands``); their scans are written out for
@@ -201,7 +202,7 @@ CONSTS: dict[str, int | float] = {
     "GROUP": GROUP, "MAX_TILES": MAX_TILES, "MAX_TILE_W": MAX_TILE[0],
     "MAX_TILE_H": MAX_TILE[1], "PROBE_W": PROBE[0], "PROBE_H": PROBE[1],
     "PROBE_PLAN": PROBE_PLAN, "ATLAS_WIDTH": ATLAS_WIDTH, "MIN_ATLAS_WIDTH": MIN_ATLAS_WIDTH,
-    **{f"CLASS_ROWS_{i}": rows for i, rows in enumerate(HEIGHT_CLASSES)},
+    **HEIGHT_CLASS_CONSTS,
 }
 
 assert len(HEIGHT_CLASSES) == 5 and list(HEIGHT_CLASSES) == sorted(HEIGHT_CLASSES), \

@@ -38,6 +38,9 @@ MAX_TILE = (512, 128)
 
 HEIGHT_CLASSES = (8, 16, 32, 64, 128)
 """Band heights of the atlas: a tile goes to the band of the smallest class that holds it."""
+HEIGHT_CLASS_CONSTS = {f"CLASS_ROWS_{i}": rows for i, rows in enumerate(HEIGHT_CLASSES)}
+"""The classes as the shaders' constants (``height_classes.wgsl``, which names five)."""
+assert len(HEIGHT_CLASSES) == 5, "height_classes.wgsl names five height classes"
 
 ATLAS_WIDTH = 2048
 """Widest atlas (bands of tiles this wide)."""
