@@ -225,3 +225,29 @@ def test_bad_input_to_prepared_bodies_names_the_body(detector, monkeypatch):
         detector.find_collisions(bodies)
     with pytest.raises(ValueError, match="more than the 1 one query can hold"):
         detector.prepare([box, box])
+
+
+def test_an_update_keeps_the_prepared_faces_without_looking_them_up(monkeypatch):
+    """update() gives a body new vertices on the topology it was prepared with: its faces are
+    not looked up or compared again (an array of faces edited in place since is not seen), while
+    vertices of another count are checked against the faces; answers against exact geometry."""
+    from pycinder.scene.topology import TopologyCache
+
+    detector = pycinder.Detector()
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.5)
+    faces = np.array(ball.faces)
+    poses = np.stack([np.eye(4), trimesh.transformations.translation_matrix((1.1, 0, 0))])
+    bodies = detector.prepare([(np.array(ball.vertices), faces), ball])
+    looked = []
+    real = TopologyCache.get
+    monkeypatch.setattr(TopologyCache, "get", lambda self, *a: looked.append(a) or real(self, *a))
+    faces[:, [1, 2]] = faces[:, [2, 1]]                  # edited in place: inside out, unseen
+    for scale, want in ((1.0, []), (1.3, [[0, 1]]), (0.9, [])):
+        bodies.update(0, np.asarray(ball.vertices) * scale)
+        result = detector.find_collisions(bodies, poses)
+        truth = ground_truth([(np.asarray(ball.vertices) * scale, ball.faces), ball], poses)
+        assert result.pairs.tolist() == truth.overlap.tolist() == want
+    assert looked == []
+    with pytest.raises(ValueError, match=r"body 0: .*vertices"):
+        bodies.update(0, np.asarray(ball.vertices)[:10])   # the faces index more vertices
+    assert len(looked) == 1

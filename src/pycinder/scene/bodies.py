@@ -382,8 +382,8 @@ class ShapeCache:
         """The shape of a mesh, checked and measured once per distinct content."""
         return self.get_many([(vertices, faces, label)], strict)[0]
 
-    def get_many(self, meshes: list[tuple[Any, Any, str]], strict: bool, keep: bool = True
-                 ) -> list[Shape]:
+    def get_many(self, meshes: list[tuple[Any, Any, str]], strict: bool, keep: bool = True,
+                 topologies: Sequence[Topology | None] | None = None) -> list[Shape]:
         """The shapes of meshes ``(vertices, faces, label)``, in order (see :meth:`get`). Their
         vertices are hashed, checked and measured on several threads when they are large; a
         cached shape is reused when the key matches and the vertices' bytes equal the copy kept
@@ -398,14 +398,22 @@ class ShapeCache:
         ``keep=False``: new vertices, by the caller's word (:meth:`PreparedBodies.update`): they
         are not hashed or looked up (an array given twice makes one shape), and the shapes made
         are not cached (their caller holds them), so a loop that makes them outside of queries
-        leaves nothing behind."""
+        leaves nothing behind.
+
+        ``topologies``: per mesh, the topology its faces are known to have (None: look it up),
+        used where it indexes as many vertices as the mesh has; its faces are then neither
+        looked up nor compared (a prepared body keeps the faces it was prepared with)."""
         given, topos = [], []
         looked: dict[tuple[int, int], Topology] = {}
-        for vertices, faces, label in meshes:
+        for m, (vertices, faces, label) in enumerate(meshes):
             v = vertices if type(vertices).__name__ == "TrackedArray" else _array(vertices, label)
             if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0 or v.dtype.kind not in "iuf":
                 check_vertices(v, label)  # raises with the message for the shape or dtype
             given.append(v)
+            known = topologies[m] if topologies is not None else None
+            if known is not None and known.n_vertices == len(v):
+                topos.append((known, False))
+                continue
             seen = looked.get((id(faces), len(v)))
             if seen is None:
                 topos.append(self.topologies.get(faces, len(v), label))

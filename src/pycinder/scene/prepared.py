@@ -82,7 +82,9 @@ class PreparedBodies(Sequence):
                 f"{sum(len(s.topology.faces) for s in shapes):,} triangles)")
 
     def update(self, index: int | Sequence[int], vertices: Any) -> None:
-        """New vertices for bodies that deformed; each keeps its faces.
+        """New vertices for bodies that deformed; each keeps its faces, as they were prepared
+        (their topology is not looked up again: a face array edited in place since is not seen;
+        prepare the bodies again for new faces).
 
         Parameters
         ----------
@@ -116,10 +118,12 @@ class PreparedBodies(Sequence):
             label = body_label(i, self.names[i])
             meshes.append((v, mesh_arrays(self._bodies[i], label)[1], label))
         with self._lock:
-            # An update is not a query: it ages none of the cache's shapes, and the shapes it
-            # makes are held here only (a loop of updates leaves nothing in the cache).
-            new = self._cache.get_many(meshes, self._strict, keep=False)
             shapes, body_shape = list(self.shapes), self.body_shape.copy()
+            # An update is not a query: it ages none of the cache's shapes, and the shapes it
+            # makes are held here only (a loop of updates leaves nothing in the cache). Each
+            # body keeps the topology of the faces it was prepared with (not looked up again).
+            own = [shapes[int(body_shape[i])].topology for i in which]
+            new = self._cache.get_many(meshes, self._strict, keep=False, topologies=own)
             users = np.bincount(body_shape, minlength=len(shapes)).tolist()
             for (v, faces, _), i, shape in zip(meshes, which, new):
                 old = int(body_shape[i])
