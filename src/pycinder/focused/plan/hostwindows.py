@@ -123,6 +123,7 @@ def plan_windows(pairs: np.ndarray, tolerance: np.ndarray, local_lo: np.ndarray,
         :func:`~pycinder.focused.plan.tiles.tiles_of_windows` takes them; None when every pair is
         apart.
     """
+    pairs, tolerance = np.asarray(pairs), np.asarray(tolerance)
     bounds = body_bounds(local_lo, local_hi, world_lo, world_hi, transforms, open_bodies)
     # Chunks of at most ``chunk`` pairs, at least one per worker thread when there are enough
     # pairs to share (NumPy releases the GIL on arrays of this size).
@@ -297,7 +298,6 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: BodyBounds, first: i
     The matrix products (``@``, ``einsum``) are made on operands of the same memory layout as
     a product per pair would have (the layout decides which BLAS routine rounds them): every
     value of a plan is the same, bit for bit, whichever way its pairs are chunked."""
-    take = np.take
     k = len(pairs)
     a, b = pairs[:, 0], pairs[:, 1]
     ab = np.concatenate([a, b])  # each pair seen from body a's frame, then from body b's
@@ -308,16 +308,16 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: BodyBounds, first: i
     # a body's frame are the pair's own work.
     lo = np.empty((3, k, 3))
     hi = np.empty((3, k, 3))
-    w = take(bounds.world, ab, axis=0)
+    w = bounds.world.take(ab, axis=0)
     np.maximum(w[:k, 0], w[k:, 0], out=lo[0])
     np.minimum(w[:k, 1], w[k:, 1], out=hi[0])
     # The other body's boxes along my frame's axes (rows = frames[ab], [axis, pair] below).
-    h1 = sum3(np.abs(take(bounds.frames, ab, axis=0) @ take(bounds.obb_axes, ba, axis=0))).T
+    h1 = sum3(np.abs(bounds.frames.take(ab, axis=0) @ bounds.obb_axes.take(ba, axis=0))).T
     rows = bounds.soa.q.take(ab, axis=2)                  # rows[j, i] = frames[ab][:, i, j]
     c1 = _dot3(rows, bounds.soa.obb_centre.take(ba, axis=1))
     c2 = _dot3(rows, bounds.soa.aabb_centre.take(ba, axis=1))
     h2 = _dot3(np.abs(rows), bounds.soa.aabb_half.take(ba, axis=1))
-    mine = take(bounds.own, ab, axis=0).T                                        # (3, 2, 2k)
+    mine = bounds.own.take(ab, axis=0).T                                         # (3, 2, 2k)
     np.maximum(mine[:, 0], np.maximum(c1 - h1, c2 - h2), out=lo[1:].reshape(2 * k, 3).T)
     np.minimum(mine[:, 1], np.minimum(c1 + h1, c2 + h2), out=hi[1:].reshape(2 * k, 3).T)
     apart = (hi < lo).any(axis=(0, 2))
@@ -339,14 +339,14 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: BodyBounds, first: i
     best = np.where(area[2] < np.minimum(area[0], area[1]), np.int8(2), best)
     idx = np.flatnonzero(~apart)
     m = len(idx)
-    f = take(best, idx).astype(np.intp)
-    ai, bi = take(a, idx), take(b, idx)
+    f = best.take(idx).astype(np.intp)
+    ai, bi = a.take(idx), b.take(idx)
     chosen = f * k + idx                                      # rows of lo, hi, extent (3k, 3)
-    lo_f = take(lo.reshape(3 * k, 3), chosen, axis=0)
-    hi_f = take(hi.reshape(3 * k, 3), chosen, axis=0)
-    e = take(extent.reshape(3 * k, 3), chosen, axis=0)
+    lo_f = lo.reshape(3 * k, 3).take(chosen, axis=0)
+    hi_f = hi.reshape(3 * k, 3).take(chosen, axis=0)
+    e = extent.reshape(3 * k, 3).take(chosen, axis=0)
     choice = np.where(f == 0, 0, np.where(f == 1, ai, bi) + 1)
-    frame = take(bounds.choices, choice, axis=0)                                     # (m, 3, 3)
+    frame = bounds.choices.take(choice, axis=0)                                      # (m, 3, 3)
     # The chosen frame's axes by extent, long, mid, thin: np.argsort's order of -extent (ties
     # by index), from where each axis goes (pos_i: how many axes come before axis i).
     e0, e1, e2 = e[:, 0], e[:, 1], e[:, 2]
@@ -356,7 +356,7 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: BodyBounds, first: i
     for rank in (0, 1):
         np.copyto(order[:, rank], np.where(pos0 == rank, 0, np.where(pos1 == rank, 1, 2)))
     np.subtract(3, order[:, 0] + order[:, 1], out=order[:, 2])
-    ranked = take(bounds.choices.reshape(-1, 3), 3 * choice[:, None] + order, axis=0)
+    ranked = bounds.choices.reshape(-1, 3).take(3 * choice[:, None] + order, axis=0)
     long_, mid, thin = ranked[:, 0], ranked[:, 1], ranked[:, 2]
     axes = np.empty((m, 3, 3))
     np.add(-s * long_, c * mid, out=axes[:, 0])
@@ -379,7 +379,7 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: BodyBounds, first: i
         lo0, hi0 = vlo[swap, 0].copy(), vhi[swap, 0].copy()
         vlo[swap, 0], vhi[swap, 0] = vlo[swap, 1], vhi[swap, 1]
         vlo[swap, 1], vhi[swap, 1] = -hi0, -lo0
-    px = take(tol, idx)
+    px = tol.take(idx)
     # Sizes stay floating point until the plan is known to fit (see check_pixels).
     w = np.ceil((vhi[:, 0] - vlo[:, 0]) / px) + 2 * MARGIN_PX
     h = np.ceil((vhi[:, 1] - vlo[:, 1]) / px) + 2 * MARGIN_PX
@@ -396,9 +396,9 @@ def _plan_chunk(pairs: np.ndarray, tol: np.ndarray, bounds: BodyBounds, first: i
     front_len = vlo[:, 2] - np.minimum(ca - ha, cb - hb)
     back_len = np.maximum(ca + ha, cb + hb) - vhi[:, 2]
     flags = np.where(back_len < front_len, FLAG_COUNT_BACK, 0)
-    flags |= take(bounds.flags[0], ai)
-    flags |= take(bounds.flags[1], bi)
+    flags |= bounds.flags[0].take(ai)
+    flags |= bounds.flags[1].take(bi)
     return {
-        "pair": idx + first, "bodies": take(pairs, idx, axis=0), "axes": axes,
+        "pair": idx + first, "bodies": pairs.take(idx, axis=0), "axes": axes,
         "origin": origin, "pixel": px, "w": w, "h": h, "slab": slab, "flags": flags,
     }

@@ -567,10 +567,9 @@ def _place(cat: dict, phase: _Phase, budget_pixels: int, separated: int, atlas_w
     lay = _layout(phase.w, phase.h, budget_pixels, atlas_width)
     tile = lay.tile
     src = tile if phase.src is None else phase.src[tile]
-    take = np.take
-    axes = take(cat["axes"], src, axis=0)
-    pixel = take(cat["pixel"], src)
-    origin = take(cat["origin"], src, axis=0)
+    axes = cat["axes"].take(src, axis=0)
+    pixel = cat["pixel"].take(src)
+    origin = cat["origin"].take(src, axis=0)
     if phase.moved is not False:
         # As a part's origin has always been computed (its window's, plus zero or more pixels
         # along screen x and y), then a band's cut.
@@ -579,11 +578,11 @@ def _place(cat: dict, phase: _Phase, budget_pixels: int, separated: int, atlas_w
         origin = moved if phase.moved is True else \
             np.where(phase.moved[tile][:, None], moved, origin)
     origin = origin + (lay.shift * pixel)[:, None] * axes[:, 0]
-    flags = take(cat["flags"], src)
+    flags = cat["flags"].take(src)
     if phase.flags:
         flags |= phase.flags
-    return TilePlan(take(cat["pair"], src), take(cat["bodies"], src, axis=0), axes, origin,
-                    pixel, lay.window, take(cat["slab"], src, axis=0), flags, lay.round,
+    return TilePlan(cat["pair"].take(src), cat["bodies"].take(src, axis=0), axes, origin,
+                    pixel, lay.window, cat["slab"].take(src, axis=0), flags, lay.round,
                     lay.round_rows, atlas_width, separated)
 
 
