@@ -105,6 +105,36 @@ def test_the_floor_skeleton_runs_its_shader_and_is_measured():
     assert "| 2 | 2 | no | 64 | yes | no |" in lines and "| 2 | 2 | no | 64 | yes | yes |" in lines
 
 
+
+def test_a_shaped_skeleton_makes_the_calls_of_its_shape_and_a_scene_has_its_floor():
+    """A query of a CommandShape makes exactly the calls the shape counts (read back from its
+    counted calls by CommandShape.of_calls, the watch's own left out) through the C functions,
+    as pycinder's queries make them (through wgpu-py, its maps for reading add a submission of
+    their own); its shader runs either way (the answer is the largest body index); a scene's
+    floor is measured on the shape of its own counted calls."""
+    from pycinder.benchmarks import hostfloor
+    from pycinder.gpu.device import get_gpu
+
+    device = get_gpu().device
+    shape = hostfloor.CommandShape(submissions=2, compute_passes=3, dispatches=7,
+                                   render_passes=2, clears=3, copies=2, writes=4)
+    skeleton = hostfloor.Skeleton(device, 300, 0, False, 64, shape)
+    for direct in (False, True):
+        skeleton.query(direct=direct)
+        with hostcpu.count_wgpu_calls(device) as counts:
+            answer = skeleton.query(direct=direct)
+        assert answer[0] == 0 and answer[1] == 299
+        by_method = hostcpu.summarise_calls(counts, 1)["by_method"]
+        if direct:
+            assert hostfloor.CommandShape.of_calls(by_method) == shape, by_method
+    rows = hostfloor.scene_floors(["two-small-prepared"], ["numpy"], repeats=1, batches=2,
+                                  per_batch=2)
+    assert len(rows) == 1 and rows[0]["floor_ms"] > 0 and rows[0]["one_submission_ms"] > 0
+    assert rows[0]["shape"]["submissions"] == 1 and rows[0]["shape"]["dispatches"] > 3
+    assert rows[0]["shape"]["render_passes"] >= 1
+    lines = "\n".join(hostfloor.scene_lines(rows, "x"))
+    assert "| two-small-prepared | numpy |" in lines
+
 def test_a_child_process_finds_this_ones_python_path_after_the_tree(monkeypatch):
     """The fresh processes of the benchmarks import the tree given first and still find what
     this process finds on its PYTHONPATH (wheels installed with ``--target`` on a machine without

@@ -29,7 +29,8 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -74,6 +75,65 @@ without it; through wgpu-py, or (direct) with the compute pass, the copy and the
 through wgpu-native's C functions as pycinder records them (:mod:`pycinder.gpu.native`)."""
 
 
+
+@dataclass(frozen=True)
+class CommandShape:
+    """What one query asks of the GPU API, kind by kind: a query of this shape has this floor
+    (:func:`measure` with ``shape``), whatever the work of its passes.
+
+    Attributes
+    ----------
+    submissions : int
+        Command buffers submitted one after the other, each ending with a copy of the answer
+        and its map, waited for before the next is encoded (as the GPU planner's plan is
+        before the frame).
+    compute_passes, dispatches : int
+        Compute passes, and their dispatches (each a pipeline, a bind group and an indirect
+        dispatch), dealt to the submissions in turn.
+    render_passes : int
+        Render passes of one attachment, each a pipeline and a draw (in the last submission).
+    clears, copies : int
+        Buffer clears and buffer-to-buffer copies (besides each submission's answer), in the
+        last submission.
+    writes : int
+        ``queue.write_buffer`` calls before the first submission (the transforms' first).
+    """
+
+    submissions: int = 1
+    compute_passes: int = 1
+    dispatches: int = 1
+    render_passes: int = 0
+    clears: int = 0
+    copies: int = 0
+    writes: int = 1
+
+    @classmethod
+    def of_calls(cls, by_method: Mapping[str, float]) -> CommandShape:
+        """The shape of a query whose GPU API calls per query are ``by_method`` (as
+        :func:`~pycinder.benchmarks.hostcpu.summarise_calls` gives them: wgpu-py's methods,
+        and ``"C name"`` for the C functions called directly). The device watch's own calls (a
+        marker copy per submission, :mod:`pycinder.gpu.watch`) are left out: the skeleton's
+        device makes them too."""
+        def n(*names: str) -> int:
+            return round(sum(by_method.get(k, 0.0) for k in names))
+
+        submissions = max(n("GPUQueue.submit"), 1)
+        # Each submission's marker copy is the watch's, and one copy is its answer's.
+        copies = n("C wgpuCommandEncoderCopyBufferToBuffer",
+                   "GPUCommandEncoder.copy_buffer_to_buffer") - 2 * submissions
+        return cls(submissions=submissions,
+                   compute_passes=n("C wgpuCommandEncoderBeginComputePass",
+                                    "GPUCommandEncoder.begin_compute_pass"),
+                   dispatches=n("C wgpuComputePassEncoderDispatchWorkgroups",
+                                "C wgpuComputePassEncoderDispatchWorkgroupsIndirect",
+                                "GPUComputePassEncoder.dispatch_workgroups",
+                                "GPUComputePassEncoder.dispatch_workgroups_indirect"),
+                   render_passes=n("C wgpuCommandEncoderBeginRenderPass",
+                                   "GPUCommandEncoder.begin_render_pass"),
+                   clears=n("C wgpuCommandEncoderClearBuffer", "GPUCommandEncoder.clear_buffer"),
+                   copies=max(copies, 0), writes=max(n("GPUQueue.write_buffer"), 1))
+
+
 class Skeleton:
     """The objects a GPU-resident query keeps from one query to the next, made once.
 
@@ -88,11 +148,18 @@ class Skeleton:
         Also one render pass replaying a render bundle recorded here.
     answer_bytes : int
         Bytes copied out and mapped per query.
+    shape : CommandShape, optional
+        Instead of ``dispatches`` and ``bundle``: a query of this shape (:meth:`query` runs
+        it; its render passes draw without a bundle, as a frame's do).
     """
 
     def __init__(self, device: Any, bodies: int, dispatches: int, bundle: bool,
-                 answer_bytes: int) -> None:
+                 answer_bytes: int, shape: CommandShape | None = None) -> None:
         import wgpu
+
+        self.shape = shape
+        if shape is not None:
+            dispatches, bundle = shape.dispatches, shape.render_passes > 0
 
         self.device, self.queue = device, device.queue
         usage = wgpu.BufferUsage
@@ -132,6 +199,13 @@ class Skeleton:
             recorder.set_pipeline(pipeline)
             recorder.draw(4)
             self.render = (target.create_view(), recorder.finish())
+            self.draw_pipeline = pipeline
+        # What a shaped query's clears and copies work on (not the answer).
+        self.scratch = [device.create_buffer(size=64, usage=usage.COPY_SRC | usage.COPY_DST)
+                        for _ in range(2)]
+        self.stagings = [self.staging] + [
+            device.create_buffer(size=answer_bytes, usage=usage.MAP_READ | usage.COPY_DST)
+            for _ in range(1, shape.submissions if shape is not None else 1)]
 
     def query(self, timeout: float = 10.0, direct: bool = False) -> np.ndarray:
         """One query: upload, encode, submit, map and read the answer (uint32); ``direct``:
@@ -140,8 +214,9 @@ class Skeleton:
         import wgpu
 
         from ..gpu import native
-        from ..gpu.watch import wait_for
 
+        if self.shape is not None:
+            return self._shaped_query(timeout, direct)
         self.queue.write_buffer(self.upload, 0, self.transforms)
         encoder = native.encoder(self.device) if direct else self.device.create_command_encoder()
         compute = encoder.begin_compute_pass()
@@ -161,18 +236,68 @@ class Skeleton:
         self.queue.submit([encoder.finish()])
         pending = native.map_read(self.device, self.staging, self.answer_bytes) if direct \
             else None
+        return self._read(self.staging, timeout, pending)
+
+    def _read(self, staging: Any, timeout: float, pending: Any = None) -> np.ndarray:
+        """Wait at most ``timeout`` seconds for the answer copied into ``staging`` (its map
+        asked for through the C functions: ``pending``; else mapped here through wgpu-py)."""
+        import wgpu
+
+        from ..gpu.watch import wait_for
+
         if pending is not None:
             if not wait_for(pending, timeout):
                 pending.abandon()
                 raise TimeoutError(f"the GPU did not answer within {timeout} s")
             return pending.read(np.uint32)
-        promise = self.staging.map_async(wgpu.MapMode.READ, 0, self.answer_bytes)
+        promise = staging.map_async(wgpu.MapMode.READ, 0, self.answer_bytes)
         if not wait_for(promise, timeout):
             raise TimeoutError(f"the GPU did not answer within {timeout} s")
         promise.sync_wait()
-        out = np.frombuffer(self.staging.read_mapped(0, self.answer_bytes), np.uint32).copy()
-        self.staging.unmap()
+        out = np.frombuffer(staging.read_mapped(0, self.answer_bytes), np.uint32).copy()
+        staging.unmap()
         return out
+
+    def _shaped_query(self, timeout: float, direct: bool) -> np.ndarray:
+        """:meth:`query` of :attr:`shape`: its writes, then each submission encoded, submitted
+        and its answer mapped and read before the next (the last one's answer is returned)."""
+        from ..gpu import native
+
+        shape = self.shape
+        for _ in range(shape.writes):
+            self.queue.write_buffer(self.upload, 0, self.transforms)
+        # Dispatches dealt to the compute passes, the passes to the submissions, in turn.
+        per_pass = np.array_split(np.arange(shape.dispatches), max(shape.compute_passes, 1))
+        dealt = np.array_split(np.arange(shape.compute_passes), shape.submissions)
+        answer = np.zeros(0, np.uint32)
+        for k, passes in enumerate(dealt):
+            encoder = native.encoder(self.device) if direct else \
+                self.device.create_command_encoder()
+            for p in passes.tolist():
+                compute = encoder.begin_compute_pass()
+                for d in per_pass[p].tolist():
+                    compute.set_pipeline(self.pipeline)
+                    compute.set_bind_group(0, self.bind_groups[d])
+                    compute.dispatch_workgroups_indirect(self.indirect, 0)
+                compute.end()
+            if k == shape.submissions - 1:
+                for _ in range(shape.render_passes):
+                    draw = encoder.begin_render_pass(color_attachments=[{
+                        "view": self.render[0], "load_op": "load", "store_op": "discard"}])
+                    draw.set_pipeline(self.draw_pipeline)
+                    draw.draw(4)
+                    draw.end()
+                for _ in range(shape.clears):
+                    encoder.clear_buffer(self.scratch[0], 0, 16)
+                for _ in range(shape.copies):
+                    encoder.copy_buffer_to_buffer(self.scratch[0], 0, self.scratch[1], 0, 16)
+            staging = self.stagings[k]
+            encoder.copy_buffer_to_buffer(self.answer, 0, staging, 0, self.answer_bytes)
+            self.queue.submit([encoder.finish()])
+            pending = native.map_read(self.device, staging, self.answer_bytes) if direct \
+                else None
+            answer = self._read(staging, timeout, pending)
+        return answer
 
 
 _RAW: list[Any] = []
@@ -189,7 +314,7 @@ def _raw_device() -> Any:
 
 def measure(bodies: int, dispatches: int, bundle: bool, answer_bytes: int,
             watched: bool = True, direct: bool = False, *, batches: int = 9,
-            per_batch: int = 20) -> dict[str, Any]:
+            per_batch: int = 20, shape: CommandShape | None = None) -> dict[str, Any]:
     """Host CPU per query of a :class:`Skeleton` (median over ``batches`` of ``per_batch``
     queries' mean, after a warm-up), by thread group, with its wall time and wgpu-py calls
     (pycinder's device where ``watched``, else one of its adapter without the watch; through
@@ -207,7 +332,7 @@ def measure(bodies: int, dispatches: int, bundle: bool, answer_bytes: int,
     from ..gpu.device import get_gpu
 
     device = get_gpu().device if watched else _raw_device()
-    skeleton = Skeleton(device, bodies, dispatches, bundle, answer_bytes)
+    skeleton = Skeleton(device, bodies, dispatches, bundle, answer_bytes, shape)
     for _ in range(5):
         skeleton.query(direct=direct)
     cpu, main, other, wall = [], [], [], []
@@ -248,14 +373,69 @@ def markdown_lines(rows: Sequence[dict[str, Any]], adapter: str) -> list[str]:
     return lines
 
 
+def scene_floors(names: Sequence[str] | None = None, planners: Sequence[str] = ("numpy", "gpu"),
+                 *, repeats: int = 5, batches: int = 9, per_batch: int = 20
+                 ) -> list[dict[str, Any]]:
+    """Per scene of :data:`~pycinder.benchmarks.hostcpu.CASES` (``names``, default all) and
+    planner: its host CPU per query (:func:`pycinder.benchmarks.hostcpu.measure`, ``repeats``
+    batches), the shape of its GPU API calls (:meth:`CommandShape.of_calls`), and the floor of a
+    query of that shape on pycinder's device through the C functions (:func:`measure`): as it
+    is (``floor_ms``), and with every command in one submission (``one_submission_ms``).
+
+    The floor's writes are of the transforms' size (a deforming scene's vertex uploads cost
+    more than that), and its answer is the scene's per-pair flags' size."""
+    from .hostcpu import CASES
+    from .hostcpu import measure as measure_scene
+
+    rows = []
+    for name in names or list(CASES):
+        for row in measure_scene(CASES[name], planners, repeats=repeats, stages=False):
+            shape = CommandShape.of_calls(row["by_method"])
+            answer = max(64, -(-4 * row["candidates"] // 16) * 16)
+            floors = [measure(max(row["bodies"], 1), 0, False, answer, True, True,
+                              batches=batches, per_batch=per_batch, shape=s)["cpu_ms"]
+                      for s in (shape, replace(shape, submissions=1))]
+            rows.append({**{k: row[k] for k in ("scene", "planner", "target_ms",
+                                                 "host_cpu_ms", "wall_ms")},
+                         "shape": asdict(shape), "floor_ms": floors[0],
+                         "one_submission_ms": floors[1]})
+    return rows
+
+
+def scene_lines(rows: Sequence[dict[str, Any]], adapter: str) -> list[str]:
+    """:func:`scene_floors`' rows as a Markdown table, with the adapter."""
+    fields = ("submissions", "compute_passes", "dispatches", "render_passes", "clears",
+              "copies", "writes")
+    lines = [f"Adapter: {adapter}.", "",
+             "| scene | planner | host CPU ms/query | target ms | floor of its commands ms | "
+             "the same in one submission ms | above the floor ms | "
+             + " | ".join(f.replace("_", " ") for f in fields) + " |",
+             "|---|---|" + "---:|" * (5 + len(fields))]
+    for r in rows:
+        lines.append(f"| {r['scene']} | {r['planner']} | {r['host_cpu_ms']:.2f} | "
+                     f"{r['target_ms']:g} | {r['floor_ms']:.3f} | {r['one_submission_ms']:.3f} | "
+                     f"{r['host_cpu_ms'] - r['floor_ms']:.2f} | "
+                     + " | ".join(str(r["shape"][f]) for f in fields) + " |")
+    return lines
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m pycinder.benchmarks.hostfloor",
                                      description=__doc__.splitlines()[0])
     parser.add_argument("--batches", type=int, default=9)
     parser.add_argument("--per-batch", type=int, default=20)
+    parser.add_argument("--scenes", nargs="*", default=None,
+                        help="instead: the floor of each hostcpu scene's commands (no name: "
+                             "every scene), beside the scene's host CPU")
+    parser.add_argument("--planners", nargs="*", default=["numpy", "gpu"])
     args = parser.parse_args(argv)
     from ..gpu.device import get_gpu
 
+    if args.scenes is not None:
+        rows = scene_floors(args.scenes, args.planners, batches=args.batches,
+                            per_batch=args.per_batch)
+        print("\n".join(scene_lines(rows, get_gpu().description)))
+        return
     rows = [measure(*config, batches=args.batches, per_batch=args.per_batch)
             for config in CONFIGS]
     print("\n".join(markdown_lines(rows, get_gpu().description)))
