@@ -134,6 +134,11 @@ def test_a_shaped_skeleton_makes_the_calls_of_its_shape_and_a_scene_has_its_floo
     assert rows[0]["shape"]["render_passes"] >= 1
     lines = "\n".join(hostfloor.scene_lines(rows, "x"))
     assert "| two-small-prepared | numpy |" in lines
+    costs = hostfloor.command_costs(repeats=1, batches=1, per_batch=2)
+    assert costs[0]["each_ms"] is None and costs[-1]["each_ms"] is None
+    assert costs[-1]["shape"] == vars(hostfloor.MINIMAL_FRAME)
+    assert all(r["cpu_ms"] > 0 for r in costs) and len(costs) == 9
+    assert "| the least query |" in "\n".join(hostfloor.cost_lines(costs, "x"))
 
 def test_a_child_process_finds_this_ones_python_path_after_the_tree(monkeypatch):
     """The fresh processes of the benchmarks import the tree given first and still find what

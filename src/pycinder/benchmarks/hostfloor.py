@@ -419,6 +419,58 @@ def scene_lines(rows: Sequence[dict[str, Any]], adapter: str) -> list[str]:
     return lines
 
 
+MINIMAL_FRAME = CommandShape(compute_passes=3, dispatches=6, render_passes=1, clears=1)
+"""The fewest commands a CInDeR frame of one round can make: a cull, the crossings drawn in one
+render pass, the tests after it (three compute passes of six dispatches, one with the indirect
+arguments between them), one clear of the per-pixel counts, one submission and one map."""
+
+
+def command_costs(*, repeats: int = 3, batches: int = 9, per_batch: int = 30
+                  ) -> list[dict[str, Any]]:
+    """The floor of the least query (one write, one compute pass of one dispatch, one
+    submission, one map: :class:`CommandShape`'s defaults), then of the same with more of one
+    kind of command, through the C functions on pycinder's device, and of
+    :data:`MINIMAL_FRAME`: ``name``, ``shape``, ``cpu_ms`` and ``main_ms`` (the calling
+    thread's), each the median over ``repeats`` rounds of :func:`measure` (the variants
+    alternate within a round), and ``each_ms``: what one more command of that kind costs."""
+    base = CommandShape()
+    variants = [("the least query", base, 0),
+                ("8 more dispatches in its pass", replace(base, dispatches=9), 8),
+                ("8 more compute passes, a dispatch each",
+                 replace(base, compute_passes=9, dispatches=9), 8),
+                ("4 render passes, a draw each", replace(base, render_passes=4), 4),
+                ("8 buffer clears", replace(base, clears=8), 8),
+                ("8 buffer copies", replace(base, copies=8), 8),
+                ("8 more writes", replace(base, writes=9), 8),
+                ("a second submission and map (a pass and a dispatch in it)",
+                 replace(base, submissions=2, compute_passes=2, dispatches=2), 1),
+                ("the least CInDeR frame (MINIMAL_FRAME)", MINIMAL_FRAME, 0)]
+    runs: dict[str, list[tuple[float, float]]] = {name: [] for name, _, _ in variants}
+    for _ in range(repeats):
+        for name, shape, _ in variants:
+            r = measure(2, 0, False, 64, True, True, batches=batches, per_batch=per_batch,
+                        shape=shape)
+            runs[name].append((r["cpu_ms"], r["main_ms"]))
+    rows = []
+    for name, shape, more in variants:
+        cpu = statistics.median(c for c, _ in runs[name])
+        rows.append({"name": name, "shape": asdict(shape), "cpu_ms": cpu,
+                     "main_ms": statistics.median(m for _, m in runs[name]),
+                     "each_ms": (cpu - rows[0]["cpu_ms"]) / more if more else None})
+    return rows
+
+
+def cost_lines(rows: Sequence[dict[str, Any]], adapter: str) -> list[str]:
+    """:func:`command_costs`' rows as a Markdown table, with the adapter."""
+    lines = [f"Adapter: {adapter}.", "",
+             "| query | host CPU ms/query | calling thread ms | each one more ms |",
+             "|---|---:|---:|---:|"]
+    for r in rows:
+        each = f"{r['each_ms']:.4f}" if r["each_ms"] is not None else ""
+        lines.append(f"| {r['name']} | {r['cpu_ms']:.3f} | {r['main_ms']:.3f} | {each} |")
+    return lines
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m pycinder.benchmarks.hostfloor",
                                      description=__doc__.splitlines()[0])
@@ -428,8 +480,15 @@ def main(argv: Sequence[str] | None = None) -> None:
                         help="instead: the floor of each hostcpu scene's commands (no name: "
                              "every scene), beside the scene's host CPU")
     parser.add_argument("--planners", nargs="*", default=["numpy", "gpu"])
+    parser.add_argument("--costs", action="store_true",
+                        help="instead: what each kind of command adds to the least query")
     args = parser.parse_args(argv)
     from ..gpu.device import get_gpu
+
+    if args.costs:
+        rows = command_costs(batches=args.batches, per_batch=args.per_batch)
+        print("\n".join(cost_lines(rows, get_gpu().description)))
+        return
 
     if args.scenes is not None:
         rows = scene_floors(args.scenes, args.planners, batches=args.batches,
