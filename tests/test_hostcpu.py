@@ -5,6 +5,7 @@ report. No time is asserted: what the figures are belongs to the benchmark."""
 import threading
 
 import numpy as np
+import pytest
 import trimesh
 
 import pycinder
@@ -105,7 +106,6 @@ def test_the_floor_skeleton_runs_its_shader_and_is_measured():
     assert "| 2 | 2 | no | 64 | yes | no |" in lines and "| 2 | 2 | no | 64 | yes | yes |" in lines
 
 
-
 def test_a_shaped_skeleton_makes_the_calls_of_its_shape_and_a_scene_has_its_floor():
     """A query of a CommandShape makes exactly the calls the shape counts (read back from its
     counted calls by CommandShape.of_calls, the watch's own left out) through the C functions,
@@ -121,12 +121,18 @@ def test_a_shaped_skeleton_makes_the_calls_of_its_shape_and_a_scene_has_its_floo
     skeleton = hostfloor.Skeleton(device, 300, 0, False, 64, shape)
     for direct in (False, True):
         skeleton.query(direct=direct)
+        device.queue.write_buffer(skeleton.answer, 0, np.zeros(16, np.uint32))
         with hostcpu.count_wgpu_calls(device) as counts:
             answer = skeleton.query(direct=direct)
-        assert answer[0] == 0 and answer[1] == 299
+        assert answer[0] == 0 and answer[1] == 299          # written by this query's shader
         by_method = hostcpu.summarise_calls(counts, 1)["by_method"]
         if direct:
             assert hostfloor.CommandShape.of_calls(by_method) == shape, by_method
+    with pytest.raises(ValueError, match="2 maps"):                 # not one map a submission
+        hostfloor.CommandShape.of_calls({**by_method, "C wgpuBufferMapAsync": 2.0,
+                                         "GPUQueue.submit": 1.0})
+    with pytest.raises(ValueError, match="compute pass for any dispatch"):
+        hostfloor.CommandShape(compute_passes=0, dispatches=3)
     rows = hostfloor.scene_floors(["two-small-prepared"], ["numpy"], repeats=1, batches=2,
                                   per_batch=2)
     assert len(rows) == 1 and rows[0]["floor_ms"] > 0 and rows[0]["one_submission_ms"] > 0
@@ -139,6 +145,7 @@ def test_a_shaped_skeleton_makes_the_calls_of_its_shape_and_a_scene_has_its_floo
     assert costs[-1]["shape"] == vars(hostfloor.MINIMAL_FRAME)
     assert all(r["cpu_ms"] > 0 for r in costs) and len(costs) == 9
     assert "| the least query |" in "\n".join(hostfloor.cost_lines(costs, "x"))
+
 
 def test_a_child_process_finds_this_ones_python_path_after_the_tree(monkeypatch):
     """The fresh processes of the benchmarks import the tree given first and still find what
@@ -158,8 +165,6 @@ def test_a_child_process_finds_this_ones_python_path_after_the_tree(monkeypatch)
 def test_a_robots_host_cpu_per_configuration_is_measured(monkeypatch):
     """``--robot``: host CPU per configuration of Robot.check in checks of a batch each, one
     query a check (the batch's configurations in one scene of copies)."""
-    import pytest
-
     pytest.importorskip("yourdfpy")
     pytest.importorskip("pybullet_data")
     queries = []
@@ -180,8 +185,6 @@ def test_a_robots_host_cpu_per_configuration_is_measured(monkeypatch):
 def test_a_robots_host_cpu_with_moveits_matrix(monkeypatch, capsys):
     """``--robot NAME --matrix-samples N``: the same measure with MoveIt's allowed-collision
     matrix made from N samples (fewer pairs to check than the matrix the robot loads with)."""
-    import pytest
-
     pytest.importorskip("yourdfpy")
     pytest.importorskip("pybullet_data")
     from pycinder.robot import Robot

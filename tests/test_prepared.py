@@ -230,7 +230,8 @@ def test_bad_input_to_prepared_bodies_names_the_body(detector, monkeypatch):
 def test_an_update_keeps_the_prepared_faces_without_looking_them_up(monkeypatch):
     """update() gives a body new vertices on the topology it was prepared with: its faces are
     not looked up or compared again (an array of faces edited in place since is not seen), while
-    vertices of another count are checked against the faces; answers against exact geometry."""
+    vertices of another count, and faces replaced by another array, are looked up; answers
+    against exact geometry."""
     from pycinder.scene.topology import TopologyCache
 
     detector = pycinder.Detector()
@@ -251,3 +252,12 @@ def test_an_update_keeps_the_prepared_faces_without_looking_them_up(monkeypatch)
     with pytest.raises(ValueError, match=r"body 0: .*vertices"):
         bodies.update(0, np.asarray(ball.vertices)[:10])   # the faces index more vertices
     assert len(looked) == 1
+    # A trimesh whose faces are set anew: they are looked up (half of them: an open surface).
+    box = trimesh.creation.box((1, 1, 1))
+    kept = detector.prepare([box, ball], names=["box", "ball"])
+    before = len(looked)
+    box.faces = box.faces[:6]
+    with pytest.warns(pycinder.OpenMeshWarning, match=r"body 0 \('box'\)"):
+        kept.update(0, box.vertices * 1.01)
+    assert len(looked) == before + 1
+    assert len(kept.shapes[kept.body_shape[0]].topology.faces) == 6

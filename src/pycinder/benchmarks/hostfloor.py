@@ -75,7 +75,6 @@ without it; through wgpu-py, or (direct) with the compute pass, the copy and the
 through wgpu-native's C functions as pycinder records them (:mod:`pycinder.gpu.native`)."""
 
 
-
 @dataclass(frozen=True)
 class CommandShape:
     """What one query asks of the GPU API, kind by kind: a query of this shape has this floor
@@ -107,20 +106,37 @@ class CommandShape:
     copies: int = 0
     writes: int = 1
 
+    def __post_init__(self) -> None:
+        counts = vars(self)
+        if any(n < 0 for n in counts.values()) or self.submissions < 1 or self.writes < 1 \
+                or (self.dispatches and not self.compute_passes):
+            raise ValueError(f"a query of {counts}: counts of at least 0, at least one submission "
+                             "and one write, and a compute pass for any dispatch")
+
     @classmethod
     def of_calls(cls, by_method: Mapping[str, float]) -> CommandShape:
         """The shape of a query whose GPU API calls per query are ``by_method`` (as
         :func:`~pycinder.benchmarks.hostcpu.summarise_calls` gives them: wgpu-py's methods,
         and ``"C name"`` for the C functions called directly). The device watch's own calls (a
         marker copy per submission, :mod:`pycinder.gpu.watch`) are left out: the skeleton's
-        device makes them too."""
+        device makes them too. The calls must be those of a watched wgpu-native device's
+        queries (the watch's marker written through the C functions), each submission with
+        one map and a copy of its answer: ValueError otherwise. Counts are per query (an
+        average over several queries is rounded)."""
         def n(*names: str) -> int:
             return round(sum(by_method.get(k, 0.0) for k in names))
 
         submissions = max(n("GPUQueue.submit"), 1)
+        maps = n("C wgpuBufferMapAsync", *(k for k in by_method if k.startswith("GPUBuffer.map")))
+        markers = n("C wgpuQueueWriteBuffer")
         # Each submission's marker copy is the watch's, and one copy is its answer's.
         copies = n("C wgpuCommandEncoderCopyBufferToBuffer",
                    "GPUCommandEncoder.copy_buffer_to_buffer") - 2 * submissions
+        if maps != submissions or markers != submissions or copies < 0:
+            raise ValueError(f"{submissions} submissions with {maps} maps, {markers} marker "
+                             f"writes and {copies + 2 * submissions} copies: not the calls of "
+                             "a watched wgpu-native device's queries, one map and one answer "
+                             "copy a submission")
         return cls(submissions=submissions,
                    compute_passes=n("C wgpuCommandEncoderBeginComputePass",
                                     "GPUCommandEncoder.begin_compute_pass"),
@@ -131,7 +147,7 @@ class CommandShape:
                    render_passes=n("C wgpuCommandEncoderBeginRenderPass",
                                    "GPUCommandEncoder.begin_render_pass"),
                    clears=n("C wgpuCommandEncoderClearBuffer", "GPUCommandEncoder.clear_buffer"),
-                   copies=max(copies, 0), writes=max(n("GPUQueue.write_buffer"), 1))
+                   copies=copies, writes=max(n("GPUQueue.write_buffer"), 1))
 
 
 class Skeleton:
@@ -349,7 +365,9 @@ def measure(bodies: int, dispatches: int, bundle: bool, answer_bytes: int,
     with count_wgpu_calls(device) as counts:
         skeleton.query(direct=direct)
     calls = summarise_calls(counts, 1)
-    return {"bodies": bodies, "dispatches": dispatches, "bundle": bundle,
+    return {"bodies": bodies,
+            "dispatches": shape.dispatches if shape is not None else dispatches,
+            "bundle": bundle,
             "answer_bytes": answer_bytes, "watched": watched, "direct": direct,
             "cpu_ms": statistics.median(cpu),
             "main_ms": statistics.median(main), "other_ms": statistics.median(other),
@@ -476,12 +494,14 @@ def main(argv: Sequence[str] | None = None) -> None:
                                      description=__doc__.splitlines()[0])
     parser.add_argument("--batches", type=int, default=9)
     parser.add_argument("--per-batch", type=int, default=20)
-    parser.add_argument("--scenes", nargs="*", default=None,
-                        help="instead: the floor of each hostcpu scene's commands (no name: "
-                             "every scene), beside the scene's host CPU")
-    parser.add_argument("--planners", nargs="*", default=["numpy", "gpu"])
-    parser.add_argument("--costs", action="store_true",
-                        help="instead: what each kind of command adds to the least query")
+    instead = parser.add_mutually_exclusive_group()
+    instead.add_argument("--scenes", nargs="*", default=None,
+                         help="instead: the floor of each hostcpu scene's commands (no name: "
+                              "every scene), beside the scene's host CPU")
+    instead.add_argument("--costs", action="store_true",
+                         help="instead: what each kind of command adds to the least query")
+    parser.add_argument("--planners", nargs="*", default=["numpy", "gpu"],
+                        help="with --scenes: the planners")
     args = parser.parse_args(argv)
     from ..gpu.device import get_gpu
 

@@ -59,6 +59,9 @@ class PreparedBodies(Sequence):
             finally:
                 cache.end_query()
         self._state = _state(shapes, body_shape)
+        self._faces = [mesh_arrays(b, body_label(i, self.names[i]))[1]
+                       for i, b in enumerate(self._bodies)]
+        """Each body's face array (the object) as its topology was found from."""
 
     @property
     def shapes(self) -> list[Shape]:
@@ -82,9 +85,11 @@ class PreparedBodies(Sequence):
                 f"{sum(len(s.topology.faces) for s in shapes):,} triangles)")
 
     def update(self, index: int | Sequence[int], vertices: Any) -> None:
-        """New vertices for bodies that deformed; each keeps its faces, as they were prepared
-        (their topology is not looked up again: a face array edited in place since is not seen;
-        prepare the bodies again for new faces).
+        """New vertices for bodies that deformed; each keeps its faces. A body whose faces are
+        still the array they were when it was prepared keeps their topology, not looked up
+        again (that array edited in place since is not seen: prepare the bodies again); faces
+        replaced by another array (a trimesh's ``faces`` set anew) are looked up, and so are
+        the faces of new vertices of another count.
 
         Parameters
         ----------
@@ -120,9 +125,10 @@ class PreparedBodies(Sequence):
         with self._lock:
             shapes, body_shape = list(self.shapes), self.body_shape.copy()
             # An update is not a query: it ages none of the cache's shapes, and the shapes it
-            # makes are held here only (a loop of updates leaves nothing in the cache). Each
-            # body keeps the topology of the faces it was prepared with (not looked up again).
-            own = [shapes[int(body_shape[i])].topology for i in which]
+            # makes are held here only (a loop of updates leaves nothing in the cache). A body
+            # whose face array is the one its topology was found from keeps that topology.
+            own = [shapes[int(body_shape[i])].topology if faces is self._faces[i] else None
+                   for (_, faces, _), i in zip(meshes, which)]
             new = self._cache.get_many(meshes, self._strict, keep=False, topologies=own)
             users = np.bincount(body_shape, minlength=len(shapes)).tolist()
             for (v, faces, _), i, shape in zip(meshes, which, new):
@@ -135,6 +141,7 @@ class PreparedBodies(Sequence):
                     shapes.append(shape)
                     users.append(1)
                 self._bodies[i] = (v, faces)
+                self._faces[i] = faces
             self._state = _state(shapes, body_shape)
 
     def scene(self, transforms: Any = None) -> Scene:
