@@ -256,6 +256,8 @@ def test_an_update_keeps_the_prepared_faces_without_looking_them_up(monkeypatch)
     box = trimesh.creation.box((1, 1, 1))
     kept = detector.prepare([box, ball], names=["box", "ball"])
     before = len(looked)
+    kept.update(1, np.asarray(ball.vertices) * 1.01)        # a trimesh's own faces: kept
+    assert len(looked) == before
     box.faces = box.faces[:6]
     with pytest.warns(pycinder.OpenMeshWarning, match=r"body 0 \('box'\)"):
         kept.update(0, box.vertices * 1.01)
