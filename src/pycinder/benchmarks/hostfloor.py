@@ -17,11 +17,22 @@ nothing of pycinder's around it, on the device pycinder would use:
 through wgpu-py's methods, or (``direct``) with the passes, the copy and the map through
 wgpu-native's C functions, as pycinder records its frames (:mod:`pycinder.gpu.native`).
 
+A frame makes more kinds of commands than that: compute passes, render passes, clears, copies,
+several writes, and with the GPU planner a second submission and map. A :class:`CommandShape`
+counts them, kind by kind; the skeleton makes a query of any shape (its render passes draw
+without a bundle, as a frame's do). ``--scenes`` measures, beside each of
+:mod:`~pycinder.benchmarks.hostcpu`'s scenes' host CPU, the floor of a query of the shape its
+own queries have (:meth:`CommandShape.of_calls` of their counted calls), and the same in one
+submission; ``--costs``, what one more command of each kind adds to the least query, and the
+least CInDeR frame (:data:`MINIMAL_FRAME`).
+
 Pipelines, bind groups, buffers and the bundle are made once, as the brief asks. The figure is
 the same as :mod:`pycinder.benchmarks.hostcpu`'s: the CPU time of every Python thread of the
 process (the calling thread and wgpu-py's poll thread), per query, median over batches. Run::
 
     python -m pycinder.benchmarks.hostfloor
+    python -m pycinder.benchmarks.hostfloor --scenes [SCENE ...] [--planners numpy gpu]
+    python -m pycinder.benchmarks.hostfloor --costs
 """
 
 from __future__ import annotations
@@ -88,7 +99,8 @@ class CommandShape:
         before the frame).
     compute_passes, dispatches : int
         Compute passes, and their dispatches (each a pipeline, a bind group and an indirect
-        dispatch), dealt to the submissions in turn.
+        dispatch) shared out among them; the passes are split among the submissions in
+        order.
     render_passes : int
         Render passes of one attachment, each a pipeline and a draw (in the last submission).
     clears, copies : int
@@ -439,8 +451,9 @@ def scene_lines(rows: Sequence[dict[str, Any]], adapter: str) -> list[str]:
 
 MINIMAL_FRAME = CommandShape(compute_passes=3, dispatches=6, render_passes=1, clears=1)
 """The fewest commands a CInDeR frame of one round can make: a cull, the crossings drawn in one
-render pass, the tests after it (three compute passes of six dispatches, one with the indirect
-arguments between them), one clear of the per-pixel counts, one submission and one map."""
+render pass, the tests after it (three compute passes with six dispatches among them: the
+passes' own and the indirect arguments between them), one clear of the per-pixel counts, one
+submission and one map."""
 
 
 def command_costs(*, repeats: int = 3, batches: int = 9, per_batch: int = 30

@@ -402,7 +402,8 @@ class ShapeCache:
 
         ``topologies``: per mesh, the topology its faces are known to have (None: look it up),
         used where it indexes as many vertices as the mesh has; its faces are then neither
-        looked up nor compared (a prepared body keeps the faces it was prepared with)."""
+        looked up nor compared (:meth:`PreparedBodies.update`: a body whose face array is the one
+        its topology was found from)."""
         given, topos = [], []
         looked: dict[tuple[int, int], Topology] = {}
         for m, (vertices, faces, label) in enumerate(meshes):
