@@ -171,24 +171,24 @@ class Skeleton:
     bodies : int
         Transforms uploaded per query.
     dispatches : int
-        Compute dispatches per query (each with its own bind group, as a frame's passes have).
+        Compute dispatches per query, in one compute pass (each with its own bind group, as a
+        frame's passes have).
     bundle : bool
         Also one render pass replaying a render bundle recorded here.
     answer_bytes : int
         Bytes copied out and mapped per query.
     shape : CommandShape, optional
-        Instead of ``dispatches`` and ``bundle``: a query of this shape (:meth:`query` runs
-        it; its render passes draw without a bundle, as a frame's do).
+        Instead of ``dispatches`` and ``bundle``: a query of this shape (its render passes draw
+        without a bundle, as a frame's do).
     """
 
     def __init__(self, device: Any, bodies: int, dispatches: int, bundle: bool,
                  answer_bytes: int, shape: CommandShape | None = None) -> None:
         import wgpu
 
-        self.shape = shape
-        if shape is not None:
-            dispatches, bundle = shape.dispatches, shape.render_passes > 0
-
+        self.bundle = shape is None and bundle
+        """The render pass replays a bundle (else each render pass draws)."""
+        self.shape = shape or CommandShape(dispatches=dispatches, render_passes=int(bundle))
         self.device, self.queue = device, device.queue
         usage = wgpu.BufferUsage
         self.transforms = np.zeros((bodies, 3, 4), np.float32)
@@ -197,8 +197,10 @@ class Skeleton:
                                            usage=usage.STORAGE | usage.COPY_DST)
         self.answer = device.create_buffer(size=answer_bytes,
                                            usage=usage.STORAGE | usage.COPY_SRC | usage.COPY_DST)
-        self.staging = device.create_buffer(size=answer_bytes,
-                                            usage=usage.MAP_READ | usage.COPY_DST)
+        self.stagings = [device.create_buffer(size=answer_bytes,
+                                              usage=usage.MAP_READ | usage.COPY_DST)
+                         for _ in range(self.shape.submissions)]
+        """A staging buffer per submission, each mapped before the next is encoded."""
         self.answer_bytes = answer_bytes
         params = np.array([bodies, 0, 0, 0], np.uint32)
         self.params = device.create_buffer_with_data(data=params, usage=usage.UNIFORM)
@@ -212,9 +214,9 @@ class Skeleton:
                    {"binding": 1, "resource": {"buffer": self.answer}},
                    {"binding": 2, "resource": {"buffer": self.params}}]
         self.bind_groups = [device.create_bind_group(layout=layout, entries=entries)
-                            for _ in range(dispatches)]
+                            for _ in range(self.shape.dispatches)]
         self.render: tuple[Any, Any] | None = None
-        if bundle:
+        if self.shape.render_passes:
             fmt = wgpu.TextureFormat.rgba32uint
             target = device.create_texture(size=(64, 64, 1), format=fmt,
                                            usage=wgpu.TextureUsage.RENDER_ATTACHMENT)
@@ -228,43 +230,63 @@ class Skeleton:
             recorder.draw(4)
             self.render = (target.create_view(), recorder.finish())
             self.draw_pipeline = pipeline
-        # What a shaped query's clears and copies work on (not the answer).
+        # What the shape's clears and copies work on (not the answer).
         self.scratch = [device.create_buffer(size=64, usage=usage.COPY_SRC | usage.COPY_DST)
                         for _ in range(2)]
-        self.stagings = [self.staging] + [
-            device.create_buffer(size=answer_bytes, usage=usage.MAP_READ | usage.COPY_DST)
-            for _ in range(1, shape.submissions if shape is not None else 1)]
 
     def query(self, timeout: float = 10.0, direct: bool = False) -> np.ndarray:
-        """One query: upload, encode, submit, map and read the answer (uint32); ``direct``:
-        the compute pass, the copy and the map through wgpu-native's C functions, as pycinder
-        records them (:mod:`pycinder.gpu.native`)."""
-        import wgpu
-
+        """One query of :attr:`shape`: its writes, then each submission encoded, submitted and
+        its answer mapped and read before the next; the last one's answer (uint32) is returned.
+        ``direct``: the passes, clears, copies and maps through wgpu-native's C functions, as
+        pycinder records them (:mod:`pycinder.gpu.native`)."""
         from ..gpu import native
 
-        if self.shape is not None:
-            return self._shaped_query(timeout, direct)
-        self.queue.write_buffer(self.upload, 0, self.transforms)
-        encoder = native.encoder(self.device) if direct else self.device.create_command_encoder()
-        compute = encoder.begin_compute_pass()
-        for group in self.bind_groups:
-            compute.set_pipeline(self.pipeline)
-            compute.set_bind_group(0, group)
-            compute.dispatch_workgroups_indirect(self.indirect, 0)
-        compute.end()
-        if self.render is not None:
-            view, bundle = self.render
+        shape = self.shape
+        for _ in range(shape.writes):
+            self.queue.write_buffer(self.upload, 0, self.transforms)
+        # Dispatches shared out among the compute passes, the passes among the submissions.
+        per_pass = np.array_split(np.arange(shape.dispatches), max(shape.compute_passes, 1))
+        dealt = np.array_split(np.arange(shape.compute_passes), shape.submissions)
+        answer = np.zeros(0, np.uint32)
+        for k, passes in enumerate(dealt):
+            encoder = native.encoder(self.device) if direct else \
+                self.device.create_command_encoder()
+            for p in passes.tolist():
+                compute = encoder.begin_compute_pass()
+                for d in per_pass[p].tolist():
+                    compute.set_pipeline(self.pipeline)
+                    compute.set_bind_group(0, self.bind_groups[d])
+                    compute.dispatch_workgroups_indirect(self.indirect, 0)
+                compute.end()
+            if k == shape.submissions - 1:
+                for _ in range(shape.render_passes):
+                    self._render_pass(encoder)
+                for _ in range(shape.clears):
+                    encoder.clear_buffer(self.scratch[0], 0, 16)
+                for _ in range(shape.copies):
+                    encoder.copy_buffer_to_buffer(self.scratch[0], 0, self.scratch[1], 0, 16)
+            staging = self.stagings[k]
+            encoder.copy_buffer_to_buffer(self.answer, 0, staging, 0, self.answer_bytes)
+            self.queue.submit([encoder.finish()])
+            pending = native.map_read(self.device, staging, self.answer_bytes) if direct \
+                else None
+            answer = self._read(staging, timeout, pending)
+        return answer
+
+    def _render_pass(self, encoder: Any) -> None:
+        """One render pass: the bundle replayed (:attr:`bundle`), else a pipeline and a draw."""
+        view, bundle = self.render
+        if self.bundle:
             draw = encoder.begin_render_pass(color_attachments=[{
-                "view": view, "load_op": wgpu.LoadOp.clear, "store_op": wgpu.StoreOp.store,
+                "view": view, "load_op": "clear", "store_op": "store",
                 "clear_value": (0, 0, 0, 0)}])
             draw.execute_bundles([bundle])
-            draw.end()
-        encoder.copy_buffer_to_buffer(self.answer, 0, self.staging, 0, self.answer_bytes)
-        self.queue.submit([encoder.finish()])
-        pending = native.map_read(self.device, self.staging, self.answer_bytes) if direct \
-            else None
-        return self._read(self.staging, timeout, pending)
+        else:
+            draw = encoder.begin_render_pass(color_attachments=[{
+                "view": view, "load_op": "load", "store_op": "discard"}])
+            draw.set_pipeline(self.draw_pipeline)
+            draw.draw(4)
+        draw.end()
 
     def _read(self, staging: Any, timeout: float, pending: Any = None) -> np.ndarray:
         """Wait at most ``timeout`` seconds for the answer copied into ``staging`` (its map
@@ -285,47 +307,6 @@ class Skeleton:
         out = np.frombuffer(staging.read_mapped(0, self.answer_bytes), np.uint32).copy()
         staging.unmap()
         return out
-
-    def _shaped_query(self, timeout: float, direct: bool) -> np.ndarray:
-        """:meth:`query` of :attr:`shape`: its writes, then each submission encoded, submitted
-        and its answer mapped and read before the next (the last one's answer is returned)."""
-        from ..gpu import native
-
-        shape = self.shape
-        for _ in range(shape.writes):
-            self.queue.write_buffer(self.upload, 0, self.transforms)
-        # Dispatches dealt to the compute passes, the passes to the submissions, in turn.
-        per_pass = np.array_split(np.arange(shape.dispatches), max(shape.compute_passes, 1))
-        dealt = np.array_split(np.arange(shape.compute_passes), shape.submissions)
-        answer = np.zeros(0, np.uint32)
-        for k, passes in enumerate(dealt):
-            encoder = native.encoder(self.device) if direct else \
-                self.device.create_command_encoder()
-            for p in passes.tolist():
-                compute = encoder.begin_compute_pass()
-                for d in per_pass[p].tolist():
-                    compute.set_pipeline(self.pipeline)
-                    compute.set_bind_group(0, self.bind_groups[d])
-                    compute.dispatch_workgroups_indirect(self.indirect, 0)
-                compute.end()
-            if k == shape.submissions - 1:
-                for _ in range(shape.render_passes):
-                    draw = encoder.begin_render_pass(color_attachments=[{
-                        "view": self.render[0], "load_op": "load", "store_op": "discard"}])
-                    draw.set_pipeline(self.draw_pipeline)
-                    draw.draw(4)
-                    draw.end()
-                for _ in range(shape.clears):
-                    encoder.clear_buffer(self.scratch[0], 0, 16)
-                for _ in range(shape.copies):
-                    encoder.copy_buffer_to_buffer(self.scratch[0], 0, self.scratch[1], 0, 16)
-            staging = self.stagings[k]
-            encoder.copy_buffer_to_buffer(self.answer, 0, staging, 0, self.answer_bytes)
-            self.queue.submit([encoder.finish()])
-            pending = native.map_read(self.device, staging, self.answer_bytes) if direct \
-                else None
-            answer = self._read(staging, timeout, pending)
-        return answer
 
 
 _RAW: list[Any] = []
@@ -377,9 +358,7 @@ def measure(bodies: int, dispatches: int, bundle: bool, answer_bytes: int,
     with count_wgpu_calls(device) as counts:
         skeleton.query(direct=direct)
     calls = summarise_calls(counts, 1)
-    return {"bodies": bodies,
-            "dispatches": shape.dispatches if shape is not None else dispatches,
-            "bundle": bundle,
+    return {"bodies": bodies, "dispatches": skeleton.shape.dispatches, "bundle": skeleton.bundle,
             "answer_bytes": answer_bytes, "watched": watched, "direct": direct,
             "cpu_ms": statistics.median(cpu),
             "main_ms": statistics.median(main), "other_ms": statistics.median(other),
