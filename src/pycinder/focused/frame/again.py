@@ -41,7 +41,7 @@ import numpy as np
 from ...gpu.layout import (C_MAX_EDGE_ITEMS, C_MAX_EDGES, C_MAX_FACE_ITEMS, C_MAX_TRIS, C_RECORDS,
                            UNDECIDED_BUDGET_BIT)
 from ...request import RecordMode
-from ..plan.tiles import HEIGHT_CLASSES, MAX_TILE, TilePlan, repack, split_depth
+from ..plan.tiles import HEIGHT_CLASSES, MAX_TILE, TilePlan, class_of, repack, split_depth
 from .atlas import RETRY_LISTS, Caps
 
 RETRIES = 5
@@ -85,8 +85,7 @@ def retry_on_gpu(recently_retried: bool, records: RecordMode, plan: TilePlan,
         rows -= rows % HEIGHT_CLASSES[-1]
     elif rows > 0:
         rows = 1 << (rows.bit_length() - 1)  # a class height: shelves of any lower one align
-    tallest = int(plan.window[:, 3].max())
-    shelf = next((h for h in HEIGHT_CLASSES if h >= tallest), HEIGHT_CLASSES[-1])
+    shelf = HEIGHT_CLASSES[int(class_of(plan.window[:, 3].max()))]
     return rows if rows >= shelf else 0
 
 

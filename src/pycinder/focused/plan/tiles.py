@@ -300,6 +300,13 @@ _CLASSES = np.array(HEIGHT_CLASSES)
 _CLASS_INDEX = np.arange(len(HEIGHT_CLASSES))
 
 
+def class_of(h: np.ndarray | int) -> np.ndarray:
+    """The height class (an index into :data:`HEIGHT_CLASSES`) of tiles ``h`` rows tall, at
+    most :data:`MAX_TILE`'s height: the lowest class that holds them (``class_of`` of
+    ``height_classes.wgsl``)."""
+    return np.searchsorted(_CLASSES, h)
+
+
 def fitted_width(w: np.ndarray, h: np.ndarray) -> int:
     """The narrowest atlas, a power of two from :data:`MIN_ATLAS_WIDTH` to :data:`ATLAS_WIDTH`,
     in which every class of tiles (widths ``w``, heights ``h`` (T,)) fits one band: a small plan
@@ -310,7 +317,7 @@ def fitted_width(w: np.ndarray, h: np.ndarray) -> int:
     -------
     int
     """
-    cls = np.searchsorted(_CLASSES, h)
+    cls = class_of(h)
     widest = max(float(np.bincount(cls, weights=w).max()), float(w.max()), 1.0)
     if widest >= ATLAS_WIDTH:
         return ATLAS_WIDTH
@@ -495,7 +502,7 @@ def _layout(w: np.ndarray, h: np.ndarray, budget_pixels: int, atlas_width: int) 
     tiles at band ends, and split the bands into rounds of at most ``budget_pixels``."""
     width = int(atlas_width)
     n = len(w)
-    cls = np.searchsorted(_CLASSES, h)
+    cls = class_of(h)
     # ``order`` sorts the tiles by class; the second parts of cut tiles come after them.
     order = np.argsort(cls, kind="stable")
     cls = cls[order]
