@@ -26,9 +26,10 @@ own queries have (:meth:`CommandShape.of_calls` of their counted calls), and the
 submission; ``--costs``, what one more command of each kind adds to the least query, and the
 least CInDeR frame (:data:`MINIMAL_FRAME`).
 
-Pipelines, bind groups, buffers and the bundle are made once, as the brief asks. The figure is
-the same as :mod:`pycinder.benchmarks.hostcpu`'s: the CPU time of every Python thread of the
-process (the calling thread and wgpu-py's poll thread), per query, median over batches. Run::
+Pipelines, bind groups, buffers and the bundle are made once, as pycinder makes its own. The
+figure is the same as :mod:`pycinder.benchmarks.hostcpu`'s: the CPU time of every Python thread
+of the process (the calling thread and wgpu-py's poll thread), per query, median over batches.
+Run::
 
     python -m pycinder.benchmarks.hostfloor
     python -m pycinder.benchmarks.hostfloor --scenes [SCENE ...] [--planners numpy gpu]
