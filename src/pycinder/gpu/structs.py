@@ -13,6 +13,11 @@ The layout is checked against WGSL's rules for the address space the struct is u
 from WGSL's (an array of ``vec3``, whose stride is 16 bytes for 12 of data) is refused: declare
 ``vec4`` instead.
 
+Where WGSL's alignment leaves bytes between fields or at the end, the struct declares them as
+fields of its own (``pad0``, ``pad1``, ... of type ``u32``), in the WGSL and in the dtype alike:
+NumPy's structured promotion (``np.concatenate``, among others) packs a dtype's undeclared gaps
+away, and an array so packed would reach the GPU with every struct after the first misplaced.
+
 >>> s = Struct("Example", [("count", "u32", "items"), ("origin", "vec3f", ""),
 ...                        ("scale", "f32", "")])
 >>> [s.offset(f) for f in ("count", "origin", "scale")], s.size
@@ -20,9 +25,15 @@ from WGSL's (an array of ``vec3``, whose stride is 16 bytes for 12 of data) is r
 >>> print(s.wgsl())
 struct Example {
     count: u32,  // items
+    pad0: u32,  // padding
+    pad1: u32,  // padding
+    pad2: u32,  // padding
     origin: vec3f,
     scale: f32,
 };
+>>> import numpy as np
+>>> np.concatenate([s.zeros(1), s.zeros(1)]).dtype.itemsize
+32
 """
 
 from __future__ import annotations
@@ -111,20 +122,38 @@ class Struct:
         self.name = name
         self.uniform = uniform
         self.doc = doc
-        self.fields = tuple(f if isinstance(f, Field) else Field(*f) for f in fields)
-        names = [f.name for f in self.fields]
+        given = tuple(f if isinstance(f, Field) else Field(*f) for f in fields)
+        names = [f.name for f in given]
         if len(set(names)) != len(names):
             raise ValueError(f"struct {name}: a field name appears twice in {names}")
+        laid: list[Field] = []
         offsets, formats, offset, align = [], [], 0, 4
-        for f in self.fields:
+        pads = 0
+
+        def pad(until: int) -> None:
+            nonlocal offset, pads
+            while offset < until:  # WGSL's sizes and alignments are multiples of 4 bytes
+                laid.append(Field(f"pad{pads}", "u32", "padding"))
+                offsets.append(offset)
+                formats.append(_SCALARS["u32"])
+                offset += 4
+                pads += 1
+
+        for f in given:
             lay = _layout(f.wgsl, uniform, f"{name}.{f.name}")
-            offset = _round_up(offset, lay.align)
+            pad(_round_up(offset, lay.align))
+            laid.append(f)
             offsets.append(offset)
             formats.append(lay.format)
             offset += lay.size
             align = max(align, lay.align)
+        pad(_round_up(offset, align))
+        self.fields = tuple(laid)
+        names = [f.name for f in laid]
+        if pads and len(set(names)) != len(names):
+            raise ValueError(f"struct {name}: a field is named like the padding ({names})")
         self.align = align
-        self.size = _round_up(offset, align)
+        self.size = offset
         self._offsets = dict(zip(names, offsets))
         self.dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets,
                                "itemsize": self.size})

@@ -27,6 +27,17 @@
 // (barycentric weights clamped at 0), so a rounding error never takes a figure outside the faces'
 // own depth range. Figures are kept as order-preserving bits: word 2 i holds max(depth_b -
 // depth_a) along line i, word 2 i + 1 max(depth_a - depth_b); 0 means no ray met both bodies.
+//
+// Touching adds nothing between solids. For a pair of solids (a frame whose touch width is not
+// 0) the figures are the largest over the rays that meet both bodies in an area, not along a
+// line or at a point: a face pair adds to them only where its projections overlap over more than
+// a strip of the touch width (what rounding can make of faces that share an edge or meet face
+// on face), and a face seen edge-on adds nothing. Otherwise a ray grazing a door along its
+// opening's reveal, where the wall's face and the door's meet, would count the wall's far side
+// behind the door, and a door merely standing in its opening would be as deep as its leaf is
+// thick. Such a ray is a line where the solids only touch: moving one by the figures of the other
+// rays leaves no volume in common. A pair with an open body (touch width 0) keeps every ray: a
+// surface has no volume, and a ray along it is where it is met.
 //!include layout
 //!include pairwork.wgsl
 
@@ -217,12 +228,79 @@ fn corners_b(u: u32) -> array<vec3f, 3> {
                            vec3f(flat_b[3u * u + 2u], deep_b[3u * u + 2u]));
 }
 
+// The inward unit normal of edge p q of a face turning the way of s (the sign of its orient);
+// zero for an edge of no length.
+fn inward(p: vec2f, q: vec2f, s: f32) -> vec2f {
+    let e = q - p;
+    let len = length(e);
+    if (len == 0.0) {
+        return vec2f(0.0);
+    }
+    return (s / len) * vec2f(-e.y, e.x);
+}
+
+// How far a corner moves when the edges beside it, of inward normals a and b, move inward by
+// w: along their bisector, by 2 w (a + b) / |a + b|^2 (|a + b|^2 = 2 + 2 a.b, taken from the sum
+// itself, so that a sharp corner does not cancel it away).
+fn corner_shift(a: vec2f, b: vec2f, w: f32) -> vec2f {
+    let bisector = a + b;
+    return (2.0 * w / max(dot(bisector, bisector), 1e-30)) * bisector;
+}
+
+// A face's projection moved inward by w on every side: its corners ([0] to [2]) and, in [3].x,
+// 1 where it has such an inset (w under its inradius, the face not seen edge-on), else 0.
+fn inset(t: array<vec3f, 3>, w: f32) -> array<vec2f, 4> {
+    let a = t[0].xy;
+    let b = t[1].xy;
+    let c = t[2].xy;
+    let turn = orient(a, b, c);
+    let s = sign(turn);
+    let n0 = inward(a, b, s);
+    let n1 = inward(b, c, s);
+    let n2 = inward(c, a, s);
+    let ia = a + corner_shift(n2, n0, w);
+    let ib = b + corner_shift(n0, n1, w);
+    let ic = c + corner_shift(n1, n2, w);
+    let kept = turn != 0.0 && dot(n0, n0) > 0.0 && dot(n1, n1) > 0.0 && dot(n2, n2) > 0.0
+        && orient(ia, ib, ic) * turn > 0.0;
+    return array<vec2f, 4>(ia, ib, ic, vec2f(select(0.0, 1.0, kept), 0.0));
+}
+
+// Whether edge p q of a convex polygon turning the way of s has every one of o0, o1, o2 outside
+// it (a separating axis).
+fn separates(p: vec2f, q: vec2f, s: f32, o0: vec2f, o1: vec2f, o2: vec2f) -> bool {
+    let e = q - p;
+    let n = s * vec2f(-e.y, e.x);
+    return max(dot(n, o0 - p), max(dot(n, o1 - p), dot(n, o2 - p))) < 0.0;
+}
+
+// Whether the projections of faces pa and pb overlap over more than a strip w wide: their insets
+// by w meet (two convex polygons meet unless an edge of one separates them).
+fn overlap_area(pa: array<vec3f, 3>, pb: array<vec3f, 3>, w: f32) -> bool {
+    let ia = inset(pa, w);
+    let ib = inset(pb, w);
+    if (ia[3].x == 0.0 || ib[3].x == 0.0) {
+        return false;
+    }
+    let sa = sign(orient(ia[0], ia[1], ia[2]));
+    let sb = sign(orient(ib[0], ib[1], ib[2]));
+    return !(separates(ia[0], ia[1], sa, ib[0], ib[1], ib[2])
+             || separates(ia[1], ia[2], sa, ib[0], ib[1], ib[2])
+             || separates(ia[2], ia[0], sa, ib[0], ib[1], ib[2])
+             || separates(ib[0], ib[1], sb, ia[0], ia[1], ia[2])
+             || separates(ib[1], ib[2], sb, ia[0], ia[1], ia[2])
+             || separates(ib[2], ib[0], sb, ia[0], ia[1], ia[2]));
+}
+
 // The largest depth_b - depth_a (x) and depth_a - depth_b (y) over the rays through faces pa of
-// a and pb of b (NONE where none meets both): at a corner of one inside the other, or where their
-// edges cross.
-fn face_pair(pa: array<vec3f, 3>, pb: array<vec3f, 3>) -> vec2f {
+// a and pb of b (NONE where none meets both, or where they only touch: overlap_area): at a
+// corner of one inside the other, or where their edges cross.
+fn face_pair(pa: array<vec3f, 3>, pb: array<vec3f, 3>, touch: f32) -> vec2f {
     var most = NONE;
     var least = NONE;
+    if (touch > 0.0 && !overlap_area(pa, pb, touch)) {
+        return vec2f(most, least);
+    }
     for (var c = 0u; c < 3u; c++) {
         let in_b = depth_in(pb[0], pb[1], pb[2], pa[c].xy);
         if (in_b.x > 0.0) {
@@ -275,8 +353,8 @@ fn face_in_pair(m: array<vec4f, 3>, f: u32) -> array<vec3f, 3> {
 // face of the other side); each thread then tests a kept face of a against every kept face of b
 // by their screen boxes, and the face pairs found are shared among the threads for the exact
 // test.
-fn face_pairs(pa: array<vec3f, 3>, has_a: bool, pb: array<vec3f, 3>, has_b: bool, lid: u32
-              ) -> vec2f {
+fn face_pairs(pa: array<vec3f, 3>, has_a: bool, pb: array<vec3f, 3>, has_b: bool, touch: f32,
+              lid: u32) -> vec2f {
     let a_lo = min(pa[0].xy, min(pa[1].xy, pa[2].xy));
     let a_hi = max(pa[0].xy, max(pa[1].xy, pa[2].xy));
     let a_size = max(a_hi.x - a_lo.x, a_hi.y - a_lo.y);
@@ -373,7 +451,8 @@ fn face_pairs(pa: array<vec3f, 3>, has_a: bool, pb: array<vec3f, 3>, has_b: bool
             for (var step = WORKGROUP / 2u; step > 0u; step >>= 1u) {
                 j = select(j, j + step, first_hit[j + step] <= e);
             }
-            let figure = face_pair(corners_a(j), corners_b(nth_bit(hits[j], e - first_hit[j])));
+            let figure = face_pair(corners_a(j), corners_b(nth_bit(hits[j], e - first_hit[j])),
+                                   touch);
             most = max(most, figure.x);
             least = max(least, figure.y);
         }
@@ -489,7 +568,8 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
                     let fb = block * WORKGROUP + lid;
                     let pb = project_face(v, face_in_pair(mb, item.b_start
                                                           + min(fb, item.b_count - 1u)));
-                    let figure = face_pairs(pa, fa < item.a_count, pb, fb < item.b_count, lid);
+                    let figure = face_pairs(pa, fa < item.a_count, pb, fb < item.b_count,
+                                            frame.touch, lid);
                     most = max(most, figure.x);
                     least = max(least, figure.y);
                     block++;
@@ -548,7 +628,7 @@ fn depth_clusters(@builtin(workgroup_id) wg: vec3u,
             todo &= todo - 1u;
             let v = views[i];
             let figure = face_pairs(project_face(v, ta), lid < item.a_count, project_face(v, tb),
-                                    lid < item.b_count, lid);
+                                    lid < item.b_count, frame.touch, lid);
             if (figure.x > NONE) {
                 atomicMax(&kept[2u * i], key(figure.x));
                 atomicMax(&kept[2u * i + 1u], key(figure.y));

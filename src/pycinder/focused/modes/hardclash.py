@@ -106,7 +106,7 @@ from .depth import (
     hull_lower_bound,
     lines,
 )
-from .local import LOCAL_GROW, overlap_parts, pair_kinds
+from .local import LOCAL_GROW, convex_pairs, overlap_parts, pair_kinds
 from .pairwork import ITEM, pair_frames
 from .regions import RegionBuffers, meeting_regions, tile_side
 
@@ -179,7 +179,7 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, cull: bool = True
     lo, hi = scene.world_boxes()
     a, b = pairs[:, 0], pairs[:, 1]
     frames, reach = pair_frames(scene.transforms, pairs, lo, hi, np.maximum(lo[a], lo[b]),
-                                np.minimum(hi[a], hi[b]))
+                                np.minimum(hi[a], hi[b]), ~scene.open)
     faces = np.diff(pack.face_start)
     shape_a, shape_b = scene.body_shape[a], scene.body_shape[b]
     fa, fb = faces[shape_a], faces[shape_b]
@@ -332,8 +332,11 @@ class HardClash:
                 depth[k], error[k] = figure[k], rounding[k]
                 bound[k] = rounding[k]  # the local depth is the figure itself
             self._large(scene, stats, pairs, d, large & ~local, figure, rounding)
-            # The hull's bound (a convex hull per pair) only where it is reported.
+            # The hull's bound (a convex hull per pair) only where it is reported, and only for
+            # convex pairs: their measured points lie on the boundary of the translations that
+            # keep them overlapping, which the hull then lies within.
             k = np.flatnonzero((figure > d - rounding) & ~local)
+            k = k[convex_pairs(scene, pairs[k])]
             lower = np.maximum(DIRECTION_COS * depth[k], hull_lower_bound(flat[k], direction[k]))
             bound[k] = depth[k] - lower + error[k]
         along = direction[np.arange(len(pairs)), best // 2]

@@ -124,6 +124,23 @@ def pair_kinds(scene: Scene, pairs: np.ndarray) -> np.ndarray:
     return solid & ~flat
 
 
+def convex_pairs(scene: Scene, pairs: np.ndarray) -> np.ndarray:
+    """Which pairs have two convex solids (:func:`shape_convex`).
+
+    Parameters
+    ----------
+    scene : Scene
+    pairs : (K, 2) int
+
+    Returns
+    -------
+    (K,) bool
+    """
+    shapes = scene.body_shape[np.asarray(pairs, np.int64)].reshape(-1, 2)
+    kinds = {int(s): shape_convex(scene.shapes[int(s)]) is True for s in np.unique(shapes)}
+    return np.array([kinds[int(a)] and kinds[int(b)] for a, b in shapes], bool)
+
+
 def overlap_parts(scene: Scene, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray,
                                                              np.ndarray]:
     """The world boxes of the connected parts of each pair's intersection (in float64, about
@@ -171,5 +188,6 @@ def overlap_parts(scene: Scene, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return np.array(owner, np.int64), table[:, :3], table[:, 3:]
 
 
-__all__ = ["CONVEX_SLACK", "LOCAL_GROW", "SolidFacts", "one_outward_solid", "overlap_parts",
+__all__ = ["CONVEX_SLACK", "LOCAL_GROW", "SolidFacts", "convex_pairs", "one_outward_solid",
+           "overlap_parts",
            "pair_kinds", "shape_convex", "solid_facts"]

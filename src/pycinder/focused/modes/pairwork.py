@@ -41,6 +41,9 @@ ITEM = Struct("PairItem", [
 FRAME = Struct("PairFrame", [
     ("m0", "array<vec4f, 3>", "pair-from-body rows of body a (origin where the pair meets)"),
     ("m1", "array<vec4f, 3>", "pair-from-body rows of body b"),
+    ("touch", "f32", ("pass H1, a pair of solids: two faces whose projections overlap by no "
+                      "more than this width (pair units) only touch there, within rounding (see "
+                      "depth.wgsl); 0 for a pair with an open body")),
 ], doc="A candidate pair's own frame, centred where its bodies meet.")
 
 PARAMS = Struct("PairParams", [
@@ -82,8 +85,16 @@ def check_rounding(scene: Scene, pairs: np.ndarray, error: np.ndarray, option: s
         f"{16 * error[k]:.3g}, or query those bodies at their own scale")
 
 
+TOUCH = 2.0**-20
+"""The width, per unit of a frame's reach, under which pass H1 takes two faces' overlapping
+projections as faces that only touch (:data:`FRAME`'s ``touch``): 16 times the single-precision
+rounding of a vertex in the frame, so that faces meeting along an edge, or lying face on face,
+never overlap by more once rounded."""
+
+
 def pair_frames(transforms: np.ndarray, pairs: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                centre_lo: np.ndarray, centre_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                centre_lo: np.ndarray, centre_hi: np.ndarray, solid: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
     """Each pair's own frame, centred on a box, and how far its bodies reach from that centre.
 
     Parameters
@@ -95,6 +106,9 @@ def pair_frames(transforms: np.ndarray, pairs: np.ndarray, lo: np.ndarray, hi: n
         World boxes of the bodies.
     centre_lo, centre_hi : (K, 3) float
         The box each pair's frame is centred on (where its bodies meet).
+    solid : (N,) bool, optional
+        Which bodies are solids: a pair of two gets its touch width (:data:`TOUCH`), the others
+        0 (without it, every pair gets 0).
 
     Returns
     -------
@@ -112,6 +126,9 @@ def pair_frames(transforms: np.ndarray, pairs: np.ndarray, lo: np.ndarray, hi: n
     a, b = pairs[:, 0], pairs[:, 1]
     corners = np.abs(np.stack([lo[a], hi[a], lo[b], hi[b]]) - origin)  # (4, K, 3)
     reach = np.sqrt((corners.max(axis=0) ** 2).sum(axis=1))
+    if solid is not None:
+        both = np.asarray(solid, bool)[a] & np.asarray(solid, bool)[b]
+        frames["touch"] = np.where(both, TOUCH * reach, 0.0)
     return frames, reach
 
 
@@ -212,5 +229,5 @@ class ClusterPairPass:
         return np.ascontiguousarray(words[:self.WORDS * k]).reshape(k, self.WORDS).copy()
 
 
-__all__ = ["FRAME", "ITEM", "PARAMS", "ClusterPairPass", "check_rounding", "pair_frames",
+__all__ = ["FRAME", "ITEM", "PARAMS", "TOUCH", "ClusterPairPass", "check_rounding", "pair_frames",
            "spread"]

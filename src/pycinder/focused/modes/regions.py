@@ -32,7 +32,7 @@ import wgpu
 from ...gpu.buffers import GrowableBuffer
 from ...gpu.layout import CLUSTER_FACES
 from ...util.optional import require
-from .pairwork import FRAME, ITEM
+from .pairwork import FRAME, ITEM, TOUCH
 
 if TYPE_CHECKING:
     from ...scene import Scene
@@ -44,6 +44,21 @@ coarser figure that would do."""
 ROUNDING = 2.0**-16
 """Bound of a figure's rounding per unit of the reach of its frame's vertices (single
 precision: a few units of 2^-24 per operation, with the conditioning of the shaders' tests)."""
+
+
+STORED_ROUNDING = 2.0**-22
+"""Bound of how far a body's stored vertices (single precision, about the centre of their box)
+lie from where it was given, per unit of its bounding radius (in world units, its transform's
+largest stretch included): 4 units of 2^-24. Region pieces are cut from the stored vertices, so
+two bodies given touching may overlap by that much in a region, whatever its own scale."""
+
+
+def stored_rounding(scene: Scene, body: int) -> float:
+    """How far body ``body``'s stored vertices may lie from where they were given, in world
+    units (:data:`STORED_ROUNDING`)."""
+    shape = scene.shapes[int(scene.body_shape[body])]
+    stretch = float(np.linalg.norm(np.asarray(scene.transforms[body], np.float64)[:3, :3], 2))
+    return STORED_ROUNDING * shape.radius * stretch
 
 
 def tile_side(value: float, grow: float, fraction: float = 1 / 32) -> float:
@@ -372,7 +387,7 @@ def meeting_regions(scene: Scene, pairs: np.ndarray, grow: float, side: float, s
         if (a, b) not in bodies:
             bodies = {(a, b): _pair_bodies(scene, int(a), int(b), meet_lo, meet_hi, solids,
                                            orient, open_body, option)}
-        origin, tris, solid, parts, map_a, map_b = bodies[(a, b)]
+        origin, tris, solid, parts, map_a, map_b, stored = bodies[(a, b)]
         if search is not None:
             meet_lo, meet_hi = search[0][k], search[1][k]
         t_lo, t_hi = meeting_tiles(meet_lo - origin, meet_hi - origin, side, grow, tris, solid)
@@ -396,7 +411,7 @@ def meeting_regions(scene: Scene, pairs: np.ndarray, grow: float, side: float, s
             if len(part_b) == 0:
                 continue
             geometry.add(part_a, part_b, 0.5 * (tile_lo + tile_hi), map_a, map_b,
-                         (solid[0], solid[1]))
+                         (solid[0], solid[1]), stored)
             geometry.boxes.append((tile_lo + origin, tile_hi + origin))
             owner.append(k)
     return geometry, np.array(owner, np.int64)
@@ -406,7 +421,8 @@ def _pair_bodies(scene: Scene, a: int, b: int, meet_lo: np.ndarray, meet_hi: np.
                  solids: bool, orient: bool, open_body: np.ndarray, option: str) -> tuple:
     """What :func:`meeting_regions` needs of a pair's two bodies: the origin it cuts them
     around (where their boxes meet), their faces, whether each is cut as a solid, a function
-    cutting each to a box, and their linear maps."""
+    cutting each to a box, their linear maps, and how far their stored vertices may have moved
+    them towards each other (:func:`stored_rounding`, both together)."""
     origin = 0.5 * (meet_lo + meet_hi)
     tris = [world_triangles(scene, body, origin) for body in (a, b)]
     solid = [solids and not open_body[body] for body in (a, b)]
@@ -425,7 +441,8 @@ def _pair_bodies(scene: Scene, a: int, b: int, meet_lo: np.ndarray, meet_hi: np.
             parts.append(lambda lo, hi, t=tris[k]: clip_triangles(t, lo, hi))
     map_a = linear_map(scene, a) if orient else np.eye(3)
     map_b = linear_map(scene, b) if orient else np.eye(3)
-    return origin, tris, solid, parts, map_a, map_b
+    stored = stored_rounding(scene, a) + stored_rounding(scene, b)
+    return origin, tris, solid, parts, map_a, map_b, stored
 
 
 class RegionGeometry:
@@ -454,10 +471,12 @@ class RegionGeometry:
 
     def add(self, part_a: np.ndarray, part_b: np.ndarray, centre: np.ndarray,
             map_a: np.ndarray, map_b: np.ndarray,
-            closed: tuple[bool, bool] = (False, False)) -> None:
+            closed: tuple[bool, bool] = (False, False), stored: float = 0.0) -> None:
         """Add a region: both bodies' parts (M, 3, 3) float64 relative to the pair's origin,
-        the region's centre (3,) relative to it, each body's 3x3 linear map, and whether each
-        part is a closed solid."""
+        the region's centre (3,) relative to it, each body's 3x3 linear map, whether each
+        part is a closed solid, and how far the bodies' stored vertices may have moved them
+        towards each other (world units: faces overlapping by no more only touch, for pass H1's
+        ``touch``, with the region's own rounding)."""
         self.closed.append(closed)
         frame = FRAME.zeros(1)
         spans = []
@@ -472,9 +491,11 @@ class RegionGeometry:
             self._faces += len(part)
         self.faces_a.append(spans[0])
         self.faces_b.append(spans[1])
-        self.frames.append(frame)
         pts = np.concatenate([part_a.reshape(-1, 3), part_b.reshape(-1, 3)]) - centre
         self.reach.append(float(np.sqrt((pts * pts).sum(axis=1).max())) if len(pts) else 0.0)
+        if closed[0] and closed[1]:  # two solids: faces that only touch add nothing to H1
+            frame["touch"] = TOUCH * self.reach[-1] + 2.0 * stored
+        self.frames.append(frame)
 
     def __len__(self) -> int:
         return len(self.frames)
@@ -537,4 +558,4 @@ class RegionBuffers:
 
 __all__ = ["MAX_REGIONS", "ROUNDING", "RegionBuffers", "RegionGeometry", "SolidCutter",
            "body_vertices", "clip_triangles", "contains", "linear_map", "meeting_regions", "meeting_tiles",
-           "tile_side", "triangles_meet_box", "world_triangles"]
+           "STORED_ROUNDING", "stored_rounding", "tile_side", "triangles_meet_box", "world_triangles"]
