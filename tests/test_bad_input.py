@@ -138,12 +138,22 @@ def test_the_same_faces_from_trimesh_and_from_arrays_warn_once():
     assert cache.get(big.faces, len(big.vertices), "a")[0].faces[1].tolist() == big.faces[1].tolist()
 
 
-def test_inconsistent_winding_is_reported():
+def test_inconsistent_winding_is_wound_again_and_tested_as_a_solid():
+    """A closed box with one face turned the other way: wound again (one RewoundMeshWarning),
+    then a solid, so a ball wholly inside it is found (nothing would be inside a surface);
+    strict checking refuses it instead."""
     box = trimesh.creation.box((1, 1, 1))
+    ball = trimesh.creation.icosphere(subdivisions=2, radius=0.2)
     faces = np.array(box.faces)
     faces[0] = faces[0, ::-1]
-    with pytest.warns(pycinder.OpenMeshWarning, match="inconsistently wound"):
-        pycinder.Detector().find_collisions([(box.vertices, faces)])
+    with pytest.warns(pycinder.RewoundMeshWarning, match=r"body 0 \('box'\).*wound "
+                      r"inconsistently.*tested as a solid") as caught:
+        result = pycinder.Detector().find_collisions([(box.vertices, faces), ball],
+                                                     names=["box", "ball"])
+    assert len(caught) == 1 and caught[0].message.bodies == ["body 0 ('box')"]
+    assert result.pairs.tolist() == [[0, 1]]
+    with pytest.raises(ValueError, match="wound inconsistently"):
+        pycinder.Detector(strict=True).find_collisions([(box.vertices, faces)])
 
 
 def test_inside_out_mesh_is_reported_and_still_a_solid():

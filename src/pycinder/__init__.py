@@ -9,7 +9,8 @@ array([[0, 1]])
 
 from .contacts import Contacts
 from .detector import Detector, find_collisions
-from .errors import ClippedBodyWarning, DegenerateFaceWarning, LossWarning, OpenMeshWarning
+from .errors import (ClippedBodyWarning, DegenerateFaceWarning, LossWarning, MeshWarning,
+                     OpenMeshWarning, RewoundMeshWarning)
 from .gpu.device import ForkedProcessError, NoAdapterError, share_default_device
 from .manager import CollisionManager, ContactData, DistanceData, scene_to_collision
 from .records import RECORD_DTYPE
@@ -44,7 +45,8 @@ __all__ = [
     "DEFAULT_RELATIVE_TOLERANCE", "MAX_BODIES", "RECORD_DTYPE", "ClippedBodyWarning",
     "CollisionManager", "CollisionRequest", "CollisionResult", "ContactData", "Contacts",
     "DegenerateFaceWarning", "DistanceData",
-    "Detector", "FocusedStats", "ForkedProcessError", "LossWarning", "NoAdapterError", "OpenMeshWarning",
-    "PreparedBodies", "SceneStats", "Stats", "View",
+    "Detector", "FocusedStats", "ForkedProcessError", "LossWarning", "MeshWarning",
+    "NoAdapterError", "OpenMeshWarning", "PreparedBodies", "RewoundMeshWarning", "SceneStats",
+    "Stats", "View",
     "find_collisions", "scene_to_collision", "share_default_device",
 ]

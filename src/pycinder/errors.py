@@ -9,13 +9,44 @@ import warnings
 _PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__))
 
 
-class OpenMeshWarning(UserWarning):
-    """A body is not a closed, consistently oriented surface, or is wound inside out: ray counts
-    through it can be wrong."""
+class MeshWarning(UserWarning):
+    """Something about the meshes of some bodies, and the rule applied to them: one warning a
+    kind of problem per query, however many bodies have it.
+
+    Parameters
+    ----------
+    message : str
+        The summary: how many bodies, the first few by name, the rule and the repair.
+    bodies : sequence of str, optional
+        Every body concerned, by label (``body 4 ('Wall [2Xy...]')``).
+    details : sequence of str, optional
+        What each has, in the order of ``bodies`` (``"2 boundary edges (holes)"``).
+
+    Attributes
+    ----------
+    bodies : list of str
+    details : list of str
+    """
+
+    def __init__(self, message: str, bodies: list[str] | None = None,
+                 details: list[str] | None = None) -> None:
+        super().__init__(message)
+        self.bodies = list(bodies or [])
+        self.details = list(details or [])
 
 
-class DegenerateFaceWarning(UserWarning):
-    """A body has faces of zero area."""
+class OpenMeshWarning(MeshWarning):
+    """Bodies are not closed, consistently oriented surfaces (tested as surfaces, or as solids
+    where their edges balance), or are wound inside out: ray counts through them can be wrong."""
+
+
+class RewoundMeshWarning(MeshWarning):
+    """Closed bodies were wound inconsistently: each was wound again, outward, and is tested as
+    a solid."""
+
+
+class DegenerateFaceWarning(MeshWarning):
+    """Bodies have faces of zero area, or faces that repeat a vertex index."""
 
 
 class ClippedBodyWarning(UserWarning):
@@ -39,9 +70,13 @@ def _stacklevel() -> int:
     return level
 
 
-def warn_at_caller(message: str, category: type[Warning]) -> None:
-    """``warnings.warn`` with the stack level of the first caller outside the package."""
-    warnings.warn(message, category, stacklevel=_stacklevel())
+def warn_at_caller(message: str | Warning, category: type[Warning] | None = None) -> None:
+    """``warnings.warn`` with the stack level of the first caller outside the package (a
+    message and its category, or a warning instance)."""
+    if isinstance(message, Warning):
+        warnings.warn(message, stacklevel=_stacklevel())
+    else:
+        warnings.warn(message, category, stacklevel=_stacklevel())
 
 
 class GpuError(RuntimeError):

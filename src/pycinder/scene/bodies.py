@@ -34,7 +34,8 @@ import xxhash
 from ..util import threads
 from ..util.arrays import det3, sum3
 from .normals import face_normals, signed_volume, vertex_and_edge_normals
-from .topology import DEFAULT_CACHE_BYTES, Topology, TopologyCache, report_problems
+from .topology import (DEFAULT_CACHE_BYTES, MeshProblem, Topology, TopologyCache, mesh_problems,
+                       warn_problems)
 from .vertices import MAX_EXTENT, VertexMemory, bounding_radius, check_vertices
 from .vertices import measure as _measure
 
@@ -451,6 +452,7 @@ class ShapeCache:
             if first is not None and not _same_bytes(first.tobytes(), bits):
                 key = (*key, ("collision", i))  # equal keys, other bytes: a shape of its own
             missing.setdefault(key, []).append(i)
+        problems: list[MeshProblem] = []
         first = [where[0] for where in missing.values()]
         # New shapes' vertices go into memory that dropped shapes no longer use.
         into = [self.memory.take(len(given[i])) for i in first]
@@ -477,16 +479,18 @@ class ShapeCache:
                     key = self._rekeyed(slots[i].key, last, given[i])
                     shape = last
                 else:
-                    shape = self._made(key, topo, built, measure, meshes[i][2], strict, keep,
-                                       kept)
+                    shape = self._made(key, topo, built, measure, meshes[i][2], strict,
+                                       problems, keep, kept)
             else:
-                shape = self._made(key, topo, built, measure, meshes[i][2], strict, keep, kept)
+                shape = self._made(key, topo, built, measure, meshes[i][2], strict, problems,
+                                   keep, kept)
                 changed[i] = last is not None
             for i in where:
                 out[i], keys[i] = shape, key
         if keep:
             self._slots = [_Slot(topo, key, shape, moved) for (topo, _), key, shape, moved
                            in zip(topos, keys, out, changed)]
+        warn_problems(problems)
         return out  # type: ignore[return-value]
 
     def _next_serial(self) -> int:
@@ -511,15 +515,19 @@ class ShapeCache:
         return key
 
     def _made(self, key: tuple, topo: Topology, built: bool, measure: tuple, label: str,
-              strict: bool, keep: bool = True, kept: bytes | np.ndarray | None = None) -> Shape:
-        """A new shape of ``topo`` from its measured vertices, reported on (when its topology is
-        new) and cached under ``key`` (when ``keep``) with ``kept``, the copy of the bytes it was
-        made from (see :func:`_vertex_key` and :func:`_kept_copy`)."""
+              strict: bool, problems: list[MeshProblem], keep: bool = True,
+              kept: bytes | np.ndarray | None = None) -> Shape:
+        """A new shape of ``topo`` from its measured vertices, its problems added to
+        ``problems`` (when its topology is new) and cached under ``key`` (when ``keep``) with
+        ``kept``, the copy of the bytes it was made from (see :func:`_vertex_key` and
+        :func:`_kept_copy`). A topology wound again is turned outward with these vertices."""
         v32, offset, lo, hi, radius = measure
+        topo.orient(v32)
         if built:
             _, areas = face_normals(v32, topo.faces)
             inverted = topo.closed and signed_volume(v32, topo.faces) < 0
-            report_problems(topo, int(np.count_nonzero(areas <= 0)), label, strict, inverted)
+            problems += mesh_problems(topo, int(np.count_nonzero(areas <= 0)), label, strict,
+                                      inverted)
             before = topo.nbytes
             topo.clusters(v32)
             self.topologies.account(topo, topo.nbytes - before)

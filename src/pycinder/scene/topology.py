@@ -16,8 +16,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import DegenerateFaceWarning, OpenMeshWarning, warn_at_caller
+from ..errors import (DegenerateFaceWarning, MeshWarning, OpenMeshWarning, RewoundMeshWarning,
+                      warn_at_caller)
 from .clusters import Clusters, build_clusters
+from .winding import consistent_flips, flip_faces, outward_flips
 
 DEFAULT_CACHE_BYTES = 512 * 2**20
 
@@ -47,6 +49,15 @@ class Topology:
     dropped : (D, 3) int or None
         Where faces were dropped: those faces, as given (so that the cache can tell the face
         array given from one that differs only there).
+    rewound : int
+        Edges that were walked the same way by their two faces before the mesh was wound again
+        (0: the faces are as given). A closed two-manifold mesh wound inconsistently is wound
+        again (:mod:`~pycinder.scene.winding`), each part outward, and is then a solid.
+    as_given : (F, 3) uint32 or None
+        Where the mesh was wound again: its faces (those kept) as given, for the cache.
+    parts : (F,) int64 or None
+        Where the mesh was wound consistently but not yet outward (that needs its vertices:
+        :meth:`orient`): each face's connected part.
     """
 
     faces: np.ndarray
@@ -60,6 +71,9 @@ class Topology:
     dropped_faces: int = 0
     kept: np.ndarray | None = field(default=None, repr=False)
     dropped: np.ndarray | None = field(default=None, repr=False)
+    rewound: int = 0
+    as_given: np.ndarray | None = field(default=None, repr=False)
+    parts: np.ndarray | None = field(default=None, repr=False)
     _clusters: Clusters | None = field(default=None, repr=False)
 
     @property
@@ -78,7 +92,16 @@ class Topology:
     @property
     def nbytes(self) -> int:
         extra = self._clusters.nbytes if self._clusters is not None else 0
-        return self.faces.nbytes + self.edges.nbytes + self.edge_faces.nbytes + extra
+        return (self.faces.nbytes + self.edges.nbytes + self.edge_faces.nbytes + extra
+                + self.nbytes_given)
+
+    def orient(self, vertices: np.ndarray) -> None:
+        """Turn each part of a mesh wound again outward (see :attr:`parts`), with the first
+        vertices it is given (a body that deforms keeps which way its parts face)."""
+        if self.parts is None:
+            return
+        flip_faces(self.faces, self.edge_faces, outward_flips(vertices, self.faces, self.parts))
+        self.parts = None
 
     def given_faces(self, values: np.ndarray) -> np.ndarray:
         """Per-face ``values`` (F, ...) laid out as the face array was given: rows of dropped
@@ -98,6 +121,10 @@ class Topology:
         if self.misoriented_edges:
             parts.append(f"{self.misoriented_edges} edges between inconsistently wound faces")
         return ", ".join(parts)
+
+    @property
+    def nbytes_given(self) -> int:
+        return 0 if self.as_given is None else self.as_given.nbytes
 
     def clusters(self, vertices: np.ndarray) -> Clusters:
         """Spatially coherent clusters of faces and edges (built from the first vertices seen)."""
@@ -161,57 +188,150 @@ def build_topology(faces: np.ndarray, n_vertices: int, label: str) -> Topology:
     forward = (directed[:, 0] < directed[:, 1]).astype(np.int64)
     forward_per_edge = np.bincount(inverse, weights=forward, minlength=len(unique_keys))
     misoriented = int(np.count_nonzero((counts == 2) & (forward_per_edge != 1)))
+    boundary = int(np.count_nonzero(counts == 1))
+    nonmanifold = int(np.count_nonzero(counts > 2))
+    unbalanced = int(np.count_nonzero(2 * forward_per_edge != counts))
+    edge_faces = inverse.astype(np.int64)
+    rewound, as_given, parts = 0, None, None
+    if misoriented and not boundary and not nonmanifold:
+        # Closed, but wound inconsistently: wound again (outward once its vertices are known).
+        found = consistent_flips(faces, edge_faces)
+        if found is not None:
+            flip, parts = found
+            as_given = faces
+            faces = faces.copy()
+            flip_faces(faces, edge_faces, flip)
+            rewound, misoriented, unbalanced = misoriented, 0, 0
     return Topology(
         faces=faces,
         edges=edges,
-        edge_faces=inverse.astype(np.int64),
+        edge_faces=edge_faces,
         n_vertices=int(n_vertices),
-        boundary_edges=int(np.count_nonzero(counts == 1)),
-        nonmanifold_edges=int(np.count_nonzero(counts > 2)),
+        boundary_edges=boundary,
+        nonmanifold_edges=nonmanifold,
         misoriented_edges=misoriented,
-        unbalanced_edges=int(np.count_nonzero(2 * forward_per_edge != counts)),
+        unbalanced_edges=unbalanced,
         dropped_faces=dropped,
         kept=kept,
         dropped=dropped_rows,
+        rewound=rewound,
+        as_given=as_given,
+        parts=parts,
     )
 
 
-def report_problems(topo: Topology, zero_area: int, label: str, strict: bool,
-                    inverted: bool = False) -> None:
-    """Warn about open, inside-out and degenerate meshes, saying what rule is applied to each;
-    with ``strict``, raise instead (and the message says only what is wrong)."""
+@dataclass(frozen=True)
+class MeshProblem:
+    """One body's problem of one kind (see :func:`mesh_problems`)."""
 
-    def complain(problem: str, rule: str, repair: str, category: type[Warning]) -> None:
-        if strict:
-            raise ValueError(f"{problem}. {repair}.")
-        warn_at_caller(f"{problem}; {rule}. {repair}, or ask for strict checking to make this an "
-                       "error.", category)
+    kind: str
+    """A key of :data:`PROBLEMS`."""
+    label: str
+    """The body, as errors name it."""
+    detail: str
+    """What it has (``"2 boundary edges (holes)"``)."""
 
+
+@dataclass(frozen=True)
+class ProblemKind:
+    """How a kind of problem is told: what one body (``one``) or several (``many``) are, the
+    rule applied to them, the repair, and the warning's category."""
+
+    one: str
+    many: str
+    rule: str
+    repair: str
+    category: type[MeshWarning]
+
+
+PROBLEMS: dict[str, ProblemKind] = {
+    "surface": ProblemKind(
+        "is not a closed, consistently oriented surface",
+        "are not closed, consistently oriented surfaces",
+        "each is tested as a surface: a pair is reported where its surface crosses the other "
+        "body's surface, or lies inside another body that is a closed solid; nothing is ever "
+        "found inside it",
+        "Repair them (trimesh.repair.fill_holes, pymeshlab's close holes) to test them as "
+        "solids", OpenMeshWarning),
+    "balanced": ProblemKind(
+        "is not a closed, consistently oriented surface",
+        "are not closed, consistently oriented surfaces",
+        "each is tested as a solid all the same: every edge is walked equally often both ways, "
+        "so its inside is well defined",
+        "Repair them (trimesh.repair.fill_holes, pymeshlab's close holes) to make them closed",
+        OpenMeshWarning),
+    "rewound": ProblemKind(
+        "is closed but was wound inconsistently",
+        "are closed but were wound inconsistently",
+        "each was wound again, every part outward, and is tested as a solid",
+        "Wind them consistently where they are made (trimesh.repair.fix_winding and "
+        "fix_inversion) to pass them as they are tested", RewoundMeshWarning),
+    "inverted": ProblemKind(
+        "is closed but wound inside out (its volume is negative)",
+        "are closed but wound inside out (their volumes are negative)",
+        "collisions are still found (the ray count of its inside is -1, not 0), but its "
+        "normals, and so contact normals, point inwards",
+        "Flip them (trimesh's mesh.invert())", OpenMeshWarning),
+    "degenerate": ProblemKind(
+        "has degenerate faces", "have degenerate faces",
+        "faces that repeat a vertex index are dropped and faces of zero area ignored (they "
+        "bound nothing and cross no ray)",
+        "Remove them with trimesh's mesh.update_faces(mesh.nondegenerate_faces())",
+        DegenerateFaceWarning),
+}
+"""Every kind of mesh problem, and how it is told."""
+
+SHOWN = 5
+"""Most bodies a summary names (its warning's ``bodies`` lists them all)."""
+
+
+def mesh_problems(topo: Topology, zero_area: int, label: str, strict: bool,
+                  inverted: bool = False) -> list[MeshProblem]:
+    """What is wrong with a body's mesh, each with the rule applied to it
+    (:data:`PROBLEMS`); with ``strict``, a ValueError for the first instead (its message says
+    only what is wrong and how to repair it)."""
+    found = []
     if not topo.closed:
-        complain(f"{label} is not a closed, consistently oriented surface: {topo.problem()}",
-                 "it is tested as a solid all the same: every edge is walked equally often both "
-                 "ways, so its inside is well defined" if topo.solid else
-                 "it is tested as a surface: a pair is reported where its surface crosses the "
-                 "other body's surface, or lies inside another body that is a closed solid; "
-                 "nothing is ever found inside it",
-                 "Repair it (trimesh.repair.fill_holes, pymeshlab's close holes) to test it as a "
-                 "solid", OpenMeshWarning)
+        found.append(MeshProblem("balanced" if topo.solid else "surface", label, topo.problem()))
+    elif topo.rewound:
+        found.append(MeshProblem("rewound", label, f"{topo.rewound} edges walked the same way "
+                                 "by their two faces"))
     elif inverted:
-        complain(f"{label} is closed but wound inside out (its volume is negative)",
-                 "collisions are still found (the ray count of its inside is -1, not 0), but its "
-                 "normals, and so contact normals, point inwards",
-                 "Flip it (trimesh's mesh.invert())", OpenMeshWarning)
+        found.append(MeshProblem("inverted", label, "its volume is negative"))
     degenerate = []
     if topo.dropped_faces:
         degenerate.append(f"{topo.dropped_faces} faces repeat a vertex index")
     if zero_area:
         degenerate.append(f"{zero_area} faces have zero area")
     if degenerate:
-        complain(f"{label} has degenerate faces: {' and '.join(degenerate)}",
-                 "faces that repeat a vertex index are dropped and faces of zero area ignored "
-                 "(they bound nothing and cross no ray)",
-                 "Remove them with trimesh's mesh.update_faces(mesh.nondegenerate_faces())",
-                 DegenerateFaceWarning)
+        found.append(MeshProblem("degenerate", label, " and ".join(degenerate)))
+    if strict and found:
+        first = found[0]
+        kind = PROBLEMS[first.kind]
+        raise ValueError(f"{first.label} {kind.one}: {first.detail}. {kind.repair}.")
+    return found
+
+
+def warn_problems(problems: list[MeshProblem]) -> None:
+    """One warning per kind of problem, however many bodies have it: the first
+    :data:`SHOWN` bodies by name and what each has, the rule applied and the repair; the
+    warning's ``bodies`` and ``details`` list every one."""
+    by_kind: dict[str, list[MeshProblem]] = {}
+    for problem in problems:
+        by_kind.setdefault(problem.kind, []).append(problem)
+    for name, found in by_kind.items():
+        kind = PROBLEMS[name]
+        if len(found) == 1:
+            what = f"{found[0].label} {kind.one}: {found[0].detail}"
+        else:
+            named = ", ".join(f"{p.label} ({p.detail})" for p in found[:SHOWN])
+            more = (f", and {len(found) - SHOWN} more (the warning's bodies list them all)"
+                    if len(found) > SHOWN else "")
+            what = f"{len(found)} bodies {kind.many}: {named}{more}"
+        message = (f"{what}; {kind.rule}. {kind.repair}, or ask for strict checking to make "
+                   "this an error.")
+        warn_at_caller(kind.category(message, [p.label for p in found],
+                                     [p.detail for p in found]))
 
 
 def _fingerprint(faces: np.ndarray) -> int:
@@ -294,13 +414,14 @@ class TopologyCache:
     @staticmethod
     def _same(topo: Topology, faces: np.ndarray) -> bool:
         """Whether ``faces`` (as given) are the faces ``topo`` was built from."""
+        kept_faces = topo.faces if topo.as_given is None else topo.as_given
         if topo.kept is None:
-            return np.array_equal(topo.faces, faces)
+            return np.array_equal(kept_faces, faces)
         if len(faces) != len(topo.kept) + topo.dropped_faces:
             return False
         given = np.ones(len(faces), dtype=bool)
         given[topo.kept] = False
-        return np.array_equal(topo.faces, faces[topo.kept]) \
+        return np.array_equal(kept_faces, faces[topo.kept]) \
             and np.array_equal(topo.dropped, faces[given])
 
     def evict(self) -> None:
