@@ -70,8 +70,23 @@ fn positive(w: f32, ia: u32, ib: u32) -> bool {
 }
 
 // Where segment p0 -> p1 crosses the face (a, b, c) with vertex ids `ids`, as the segment's
-// parameter in [0, 1]; -1 when it does not.
+// parameter in [0, 1]; -1 when it does not. A segment whose ends both lie within rounding of the
+// face's plane (COPLANAR of the points' reach) lies in that plane: where it meets the face the
+// surfaces touch, and where it does not, the signs of the line test are rounding's (a wall's
+// edge in the plane of a ceiling's face 150 mm beyond it would pass). Neither is a crossing.
 fn crossing(p0: vec3f, p1: vec3f, a: vec3f, b: vec3f, c: vec3f, ids: vec3u) -> f32 {
+    let n = cross(b - a, c - a);
+    let h0 = dot(n, p0 - a);
+    let h1 = dot(n, p1 - a);
+    let reach = max(max(max(abs(p0.x), abs(p0.y)), max(abs(p0.z), abs(p1.x))),
+                    max(max(abs(p1.y), abs(p1.z)),
+                        max(max(max(abs(a.x), abs(a.y)), abs(a.z)),
+                            max(max(max(abs(b.x), abs(b.y)), abs(b.z)),
+                                max(max(abs(c.x), abs(c.y)), abs(c.z))))));
+    let near = COPLANAR * reach * length(n);
+    if (abs(h0) <= near && abs(h1) <= near) {
+        return -1.0;
+    }
     let d = p1 - p0;
     let s0 = positive(edge_volume(p0, d, a, ids.x, b, ids.y), ids.x, ids.y);
     let s1 = positive(edge_volume(p0, d, b, ids.y, c, ids.z), ids.y, ids.z);
@@ -79,9 +94,6 @@ fn crossing(p0: vec3f, p1: vec3f, a: vec3f, b: vec3f, c: vec3f, ids: vec3u) -> f
     if (s0 != s1 || s1 != s2) {
         return -1.0;  // the line misses the face
     }
-    let n = cross(b - a, c - a);
-    let h0 = dot(n, p0 - a);
-    let h1 = dot(n, p1 - a);
     if ((h0 > 0.0 && h1 > 0.0) || (h0 < 0.0 && h1 < 0.0) || h0 == h1) {
         return -1.0;  // both ends on one side of the face's plane (or the edge lies in it)
     }

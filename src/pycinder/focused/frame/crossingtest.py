@@ -21,6 +21,11 @@ CROSSING_BUDGET = 49152
 below the 65,535 after which llvmpipe (lavapipe, OpenGL without a GPU) silently ends a thread's
 loops (see ``crossingtest.wgsl``)."""
 
+COPLANAR = 2.0**-18
+"""Distance from a face's plane, per unit of the tile coordinates' reach, within which both ends
+of an edge put it in the plane (``crossingtest.wgsl``: an edge in a face's plane never crosses
+it): 16 times the rounding of a point in tile coordinates."""
+
 PARAMS = Struct("CrossingTestParams", [
     ("record_cap", "u32", "0: count hits without writing records"),
     ("item_cap", "u32", "edge items the buffer holds"),
@@ -41,7 +46,7 @@ class CrossingTest:
 
     def __init__(self, gpu: Gpu) -> None:
         self.stage = Stage(gpu, "crossingtest", "crossing_test", label=self.INFO.title,
-                           structs=(PARAMS,))
+                           structs=(PARAMS,), consts={"COPLANAR": COPLANAR})
 
     def write_params(self, e: Encoding) -> None:
         p = e.frame_params("cross")
@@ -65,4 +70,4 @@ class CrossingTest:
             indirect=b.args_at("edges"))
 
 
-__all__ = ["CROSSING_BUDGET", "CrossingTest"]
+__all__ = ["COPLANAR", "CROSSING_BUDGET", "CrossingTest"]
