@@ -71,9 +71,16 @@ fn positive(w: f32, ia: u32, ib: u32) -> bool {
 
 // Where segment p0 -> p1 crosses the face (a, b, c) with vertex ids `ids`, as the segment's
 // parameter in [0, 1]; -1 when it does not. A segment whose ends both lie within rounding of the
-// face's plane (COPLANAR of the points' reach) lies in that plane: where it meets the face the
-// surfaces touch, and where it does not, the signs of the line test are rounding's (a wall's
-// edge in the plane of a ceiling's face 150 mm beyond it would pass). Neither is a crossing.
+// face's plane lies in that plane: where it meets the face the surfaces touch, and where it does
+// not, the signs of the line test are rounding's (a wall's edge in the plane of a ceiling's face
+// 150 mm beyond it would pass). Neither is a crossing. An end's height above the plane,
+// h = n.(p - a), is rounded by COPLANAR of the points' reach times |n| (the points' own
+// rounding) and |p - a| (|b - a| + |c - a|) (the plane's turn, which a small face far from p
+// turns into height).
+fn within_plane(h: f32, p: vec3f, a: vec3f, n: vec3f, span: f32, reach: f32) -> bool {
+    return abs(h) <= COPLANAR * reach * (length(n) + length(p - a) * span);
+}
+
 fn crossing(p0: vec3f, p1: vec3f, a: vec3f, b: vec3f, c: vec3f, ids: vec3u) -> f32 {
     let n = cross(b - a, c - a);
     let h0 = dot(n, p0 - a);
@@ -83,8 +90,8 @@ fn crossing(p0: vec3f, p1: vec3f, a: vec3f, b: vec3f, c: vec3f, ids: vec3u) -> f
                         max(max(max(abs(a.x), abs(a.y)), abs(a.z)),
                             max(max(max(abs(b.x), abs(b.y)), abs(b.z)),
                                 max(max(abs(c.x), abs(c.y)), abs(c.z))))));
-    let near = COPLANAR * reach * length(n);
-    if (abs(h0) <= near && abs(h1) <= near) {
+    let span = length(b - a) + length(c - a);
+    if (within_plane(h0, p0, a, n, span, reach) && within_plane(h1, p1, a, n, span, reach)) {
         return -1.0;
     }
     let d = p1 - p0;
