@@ -169,9 +169,13 @@ class GpuKinematics:
         prismatic joint's offset lies within the travel :meth:`error_estimate` assumes (its
         limits; a check's configurations need not keep them): if not, the estimate does not
         hold for them (a mimic's multiplier may also overflow a finite value)."""
+        return bool(self.reaches_each(q).all())
+
+    def reaches_each(self, q: np.ndarray) -> np.ndarray:
+        """(C,) bool: :meth:`reaches` of each configuration of ``q`` (C, J) alone."""
         value = self._values(q)
         # inf travel for a joint that turns: any finite angle
-        return bool(np.isfinite(value).all() and (np.abs(value) <= self._travel).all())
+        return np.all(np.isfinite(value) & (np.abs(value) <= self._travel), axis=1)
 
     def error_estimate(self) -> np.ndarray:
         """(B,) how far, at most by estimate, any point of each body lies from where float64

@@ -43,15 +43,17 @@ small batches, far from the GPU timeout, and a fast GPU large ones."""
 FIRST_BATCH = 8
 """Configurations of the first batched query of a check (see :data:`QUERY_SECONDS`)."""
 
-GPU_FRONT_FROM = 32
-"""Fewest configurations of a batch whose poses and pair cull run on the GPU (passes K1 and K2):
-a smaller batch computes them on the host, where the passes' own submission and map cost more
-host CPU than they save. Measured against the host path, alternating
-(:func:`pycinder.benchmarks.batch.run_front_sweep`; ``benchmarks/results/robots.md``): on an
-NVIDIA H200 K1/K2 check more configurations a second from 32 a query for the Panda and from 16
-for the Unitree A1 (about even at 8), with less host CPU from 32 and 8; on lavapipe K1/K2 take
-less host CPU from 32 (115 against 128 us a Panda configuration) and 1.3-1.5 times the host
-path's in queries of one."""
+GPU_FRONT_FROM = 1
+"""Fewest configurations of a batch whose poses and pair cull run on the GPU (passes K1 and K2)
+where the device runs them: every batch, so that a configuration's poses, and so its pairs
+within the tolerance's band, never depend on the batch it is checked in (K1's single precision
+and the host's double place a body apart by up to K1's error estimate). A batch of a few
+configurations spends more host CPU on the passes' own submission and map than the host's
+kinematics would: on lavapipe 1.3-1.5 times the host path's in queries of one; from 32 a query
+K1/K2 take less (115 against 128 us a Panda configuration), and on an NVIDIA H200 they check
+more configurations a second from 32 for the Panda and from 16 for the Unitree A1
+(:func:`pycinder.benchmarks.batch.run_front_sweep`, ``benchmarks/results/robots.md``). The
+benchmarks set it above a batch's size to time the host's path."""
 
 PLANS_KEPT = 8
 """Check plans kept (one per environment, self-collision choice and matrix), each with its
@@ -376,6 +378,28 @@ class Robot(RobotModel):
                 plan.front.place(fixed)
         return plan.front
 
+    def _reach_runs(self, qs: np.ndarray, plan: _Plan, bodies: list[Body],
+                    clearance: float | None) -> list[tuple[int, int]]:
+        """The runs of consecutive configurations of ``qs`` that take one path, K1's or the
+        host's (:meth:`_gpu_batch`), decided for each configuration alone: a configuration
+        whose joint values K1's estimate does not hold for takes the host's poses in any batch,
+        and the others K1's. One run where every configuration takes the same path."""
+        from ..errors import GpuError
+
+        if len(qs) < GPU_FRONT_FROM:
+            return [(0, len(qs))]
+        try:
+            front = self._gpu_front(plan, bodies, clearance)
+        except GpuError:  # its buffers or pipelines could not be made: the next check anew
+            self._forget_fronts()
+            raise
+        if front is None:
+            return [(0, len(qs))]
+        inside = front.kinematics.reaches_each(qs)
+        cuts = np.flatnonzero(inside[1:] != inside[:-1]) + 1
+        edges = [0, *cuts.tolist(), len(qs)]
+        return list(zip(edges[:-1], edges[1:]))
+
     def _gpu_batch(self, qs: np.ndarray, plan: _Plan, bodies: list[Body],
                    clearance: float | None) -> GpuPairCull | None:
         """Passes K1 and K2 for a batch of configurations ``qs``, or None where the host makes
@@ -481,6 +505,12 @@ class Robot(RobotModel):
         if not len(plan.pairs) or not len(qs):
             return
         clearance = None if pads is None else max(float(pads.max()), 1e-12)
+        runs = self._reach_runs(qs, plan, bodies, clearance)
+        if len(runs) > 1:  # K1 takes some configurations, the host the others: each alone
+            for first, end in runs:
+                self._check_batch(qs[first:end], start + first, plan, bodies, collides, pairs,
+                                  pads)
+            return
         try:
             survivors = boxes = fixed_boxes = slack = None
             front = self._gpu_batch(qs, plan, bodies, clearance)
