@@ -19,27 +19,13 @@ import pytest
 import trimesh
 
 import pycinder
-from pycinder.testing import random_rotation
+from pycinder.testing import first_contact, l_shape, random_rotation, world_mesh
 
 T = 0.005
 """The scenes' tolerance (the clearance and hard-clash figures are 2 T)."""
 
 MODES = {"default": {"tolerance": T}, "min_depth": {"min_depth": 2 * T},
          "clearance": {"clearance": 2 * T}}
-
-
-def _l_shape() -> trimesh.Trimesh:
-    arm = trimesh.creation.box((0.2, 0.06, 0.1))
-    leg = trimesh.creation.box((0.06, 0.2, 0.1))
-    leg.apply_translation((-0.07, 0.07, 0.0))
-    arm.apply_translation((0.0, 0.0, 0.0))
-    from pycinder.testing import _manifold3d
-
-    m3d = _manifold3d()
-    parts = [m3d.Manifold(m3d.Mesh(vert_properties=np.asarray(m.vertices, np.float32),
-                                   tri_verts=np.asarray(m.faces, np.uint32))) for m in (arm, leg)]
-    mesh = (parts[0] + parts[1]).to_mesh()
-    return trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
 
 
 def _shapes() -> list[trimesh.Trimesh]:
@@ -49,26 +35,7 @@ def _shapes() -> list[trimesh.Trimesh]:
     cup = trimesh.Trimesh(ball.vertices, ball.faces[30:], process=False)  # open: a surface
     rewound = trimesh.Trimesh(box.vertices, np.array(box.faces), process=False)
     rewound.faces[[1, 4, 7]] = rewound.faces[[1, 4, 7]][:, ::-1]  # closed, wound again
-    return [ball, box, torus, cup, rewound, _l_shape()]
-
-
-def _touching_offset(a: trimesh.Trimesh, ta: np.ndarray, b: trimesh.Trimesh, tb: np.ndarray,
-                     direction: np.ndarray) -> float:
-    """How far along ``direction`` from ``ta``'s origin ``b`` (turned by ``tb``) first touches
-    ``a``, within 1e-4, by bisection on their vertices' distances."""
-    placed_a = a.copy()
-    placed_a.apply_transform(ta)
-    lo, hi = 0.0, 0.6
-    for _ in range(24):
-        mid = 0.5 * (lo + hi)
-        m = tb.copy()
-        m[:3, 3] = ta[:3, 3] + direction * mid
-        placed_b = b.copy()
-        placed_b.apply_transform(m)
-        near = trimesh.proximity.closest_point(placed_a, placed_b.vertices)[1].min() < 1e-4
-        inside = placed_a.is_watertight and placed_a.contains(placed_b.vertices).any()
-        lo, hi = (mid, hi) if near or inside else (lo, mid)
-    return hi
+    return [ball, box, torus, cup, rewound, l_shape(0.2, 0.06, 0.1)]
 
 
 def scene(seed: int, pairs: int = 18, clutter: int = 40):
@@ -83,10 +50,11 @@ def scene(seed: int, pairs: int = 18, clutter: int = 40):
         ta = random_rotation(rng)
         ta[:3, 3] = (k % 6 * 0.5, k // 6 * 0.5, 0.0)
         tb = random_rotation(rng)
+        tb[:3, 3] = ta[:3, 3]
         way = rng.normal(size=3)
         way /= np.linalg.norm(way)
-        contact = _touching_offset(a, ta, b, tb, way)
-        tb[:3, 3] = ta[:3, 3] + way * (contact + rng.uniform(-2.5 * T, 3.0 * T))
+        contact = first_contact(world_mesh(a, ta), world_mesh(b, tb), way)
+        tb[:3, 3] += way * (contact + rng.uniform(-2.5 * T, 3.0 * T))
         meshes += [a, b]
         transforms += [ta, tb]
     for _ in range(clutter):
