@@ -149,8 +149,8 @@ class Detector:
                         names: Sequence[str | None] | None = None,
                         groups: Any = None,
                         view: View | Sequence[View] | None = None,
-                        records: str | None = None, contacts: bool | None = None
-                        ) -> CollisionResult:
+                        records: str | None = None, contacts: bool | None = None,
+                        pairs: Any = None) -> CollisionResult:
         """Find every pair of interfering bodies.
 
         Parameters
@@ -175,6 +175,11 @@ class Detector:
             ``records="all"``), so that ``result.contacts()`` answers from the result alone;
             False needs none. Default: the request's ``contacts``. A physics step asks for
             both every frame: ``Detector(contacts=True)``, or this per call.
+        pairs : (K, 2) int, optional
+            Focused strategy: the only pairs that may be tested and reported, an allowed list
+            (each ``(i, j)`` once, either way round; a pair whose boxes do not meet is still left
+            out, and so is one within a group where ``groups`` is given). Clash rules give one
+            (:mod:`pycinder.bim.rules`). Default: every pair.
 
         Returns
         -------
@@ -200,12 +205,12 @@ class Detector:
         [(('box', 'ball'), [1.0, 0.0, 0.0])]
         """
         return self.submit(bodies, transforms, names=names, groups=groups, view=view,
-                           records=records, contacts=contacts).result()
+                           records=records, contacts=contacts, pairs=pairs).result()
 
     def submit(self, bodies: Sequence[Any], transforms: Any = None, *,
                names: Sequence[str | None] | None = None, groups: Any = None,
                view: View | Sequence[View] | None = None, records: str | None = None,
-               contacts: bool | None = None) -> PendingQuery:
+               contacts: bool | None = None, pairs: Any = None) -> PendingQuery:
         """:meth:`find_collisions` without waiting for the GPU: the host checks the bodies,
         plans the tiles and submits the frame, and returns at once. Prepare the next frame, then
         call ``.result()`` on the handle. Two queries can be in flight; a third waits for the
@@ -235,10 +240,11 @@ class Detector:
         0
         """
         return self._pending(bodies, transforms, names, groups, view,
-                             self.request.call_records(records, contacts))
+                             self.request.call_records(records, contacts), pairs=pairs)
 
     def in_collision(self, bodies: Sequence[Any], transforms: Any = None, *,
-                     names: Sequence[str | None] | None = None, groups: Any = None) -> bool:
+                     names: Sequence[str | None] | None = None, groups: Any = None,
+                     pairs: Any = None) -> bool:
         """Whether any two bodies interfere, as :meth:`find_collisions` would answer, for less:
         the pairs likeliest to collide (:func:`~pycinder.focused.plan.tiles.likely_pairs`) run
         first, and the GPU skips every tile that has not started once any pair is found (the
@@ -253,15 +259,15 @@ class Detector:
         """
         if self.request.strategy != "focused":
             return bool(len(self.find_collisions(bodies, transforms, names=names,
-                                                 groups=groups).pairs))
+                                                 groups=groups, pairs=pairs).pairs))
         pending = self._pending(bodies, transforms, names, groups, None, "none",
-                                stop_at_first=True)
+                                stop_at_first=True, pairs=pairs)
         return bool(len(pending.result().pairs))
 
     def _pending(self, bodies: Sequence[Any], transforms: Any,
                  names: Sequence[str | None] | None, groups: Any,
                  view: View | Sequence[View] | None, records: str | None,
-                 stop_at_first: bool = False) -> PendingQuery:
+                 stop_at_first: bool = False, pairs: Any = None) -> PendingQuery:
         """Validate a query's input and submit it; ``records``: the mode it keeps, resolved by
         :meth:`CollisionRequest.call_records` (None for the scene strategy)."""
         if not isinstance(bodies, Sequence):
@@ -276,8 +282,15 @@ class Detector:
             t0 = time.perf_counter()
             scene = self._scene(bodies, transforms, names)
             groups = _checked_groups(groups, len(scene))
+            within = None
+            if pairs is not None:
+                if self.request.strategy != "focused":
+                    raise ValueError("pairs applies to strategy='focused': the scene strategy "
+                                     "draws every body in one image")
+                within, groups = allowed_pairs(pairs, len(scene), groups), None
             return PendingQuery(self, self._submit(scene, t0, groups=groups, view=view,
-                                                   records=records, stop_at_first=stop_at_first),
+                                                   records=records, within=within,
+                                                   stop_at_first=stop_at_first),
                                 t0, records)
 
     def find_collisions_batch(self, scenes: Sequence[Any], *, tolerance: Any = None,
@@ -390,6 +403,43 @@ class Detector:
             if self.request.strategy == "focused" and result.depths is None:
                 result.records_kept = records or self.request.records
             return result
+
+
+def allowed_pairs(pairs: Any, n: int, groups: np.ndarray | None = None) -> PairList:
+    """The pairs a query may test, as a :class:`~pycinder.focused.broad.prune.PairList`: each
+    ``(i, j)`` with ``i < j``, once, sorted, and only across ``groups`` where given.
+
+    Parameters
+    ----------
+    pairs : (K, 2) int
+    n : int
+        Bodies of the query.
+    groups : (n,) int, optional
+
+    Raises
+    ------
+    ValueError
+        Pairs that are not (K, 2) whole numbers, that name a body past ``n``, or a body with
+        itself.
+    """
+    table = np.asarray(pairs)
+    if table.size == 0:
+        table = table.reshape(0, 2)
+    if table.ndim != 2 or table.shape[1] != 2 or not (
+            np.issubdtype(table.dtype, np.integer) or table.size == 0):
+        raise ValueError(f"pairs must be (K, 2) whole numbers, body indices; got shape "
+                         f"{table.shape} of {table.dtype}")
+    table = np.sort(table.astype(np.int64), axis=1)
+    if len(table) and (table[:, 0].min() < 0 or table[:, 1].max() >= n):
+        raise ValueError(f"pairs name bodies from {int(table.min())} to {int(table.max())}; the "
+                         f"query has {n} (0 to {n - 1})")
+    if len(table) and np.any(table[:, 0] == table[:, 1]):
+        k = int(np.flatnonzero(table[:, 0] == table[:, 1])[0])
+        raise ValueError(f"pairs name body {int(table[k, 0])} with itself (row {k})")
+    table = np.unique(table, axis=0)
+    if groups is not None and len(table):
+        table = table[groups[table[:, 0]] != groups[table[:, 1]]]
+    return PairList(table)
 
 
 def _checked_groups(groups: Any, n: int) -> np.ndarray | None:

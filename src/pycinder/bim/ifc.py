@@ -25,9 +25,10 @@ import numpy as np
 
 from ..files.ifc import (IfcBody, IfcModel, Group, default_cache_dir, files_are_ifc, load_file,
                          read_ifc)
+from .rules import ClashRules, SetAside, candidate_pairs, set_aside
 
-__all__ = ["IfcBody", "IfcModel", "Group", "Clash", "read_ifc", "find_clashes",
-           "default_cache_dir", "files_are_ifc", "load_file"]
+__all__ = ["IfcBody", "IfcModel", "Group", "Clash", "ClashList", "ClashRules", "read_ifc",
+           "find_clashes", "default_cache_dir", "files_are_ifc", "load_file"]
 
 
 @dataclass(frozen=True)
@@ -75,6 +76,20 @@ class Clash:
                 "depth": self.depth, "depth_error": self.depth_error,
                 "distance": self.distance, "distance_error": self.distance_error,
                 "point": [round(float(x), 6) for x in self.point]}
+
+
+class ClashList(list):
+    """The clashes of :func:`find_clashes` (a list of :class:`Clash`), with what its clash rules
+    set aside.
+
+    Attributes
+    ----------
+    set_aside : SetAside
+        Each rule's count of pairs set aside, those pairs, and the duplicated GlobalIds
+        (:mod:`pycinder.bim.rules`).
+    """
+
+    set_aside: SetAside
 
 
 def mode_options(min_depth: float | None = None, clearance: float | None = None
@@ -127,8 +142,8 @@ def _look_at(a: IfcBody, b: IfcBody) -> np.ndarray:
 
 def find_clashes(model: IfcModel, a: Group | str | None = None, b: Group | str | None = None,
                  *, min_depth: float | None = None, clearance: float | None = None,
-                 tolerance: float | None = None, detector: Any = None, **options: Any
-                 ) -> list[Clash]:
+                 tolerance: float | None = None, detector: Any = None,
+                 rules: ClashRules | str | Any = None, **options: Any) -> ClashList:
     """The clashes of a clash set: group ``a`` against group ``b``, or ``a`` against itself.
 
     Parameters
@@ -154,13 +169,20 @@ def find_clashes(model: IfcModel, a: Group | str | None = None, b: Group | str |
         The detector's tolerance in metres (default: the detector's own).
     detector : Detector, optional
         A detector to query (its request decides the mode); then give no mode or tolerance.
+    rules : ClashRules, str or sequence of str, optional
+        Which clash rules set pairs aside before the query (:mod:`pycinder.bim.rules`): a
+        :class:`ClashRules`, a list for :meth:`ClashRules.parse` (``"default,system"``,
+        ``"none"``), or rule names (those only); default: the rules' defaults (doors and
+        windows in their openings, other elements in theirs, parts of one assembly, connected
+        elements and duplicated GlobalIds set aside; elements of one system tested).
     **options
         Other options of :class:`~pycinder.CollisionRequest`.
 
     Returns
     -------
-    list of Clash
-        In the order of the bodies; ``a`` is in group A where the groups differ.
+    ClashList
+        The clashes (a list of :class:`Clash`) in the order of the bodies, ``a`` in group A
+        where the groups differ; its ``set_aside`` says what each rule set aside.
 
     Raises
     ------
@@ -199,13 +221,29 @@ def find_clashes(model: IfcModel, a: Group | str | None = None, b: Group | str |
     else:  # groups overlap: every pair, then only those across A and B
         groups = None
     bodies = [model.bodies[i] for i in used]
+    rules = ClashRules.of(rules)
+    out = ClashList()
+    margin = getattr(detector.request, "clearance", None) or 0.0
+    candidates = candidate_pairs(model, used, groups, 1.001 * margin)
+    if b is not None:  # only pairs across the groups
+        ca, cb = used[candidates[:, 0]], used[candidates[:, 1]]
+        candidates = candidates[(in_a[ca] & in_b[cb]) | (in_b[ca] & in_a[cb])]
+    kept, out.set_aside = set_aside(model, used, candidates, rules)
     if len(bodies) < 2:
-        return []
+        return out
+    focused = detector.request.strategy == "focused"
     result = detector.find_collisions([x.mesh for x in bodies], None,
-                                      names=[x.name for x in bodies], groups=groups)
+                                      names=[x.name for x in bodies],
+                                      pairs=kept if focused else None)
     pairs = result.pairs.reshape(-1, 2)
+    if not focused:  # the scene strategy tests every pair: keep those the rules leave
+        allowed = set(map(tuple, kept.tolist()))
+        keep = np.array([tuple(p) in allowed for p in pairs.tolist()], bool)
+        for name in ("depths", "depth_errors", "distances", "distance_errors"):
+            if getattr(result, name, None) is not None:
+                setattr(result, name, np.asarray(getattr(result, name))[keep])
+        pairs = pairs[keep]
     figures = _figures(result, mode, len(pairs))
-    out = []
     for k, (i, j) in enumerate(pairs.tolist()):
         gi, gj = used[i], used[j]
         if b is not None:

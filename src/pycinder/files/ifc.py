@@ -37,10 +37,16 @@ from ..util.optional import require
 from .checks import (FileBody, FileError, FileErrors, FileWarning, Limits, check_file,
                      display_name, file_labels)
 
-__all__ = ["IfcBody", "IfcModel", "Group", "read_ifc", "default_cache_dir", "files_are_ifc"]
+__all__ = ["IfcBody", "IfcModel", "IfcOpening", "Group", "read_ifc", "default_cache_dir",
+           "files_are_ifc"]
 
-CACHE_FORMAT = 1
-"""Version of the cache's file layout (part of every cache key)."""
+SHOWN_DUPLICATES = 5
+"""Most duplicated GlobalIds the warning of :func:`read_ifc` names (the model lists them all:
+:meth:`IfcModel.duplicates`)."""
+
+CACHE_FORMAT = 2
+"""Version of the cache's file layout (part of every cache key): 2 adds each file's relations
+(:func:`_relations`)."""
 
 Progress = Callable[[float, int, str], None]
 """``progress(done, total, text)``: ``done`` of ``total`` steps, a fraction within a step."""
@@ -76,12 +82,38 @@ class IfcBody(FileBody):
         :func:`~pycinder.files.file_labels`).
     element_name : str
         The element's Name attribute ("" where it has none).
+    storey : str
+        The name of the building storey that holds it ("" where none does).
     """
 
     global_id: str = ""
     ifc_class: str = ""
     file: str = ""
     element_name: str = ""
+    storey: str = ""
+
+
+@dataclass
+class IfcOpening:
+    """An opening of an element (IfcOpeningElement or another subtraction that voids it): its
+    shape in world coordinates, the element it voids and the element that fills it.
+
+    Attributes
+    ----------
+    file : str
+        The label of its file.
+    host : str
+        The GlobalId of the element it voids.
+    filler : str
+        The GlobalId of the element that fills it ("" where none does).
+    mesh : trimesh.Trimesh
+        Its shape, in metres, world coordinates.
+    """
+
+    file: str
+    host: str
+    filler: str
+    mesh: Any
 
 
 @dataclass
@@ -101,6 +133,12 @@ class IfcModel:
         Labels of the files tessellated by this read (the others came from the cache).
     seconds : dict
         ``"tessellation"`` (reading and tessellating, or loading from the cache).
+    relations : dict
+        File label to what the file says of how its elements relate: ``"fills"``,
+        ``"aggregates"``, ``"connects"`` and ``"systems"``, each (K, 2) str of GlobalIds (see
+        :data:`RELATIONS`; :mod:`pycinder.bim.rules` sets clashes aside by them).
+    openings : list of IfcOpening
+        The elements' openings (not bodies: they are cut from their hosts), for the clash rules.
     """
 
     bodies: list[IfcBody]
@@ -109,6 +147,8 @@ class IfcModel:
     schemas: dict[str, str]
     tessellated: list[str] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)
+    relations: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    openings: list[IfcOpening] = field(default_factory=list)
     _opened: dict[str, Any] = field(default_factory=dict, repr=False)
 
     def __len__(self) -> int:
@@ -118,6 +158,15 @@ class IfcModel:
     def names(self) -> list[str]:
         """The bodies' names, ``Name [GlobalId]``."""
         return [b.name for b in self.bodies]
+
+    def duplicates(self) -> list[list[int]]:
+        """Elements whose GlobalId is in more than one file: per GlobalId, the indices of its
+        bodies (in the order of the bodies), for each GlobalId found in two files or more."""
+        where: dict[str, list[int]] = {}
+        for k, b in enumerate(self.bodies):
+            where.setdefault(b.global_id, []).append(k)
+        return [ks for ks in where.values()
+                if len({self.bodies[k].file for k in ks}) > 1]
 
     def file_index(self, which: str | os.PathLike[str]) -> str:
         """The label of a file of the model, given as its label, its path or its name.
@@ -290,11 +339,141 @@ def _cache_key(digest: str, version: str) -> str:
     return hashlib.sha256(f"{digest}:{version}:{CACHE_FORMAT}".encode()).hexdigest()[:40]
 
 
+RELATIONS = ("fills", "aggregates", "connects", "systems")
+"""The relations read from each file (:func:`_relations`): each an array of GlobalId pairs."""
+
+
+def _gid_pairs(pairs: Iterable[tuple[Any, Any]]) -> np.ndarray:
+    """(K, 2) str: the GlobalIds of pairs of entities (each once, in order found)."""
+    out = dict.fromkeys((a.GlobalId, b.GlobalId) for a, b in pairs
+                        if a is not None and b is not None and a != b
+                        and hasattr(a, "GlobalId") and hasattr(b, "GlobalId"))
+    return np.array(list(out), dtype=str).reshape(-1, 2)
+
+
+def _by_type(f: Any, name: str) -> list[Any]:
+    """The file's entities of a class, none where its schema lacks the class."""
+    try:
+        return list(f.by_type(name))
+    except RuntimeError:
+        return []
+
+
+def _relations(f: Any) -> dict[str, np.ndarray]:
+    """What a file says of how its elements relate, as GlobalId pairs (K, 2) str:
+
+    * ``fills``: an element filling an opening (IfcRelFillsElement) and the element the
+      opening voids (IfcRelVoidsElement): a door and its wall;
+    * ``aggregates``: a part and the element it is part of (IfcRelAggregates whose whole is
+      an element, not a storey or a building): a flight and its stair, a plate and its curtain
+      wall;
+    * ``connects``: elements the file connects (IfcRelConnectsElements and its subclasses, such
+      as walls joined at their ends by IfcRelConnectsPathElements; and elements whose ports are
+      connected, IfcRelConnectsPorts);
+    * ``systems``: an element and the system it is assigned to (IfcRelAssignsToGroup to an
+      IfcSystem, IfcDistributionSystem, IfcBuildingSystem ...).
+
+    And ``storeys``, (K, 2) str: an element and the name of the building storey that holds it
+    (IfcRelContainedInSpatialStructure, or that of the element it is part of).
+    """
+    host = {rel.RelatedOpeningElement: rel.RelatingBuildingElement
+            for rel in _by_type(f, "IfcRelVoidsElement")}
+    fills = [(rel.RelatedBuildingElement, host.get(rel.RelatingOpeningElement))
+             for rel in _by_type(f, "IfcRelFillsElement")]
+    aggregates = [(part, rel.RelatingObject) for rel in _by_type(f, "IfcRelAggregates")
+                  if rel.RelatingObject.is_a("IfcElement") for part in rel.RelatedObjects]
+    connects = [(rel.RelatingElement, rel.RelatedElement)
+                for rel in _by_type(f, "IfcRelConnectsElements")]
+    port_of: dict[Any, Any] = {}
+    for rel in _by_type(f, "IfcRelConnectsPortToElement"):
+        port_of[rel.RelatingPort] = rel.RelatedElement
+    for rel in _by_type(f, "IfcRelNests"):
+        if rel.RelatingObject.is_a("IfcElement"):
+            for part in rel.RelatedObjects:
+                if part.is_a("IfcPort"):
+                    port_of[part] = rel.RelatingObject
+    connects += [(port_of.get(rel.RelatingPort), port_of.get(rel.RelatedPort))
+                 for rel in _by_type(f, "IfcRelConnectsPorts")]
+    systems = [(member, rel.RelatingGroup) for rel in _by_type(f, "IfcRelAssignsToGroup")
+               if rel.RelatingGroup.is_a("IfcSystem") for member in rel.RelatedObjects
+               if member.is_a("IfcElement")]
+    whole = {part: parent for part, parent in aggregates}
+    storey: dict[str, str] = {}
+    for rel in _by_type(f, "IfcRelContainedInSpatialStructure"):
+        structure = rel.RelatingStructure
+        if structure.is_a("IfcBuildingStorey"):
+            for item in rel.RelatedElements:
+                storey[item.GlobalId] = structure.Name or structure.GlobalId
+    for part in whole:  # a part is where its whole is
+        top, seen = part, set()
+        while top in whole and top not in seen:
+            seen.add(top)
+            top = whole[top]
+        if top.GlobalId in storey and part.GlobalId not in storey:
+            storey[part.GlobalId] = storey[top.GlobalId]
+    return {"fills": _gid_pairs(fills), "aggregates": _gid_pairs(aggregates),
+            "connects": _gid_pairs(connects), "systems": _gid_pairs(systems),
+            "storeys": np.array(list(storey.items()), dtype=str).reshape(-1, 2)}
+
+
+def _shapes(ifcopenshell: Any, f: Any, products: Iterable[Any], threads: int,
+            said: Callable[[int], None] | None = None
+            ) -> tuple[list[int], list[np.ndarray], list[np.ndarray]]:
+    """IfcOpenShell's geometry iterator over ``products`` of file ``f`` (world coordinates,
+    metres, openings applied): the ids of those with faces, in the file's order whatever the
+    threads', and their vertices (V, 3) float64 and faces (F, 3) int64. ``said(count)`` after
+    each shape."""
+    import ifcopenshell.geom
+
+    products = list(products)
+    if not products:
+        return [], [], []
+    it = ifcopenshell.geom.iterator(_settings(ifcopenshell), f, max(threads, 1),
+                                    include=products)
+    verts, faces, ids = [], [], []
+    if it.initialize():
+        while True:
+            shape = it.get()
+            v = np.asarray(shape.geometry.verts, np.float64).reshape(-1, 3)
+            t = np.asarray(shape.geometry.faces, np.int64).reshape(-1, 3)
+            if len(t):
+                verts.append(v)
+                faces.append(t)
+                ids.append(shape.id)
+            if said is not None:
+                said(len(ids))
+            if not it.next():
+                break
+    order = np.argsort(ids, kind="stable")
+    return [ids[k] for k in order], [verts[k] for k in order], [faces[k] for k in order]
+
+
+def _openings(ifcopenshell: Any, f: Any, threads: int) -> dict[str, np.ndarray]:
+    """The file's openings (IfcOpeningElement and the other subtractions that void an element,
+    IfcRelVoidsElement), tessellated, each with the GlobalId of the element it voids and of the
+    element that fills it ("" where none does): ``opening_vertices`` (V, 3), ``opening_faces``
+    (F, 3), their offsets, ``opening_hosts`` and ``opening_fillers`` (O,) str, for the clash
+    rules (:mod:`pycinder.bim.rules`)."""
+    host = {rel.RelatedOpeningElement: rel.RelatingBuildingElement
+            for rel in _by_type(f, "IfcRelVoidsElement")}
+    filler = {rel.RelatingOpeningElement: rel.RelatedBuildingElement
+              for rel in _by_type(f, "IfcRelFillsElement")}
+    ids, verts, faces = _shapes(ifcopenshell, f, host, threads)
+    openings = [f.by_id(i) for i in ids]
+    return {
+        "opening_vertices": (np.concatenate(verts) if verts else np.zeros((0, 3))),
+        "opening_faces": (np.concatenate(faces) if faces else np.zeros((0, 3))).astype(np.int32),
+        "opening_vertex_offsets": np.cumsum([0] + [len(v) for v in verts]),
+        "opening_face_offsets": np.cumsum([0] + [len(t) for t in faces]),
+        "opening_hosts": np.array([host[o].GlobalId for o in openings], dtype=str),
+        "opening_fillers": np.array([filler[o].GlobalId if o in filler else "" for o in openings],
+                                    dtype=str)}
+
+
 def _tessellate(path: str, label: str, threads: int, progress: Progress | None,
                 step: tuple[int, int]) -> dict[str, np.ndarray]:
     """One file's element set, tessellated: concatenated arrays (see :func:`_bodies_of`)."""
     ifcopenshell = _ifcopenshell()
-    import ifcopenshell.geom
 
     try:
         f = ifcopenshell.open(path)
@@ -310,32 +489,19 @@ def _tessellate(path: str, label: str, threads: int, progress: Progress | None,
         raise FileError(f"{label}: holds no elements (IfcElement other than IfcFeatureElement)")
     done0, steps = step
     total = len(elements)
-    it = ifcopenshell.geom.iterator(_settings(ifcopenshell), f, max(threads, 1),
-                                    include=list(elements))
-    verts, faces, ids = [], [], []
-    if it.initialize():
-        while True:
-            shape = it.get()
-            v = np.asarray(shape.geometry.verts, np.float64).reshape(-1, 3)
-            t = np.asarray(shape.geometry.faces, np.int64).reshape(-1, 3)
-            if len(t):
-                verts.append(v)
-                faces.append(t)
-                ids.append(shape.id)
-            if progress and len(ids) % 64 == 0:
-                progress(done0 + len(ids) / total, steps,
-                         f"tessellating {label}: {len(ids):,} of {total:,} elements")
-            if not it.next():
-                break
+
+    def said(count: int) -> None:
+        if progress and count % 64 == 0:
+            progress(done0 + count / total, steps,
+                     f"tessellating {label}: {count:,} of {total:,} elements")
+
+    ids, verts, faces = _shapes(ifcopenshell, f, elements, threads, said)
     if not ids:
         raise FileError(f"{label}: none of its {total:,} elements has body geometry")
-    order = np.argsort(ids, kind="stable")  # the file's order, whatever the threads' order
-    ids = [ids[k] for k in order]
-    verts = [verts[k] for k in order]
-    faces = [faces[k] for k in order]
     entities = [f.by_id(i) for i in ids]
     v_off = np.cumsum([0] + [len(v) for v in verts])
     f_off = np.cumsum([0] + [len(t) for t in faces])
+    openings = _openings(ifcopenshell, f, threads)
     return {
         "vertices": np.concatenate(verts), "faces": np.concatenate(faces).astype(np.int32),
         "vertex_offsets": v_off, "face_offsets": f_off,
@@ -343,6 +509,8 @@ def _tessellate(path: str, label: str, threads: int, progress: Progress | None,
         "classes": np.array([e.is_a() for e in entities], dtype=str),
         "names": np.array([e.Name or "" for e in entities], dtype=str),
         "schema": np.array(f.schema), "left_out": np.array(total - len(ids)),
+        **{f"relation_{k}": v for k, v in _relations(f).items()},
+        **openings,
     }
 
 
@@ -352,6 +520,7 @@ def _bodies_of(data: dict[str, np.ndarray], label: str) -> list[IfcBody]:
     out = []
     v_off, f_off = data["vertex_offsets"], data["face_offsets"]
     verts, faces = data["vertices"], data["faces"]
+    storeys = dict(data["relation_storeys"].tolist())
     for k, (gid, cls, name) in enumerate(zip(data["global_ids"].tolist(),
                                              data["classes"].tolist(),
                                              data["names"].tolist())):
@@ -359,8 +528,21 @@ def _bodies_of(data: dict[str, np.ndarray], label: str) -> list[IfcBody]:
         t = faces[f_off[k]:f_off[k + 1]]
         mesh = trimesh.Trimesh(v, t, process=False)
         out.append(IfcBody(f"{name or cls} [{gid}]", mesh, np.eye(4), "m", global_id=gid,
-                           ifc_class=cls, file=label, element_name=name))
+                           ifc_class=cls, file=label, element_name=name,
+                           storey=storeys.get(gid, "")))
     return out
+
+
+def _openings_of(data: dict[str, np.ndarray], label: str) -> list[IfcOpening]:
+    import trimesh
+
+    v_off, f_off = data["opening_vertex_offsets"], data["opening_face_offsets"]
+    verts, faces = data["opening_vertices"], data["opening_faces"]
+    return [IfcOpening(label, host, filler,
+                       trimesh.Trimesh(verts[v_off[k]:v_off[k + 1]],
+                                       faces[f_off[k]:f_off[k + 1]], process=False))
+            for k, (host, filler) in enumerate(zip(data["opening_hosts"].tolist(),
+                                                   data["opening_fillers"].tolist()))]
 
 
 def _read_one(path: str, label: str, cache: Path | None, threads: int, limits: Limits,
@@ -454,6 +636,8 @@ def read_ifc(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], *
     bodies: list[IfcBody] = []
     errors: list[str] = []
     schemas: dict[str, str] = {}
+    relations: dict[str, dict[str, np.ndarray]] = {}
+    openings: list[IfcOpening] = []
     made: list[str] = []
     t0 = time.perf_counter()
     for k, (path, label) in enumerate(zip(paths, labels)):
@@ -468,17 +652,25 @@ def read_ifc(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]], *
         if was_made:
             made.append(label)
         schemas[label] = str(data["schema"])
+        relations[label] = {k: data[f"relation_{k}"] for k in RELATIONS}
+        openings += _openings_of(data, label)
         bodies += _bodies_of(data, label)
     if errors:
         raise FileErrors(errors)
-    seen: dict[str, str] = {}
-    for b in bodies:
-        if b.global_id in seen and seen[b.global_id] != b.file:
-            warnings.warn(f"{b.name}: GlobalId {b.global_id} is in both {seen[b.global_id]} and "
-                          f"{b.file}; they are tested as two bodies", FileWarning, stacklevel=2)
-        seen.setdefault(b.global_id, b.file)
-    return IfcModel(bodies, labels, paths, schemas, made,
-                    {"tessellation": time.perf_counter() - t0})
+    model = IfcModel(bodies, labels, paths, schemas, made,
+                     {"tessellation": time.perf_counter() - t0}, relations, openings)
+    twice = model.duplicates()
+    if twice:
+        shown = "; ".join(f"{model.bodies[group[0]].name} in "
+                          f"{', '.join(model.bodies[k].file for k in group)}"
+                          for group in twice[:SHOWN_DUPLICATES])
+        more = (f"; and {len(twice) - SHOWN_DUPLICATES} more" if len(twice) > SHOWN_DUPLICATES
+                else "")
+        warnings.warn(f"{len(twice)} GlobalIds are in more than one file ({shown}{more}): "
+                      "each copy is a body of its own, and the duplicates rule (on by default) "
+                      "reports them apart rather than tested against each other",
+                      FileWarning, stacklevel=2)
+    return model
 
 
 def load_file(path: str, label: str, limits: Limits = Limits()) -> list[FileBody]:
