@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 pytest.importorskip("ifcopenshell", reason="IFC needs ifcopenshell: pip install 'pycinder[bim]'")
-pytest.importorskip("sklearn", reason="grouping needs scikit-learn: pip install 'pycinder[bim]'")
+pytest.importorskip("scipy", reason="grouping needs scipy: pip install 'pycinder[bim]'")
 
 from pycinder.benchmarks import building as B  # noqa: E402
 from pycinder.bim import ifc  # noqa: E402
@@ -29,12 +29,14 @@ ROOT = Path(__file__).resolve().parents[1]
 # -- grouping, by hand ----------------------------------------------------------------------
 
 
-def _fake(a: str, b: str, point: tuple[float, float, float]) -> types.SimpleNamespace:
-    def body(gid: str) -> types.SimpleNamespace:
-        return types.SimpleNamespace(file="f.ifc", global_id=gid, ifc_class="IfcWall",
-                                     element_name=gid, name=gid)
+def _fake(a: str, b: str, point: tuple[float, float, float], classes=("IfcWall", "IfcWall"),
+          storeys=("", "")) -> types.SimpleNamespace:
+    def body(gid: str, ifc_class: str, storey: str) -> types.SimpleNamespace:
+        return types.SimpleNamespace(file="f.ifc", global_id=gid, ifc_class=ifc_class,
+                                     element_name=gid, name=gid, storey=storey)
 
-    return types.SimpleNamespace(a=body(a), b=body(b), point=np.array(point, float))
+    return types.SimpleNamespace(a=body(a, classes[0], storeys[0]),
+                                 b=body(b, classes[1], storeys[1]), point=np.array(point, float))
 
 
 def _partition(groups) -> list[list[tuple[str, str]]]:
@@ -48,18 +50,48 @@ def test_groups_by_element_and_by_distance_by_hand():
                _fake("D", "E", (1.5, 0, 0)), _fake("F", "G", (50, 0, 0))]
     ab, bc, de, fg = ("A", "B"), ("B", "C"), ("D", "E"), ("F", "G")
     assert _partition(group_clashes(clashes, 0)) == [[ab, bc], [de], [fg]]
-    assert _partition(group_clashes(clashes, 1.0)) == [[ab, bc], [de], [fg]]
-    assert _partition(group_clashes(clashes, 2.0)) == [[ab, bc, de], [fg]]
-    assert _partition(group_clashes(clashes, 2.0, by_element=False)) == [[ab, de], [bc], [fg]]
+    assert _partition(group_clashes(clashes, by="element")) == [[ab, bc], [de], [fg]]
+    assert _partition(group_clashes(clashes, 1.0)) == [[ab], [bc], [de], [fg]]
+    assert _partition(group_clashes(clashes, 2.0)) == [[ab, de], [bc], [fg]]
     assert _partition(group_clashes(clashes, None)) == [[ab], [bc], [de], [fg]]
+    assert _partition(group_clashes(clashes, None, by="element")) == [[ab], [bc], [de], [fg]]
     # Neither the order nor the numbering changes the groups; keys and GUIDs follow GlobalIds.
-    assert _partition(group_clashes(clashes[::-1], 2.0)) == [[ab, bc, de], [fg]]
+    assert _partition(group_clashes(clashes[::-1], 2.0)) == [[ab, de], [bc], [fg]]
     first = group_clashes(clashes, 2.0)[0]
     assert first.index == 1 and first.key == ab and first.guid == topic_guid(ab)
-    assert [b.global_id for b in first.elements] == ["A", "B", "C", "D", "E"]
-    assert first.title() == "IfcWall/A and IfcWall/B (+2 clashes)"
+    assert [b.global_id for b in first.elements] == ["A", "B", "D", "E"]
+    assert first.title() == "IfcWall/A and IfcWall/B (+1 clash)"
     with pytest.raises(ValueError, match="grouping distance"):
         group_clashes(clashes, -1.0)
+    with pytest.raises(ValueError, match="grouped by one of distance, element, storey, "
+                       "classes"):
+        group_clashes(clashes, by="colour")
+
+
+def test_groups_by_distance_span_at_most_the_distance():
+    """Clashes 1 m apart along a line (a chain that single linkage at 2 m takes whole): every
+    group's clashes lie at most 2 m apart, in whichever order they come; thirty clashes at one
+    spot make groups of at most a tenth of them (three), nineteen one group."""
+    line = [_fake(f"A{k}", f"B{k}", (float(k), 0, 0)) for k in range(9)]
+    groups = group_clashes(line, 2.0)
+    for g in groups:
+        x = [float(c.point[0]) for c in g.clashes]
+        assert max(x) - min(x) <= 2.0
+    assert len(groups) >= 3 and sum(len(g.clashes) for g in groups) == 9
+    assert _partition(group_clashes(line[::-1], 2.0)) == _partition(groups)
+    spot = [_fake(f"A{k}", f"B{k}", (0.0, 0.0, 0.01 * k)) for k in range(30)]
+    assert [len(g.clashes) for g in group_clashes(spot)] == [3] * 10
+    assert [len(g.clashes) for g in group_clashes(spot[:19])] == [19]  # under twenty: no cap
+
+
+def test_groups_by_storey_and_by_classes():
+    clashes = [_fake("A", "B", (0, 0, 0), ("IfcWall", "IfcDuctSegment"), ("Level 1", "")),
+               _fake("C", "D", (90, 0, 0), ("IfcDuctSegment", "IfcWall"), ("", "Level 1")),
+               _fake("E", "F", (0, 0, 0), ("IfcBeam", "IfcDuctSegment"), ("Level 2", "Level 2")),
+               _fake("G", "H", (5, 0, 0), ("IfcBeam", "IfcPipeSegment"), ("", ""))]
+    ab, cd, ef, gh = ("A", "B"), ("C", "D"), ("E", "F"), ("G", "H")
+    assert _partition(group_clashes(clashes, by="storey")) == [[ab, cd], [ef], [gh]]
+    assert _partition(group_clashes(clashes, by="classes")) == [[ab, cd], [ef], [gh]]
 
 
 def test_a_picture_that_cannot_be_rendered_leaves_the_bcf_file_without_pictures(monkeypatch,
@@ -183,22 +215,25 @@ def test_groups_on_a_generated_building(runs, first):
     # By element alone: the two pipes through the south beam.
     by_element = group_clashes(clashes, 0)
     assert len(by_element) == len(clashes) - 1 and group_of(by_element, p1) == sorted([p1, p2])
-    # 2 m: the pipe into the column, 2.34 m away, stays apart; 3 m (the default) takes it in,
-    # and no other cell's clash (the nearest is 6 m away).
+    # 3 m (the default): the two pipes, 2 m apart, are one group; the pipe into the column is
+    # 2.34 m from the first but 4.1 m from the second, so it stays apart (no group spans more
+    # than 3 m), and so does every other cell's clash (the nearest is 6 m away).
+    assert group_of(group_clashes(clashes), p1) == sorted([p1, p2])
+    assert group_of(group_clashes(clashes), p3) == [p3]
     assert group_of(group_clashes(clashes, 2.0), p3) == [p3]
-    assert group_of(group_clashes(clashes), p1) == sorted([p1, p2, p3])
+    # However far, a group spans at most the distance: all in one (fewer than twenty clashes).
     assert len(group_clashes(clashes, 1000.0)) == 1
     assert len(group_clashes(clashes, None)) == len(clashes)
     # The benchmark's counts, and its report's line.
     counts = B.group_counts(clashes)
-    assert counts == {"groups": len(clashes) - 2, "groups_by_element": len(clashes) - 1}
+    assert counts == {"groups": len(clashes) - 1, "groups_by_element": len(clashes) - 1}
     row = {"system": "pycinder", "mode": "min_depth", "elements": len(model.bodies), "must": 0,
            "found": 0, "recall": 1.0, "touching": 0, "grazes": 0, "near": 0, "false": 0,
            "reported": len(clashes), "tessellation_s": 0.0, "clash_s": 0.0, **counts}
     text = "\n".join(B.markdown({"depth": B.DEPTH, "clearance": B.CLEARANCE, "rows": [row],
                                  "sizes": []}))
     assert (f"| {len(model.bodies):,} | origin | pycinder | min_depth | 10 | {len(clashes)} | "
-            f"{len(clashes) - 2} | {len(clashes) - 1} | 0.0 |") in text
+            f"{len(clashes) - 1} | {len(clashes) - 1} | 0.0 |") in text
 
 
 def _topics(path: Path) -> dict[str, tuple]:
@@ -355,13 +390,15 @@ def test_bcf_groups_snapshots_and_tracking(runs, capsys, tmp_path):
         assert len(new_group) == 1 and new_group[0]["guid"] not in groups_guids(first)
         assert all(g["guid"] in groups_guids(first) for g in second["groups"]
                    if g["status"] == "active")
-        # The group of the pipes through the south beam continues, the column's clash resolved.
-        [kept] = [g for g in second["groups"] if g["resolved"]]
-        assert sorted(kept["resolved"][0]) == sorted(gone)
-        assert second["resolved_groups"] == []
+        # The group of the pipes through the south beam continues whole; the pipe into the
+        # column, 2.34 m from one of them and 4.1 m from the other, was a group of its own,
+        # which is resolved: its topic comes back closed.
+        assert not any(g["resolved"] for g in second["groups"])
+        [closed] = second["resolved_groups"]
+        assert [sorted(p) for p in closed["pairs"]] == [sorted(gone)]
     with BcfXml.load(tmp_path / "second.bcf") as read:
         labels = sorted(t.topic.labels[0] for t in read.topics.values())
-        assert labels == sorted(g["status"] for g in second["groups"])
+        assert labels == sorted([g["status"] for g in second["groups"]] + ["resolved"])
         descriptions = "\n".join(t.topic.description for t in read.topics.values())
         assert f"- resolved: {gone[0]} <-> {gone[1]}" in descriptions or \
             f"- resolved: {gone[1]} <-> {gone[0]}" in descriptions

@@ -360,9 +360,9 @@ def test_modes_reach_the_detector(fed, monkeypatch):
     class Fake:
         def __init__(self, **options):
             seen.update(options)
-            self.request = types.SimpleNamespace(**options)
+            self.request = types.SimpleNamespace(strategy="focused", **options)
 
-        def find_collisions(self, bodies, transforms, names=None, groups=None):
+        def find_collisions(self, bodies, transforms, names=None, groups=None, pairs=None):
             return types.SimpleNamespace(pairs=np.array([[0, 1]]), depths=np.array([0.25]),
                                          depth_errors=np.array([1e-6]),
                                          distances=np.array([0.0]),

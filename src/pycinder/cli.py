@@ -109,8 +109,10 @@ def _cli_words(message: str, strict: bool) -> str:
     return message.replace("ask for strict checking", "pass --strict")
 
 
-def _warning_entry(w: warnings.WarningMessage, strict: bool) -> dict[str, str]:
-    return {"category": w.category.__name__, "message": _cli_words(str(w.message), strict)}
+def _warning_entry(w: warnings.WarningMessage, strict: bool) -> dict[str, Any]:
+    return {"category": w.category.__name__, "message": _cli_words(str(w.message), strict),
+            **{k: getattr(w.message, k) for k in ("bodies", "details", "summary")
+               if hasattr(w.message, k)}}
 
 
 @contextlib.contextmanager
@@ -312,7 +314,7 @@ def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
     """``check`` on IFC files: one body per element, a clash set, the mode's pairs as text or
     JSON, and a BCF file with --bcf; returns 0 (no clash), 1 (clashes) or 2 (an error)."""
     from .bim.ifc import find_clashes, make_detector, read_ifc
-    from .bim.report import clash_report, report_options
+    from .bim.report import clash_report, report_options, verbose_lines
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -333,7 +335,7 @@ def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
                 model = read_ifc(args.files, cache=False if args.no_cache else args.cache_dir,
                                  progress=update, limits=_limits(args))
                 update(0, 0, f"checking {plural(len(model.bodies), 'element')}")  # pulses
-                clashes = find_clashes(model, a, b, detector=det)
+                clashes = find_clashes(model, a, b, detector=det, rules=args.rules)
                 report = clash_report(model, clashes, **options, bcf=args.bcf,
                                       project=", ".join(model.files), progress=update)
         except _ERRORS as exc:
@@ -356,8 +358,10 @@ def cmd_check_ifc(args: argparse.Namespace, mixed: bool = False) -> int:
             "warnings": notes, "errors": []}
         print(json.dumps(report, indent=2))
     else:
-        for note in notes:
-            print(f"warning: {note['message']}", file=sys.stderr)
+        for note in notes:  # mesh warnings in a line each, their elements with --verbose
+            print(f"warning: {note.get('summary', note['message'])}", file=sys.stderr)
+        for line in verbose_lines(report, notes) if args.verbose else []:
+            print(line, file=sys.stderr)
         for line in report.text():
             print(line)
         if not clashes:

@@ -21,18 +21,23 @@ class MeshWarning(UserWarning):
         Every body concerned, by label (``body 4 ('Wall [2Xy...]')``).
     details : sequence of str, optional
         What each has, in the order of ``bodies`` (``"2 boundary edges (holes)"``).
+    summary : str, optional
+        The message in one short line, naming no body (``"3 bodies are open: tested as
+        surfaces"``); default the message.
 
     Attributes
     ----------
     bodies : list of str
     details : list of str
+    summary : str
     """
 
     def __init__(self, message: str, bodies: list[str] | None = None,
-                 details: list[str] | None = None) -> None:
+                 details: list[str] | None = None, summary: str | None = None) -> None:
         super().__init__(message)
         self.bodies = list(bodies or [])
         self.details = list(details or [])
+        self.summary = summary or message
 
 
 class OpenMeshWarning(MeshWarning):

@@ -97,11 +97,14 @@ def _group_topic(g: ClashGroup, statuses: Mapping[tuple[str, str], str],
 
 
 def _topics(clashes: Sequence[Any], groups: Sequence[ClashGroup] | None, tracking: Any,
-            snapshots: Mapping[int, tuple[bytes, Camera]] | None) -> list[_Topic]:
+            snapshots: Mapping[int, tuple[bytes, Camera]] | None,
+            notes: Sequence[str] = ()) -> list[_Topic]:
     if groups is None:
         groups = group_clashes(clashes, None)
     statuses = tracking.clashes if tracking is not None else {}
     out = [_group_topic(g, statuses, (snapshots or {}).get(g.index)) for g in groups]
+    for t in out:
+        t.description = "\n".join([t.description, *notes])
     for t in getattr(tracking, "closed", []):
         lines = ["Resolved since the previous run:"]
         lines += [f"- resolved: {a} <-> {b}: {what}" for (a, b), what in t.pairs.items()]
@@ -113,7 +116,7 @@ def write_bcf(clashes: Sequence[Any], path: str | os.PathLike[str], *,
               groups: Sequence[ClashGroup] | None = None, tracking: Any = None,
               snapshots: Mapping[int, tuple[bytes, Camera]] | None = None,
               project: str = "pycinder clashes", author: str = "pycinder",
-              writer: str = "auto") -> Path:
+              writer: str = "auto", notes: Sequence[str] = ()) -> Path:
     """Write clashes as a BCF 2.1 file: a topic per group.
 
     Parameters
@@ -139,6 +142,9 @@ def write_bcf(clashes: Sequence[Any], path: str | os.PathLike[str], *,
         Each topic's author.
     writer : {"auto", "bcf-client", "builtin"}
         ``"auto"``: bcf-client where installed, else the built-in writer.
+    notes : sequence of str
+        Lines that end every group's topic description: how the run was made (its clash rules
+        and what they set aside, :meth:`~pycinder.bim.rules.SetAside.summary`).
 
     Returns
     -------
@@ -155,7 +161,7 @@ def write_bcf(clashes: Sequence[Any], path: str | os.PathLike[str], *,
     path = Path(path)
     if writer not in ("auto", "bcf-client", "builtin"):
         raise ValueError(f"writer must be 'auto', 'bcf-client' or 'builtin', got {writer!r}")
-    topics = _topics(clashes, groups, tracking, snapshots)
+    topics = _topics(clashes, groups, tracking, snapshots, notes)
     if writer != "builtin":
         try:
             from bcf.v2.bcfxml import BcfXml

@@ -152,11 +152,15 @@ class SetAside:
                                for group in self.duplicates]}
 
     def summary(self) -> str:
-        """One line: each rule that applies and the pairs it set aside."""
-        parts = [f"{name} {self.counts.get(name, 0)}" for name in self.rules.on()]
+        """A few words: the pairs the rules set aside, and how many each (those that set
+        some aside)."""
+        if not self.rules.on():
+            return "no clash rules"
         total = len(self.pairs)
-        return (f"rules set aside {total} pair{'' if total == 1 else 's'}"
-                f" ({', '.join(parts)})" if parts else "no clash rules")
+        if not total:
+            return "the clash rules set no pair aside"
+        parts = [f"{name} {self.counts[name]}" for name in self.rules.on() if self.counts[name]]
+        return f"the clash rules set {total} pair{'' if total == 1 else 's'} aside ({', '.join(parts)})"
 
 
 def candidate_pairs(model: Any, used: np.ndarray, groups: np.ndarray | None,

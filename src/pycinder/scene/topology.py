@@ -242,6 +242,8 @@ class ProblemKind:
     rule: str
     repair: str
     category: type[MeshWarning]
+    short: str
+    """The rule in a few words, for the summary line."""
 
 
 PROBLEMS: dict[str, ProblemKind] = {
@@ -252,32 +254,34 @@ PROBLEMS: dict[str, ProblemKind] = {
         "body's surface, or lies inside another body that is a closed solid; nothing is ever "
         "found inside it",
         "Repair them (trimesh.repair.fill_holes, pymeshlab's close holes) to test them as "
-        "solids", OpenMeshWarning),
+        "solids", OpenMeshWarning, "tested as surfaces"),
     "balanced": ProblemKind(
         "is not a closed, consistently oriented surface",
         "are not closed, consistently oriented surfaces",
         "each is tested as a solid all the same: every edge is walked equally often both ways, "
         "so its inside is well defined",
         "Repair them (trimesh.repair.fill_holes, pymeshlab's close holes) to make them closed",
-        OpenMeshWarning),
+        OpenMeshWarning, "tested as solids all the same (their edges balance)"),
     "rewound": ProblemKind(
         "is closed but was wound inconsistently",
         "are closed but were wound inconsistently",
         "each was wound again, every part outward, and is tested as a solid",
         "Wind them consistently where they are made (trimesh.repair.fix_winding and "
-        "fix_inversion) to pass them as they are tested", RewoundMeshWarning),
+        "fix_inversion) to pass them as they are tested", RewoundMeshWarning,
+        "wound again, outward, and tested as solids"),
     "inverted": ProblemKind(
         "is closed but wound inside out (its volume is negative)",
         "are closed but wound inside out (their volumes are negative)",
         "collisions are still found (the ray count of its inside is -1, not 0), but its "
         "normals, and so contact normals, point inwards",
-        "Flip them (trimesh's mesh.invert())", OpenMeshWarning),
+        "Flip them (trimesh's mesh.invert())", OpenMeshWarning,
+        "tested as solids, their normals inwards"),
     "degenerate": ProblemKind(
         "has degenerate faces", "have degenerate faces",
         "faces that repeat a vertex index are dropped and faces of zero area ignored (they "
         "bound nothing and cross no ray)",
         "Remove them with trimesh's mesh.update_faces(mesh.nondegenerate_faces())",
-        DegenerateFaceWarning),
+        DegenerateFaceWarning, "those faces dropped or ignored"),
 }
 """Every kind of mesh problem, and how it is told."""
 
@@ -330,8 +334,10 @@ def warn_problems(problems: list[MeshProblem]) -> None:
             what = f"{len(found)} bodies {kind.many}: {named}{more}"
         message = (f"{what}; {kind.rule}. {kind.repair}, or ask for strict checking to make "
                    "this an error.")
+        many = (f"{len(found)} bodies {kind.many}" if len(found) > 1
+                else f"1 body {kind.one}")
         warn_at_caller(kind.category(message, [p.label for p in found],
-                                     [p.detail for p in found]))
+                                     [p.detail for p in found], f"{many}: {kind.short}"))
 
 
 def _fingerprint(faces: np.ndarray) -> int:
