@@ -731,10 +731,17 @@ def test_contacts_of_a_depth_result_say_where_its_figures_are():
 
 
 def test_a_min_depth_too_small_for_single_precision_is_refused():
+    """Two 10 km boxes: a figure whose rounding cannot tell whether they are deeper than 1 mm
+    would need too many regions, and the pair is refused by name; 0.5 m deep they are deeper
+    than 1 mm whatever the rounding, and reported with a depth within its stated error."""
     big = trimesh.creation.box((1e4, 1e4, 1e4))
     with pytest.raises(ValueError, match=r"(?s)min_depth.*too small.*'wall'.*'slab'"):
         pycinder.Detector(min_depth=1e-3).find_collisions(
-            [big, big], [move(), move(1e4 - 0.5)], names=["wall", "slab"])
+            [big, big], [move(), move(1e4 - 0.75e-3)], names=["wall", "slab"])
+    deep = pycinder.Detector(min_depth=1e-3).find_collisions(
+        [big, big], [move(), move(1e4 - 0.5)], names=["wall", "slab"])
+    assert deep.pairs.tolist() == [[0, 1]]
+    assert deep.depths[0] - deep.depth_errors[0] <= 0.5 <= deep.depths[0] + 1e-6 * 1e4
 
 
 def test_groups_one_body_far_bodies_and_a_body_far_from_the_origin():

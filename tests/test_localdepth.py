@@ -274,10 +274,10 @@ def test_convex_pairs_get_depth_bounds_near_rounding():
 def test_a_solid_flattened_as_placed_is_named(monkeypatch):
     """A body that is a solid in its own space but not where it is placed cannot be cut: the
     pair is refused by name, never measured as if it did not overlap."""
-    from pycinder.focused.modes import local
+    from pycinder.focused.modes import regions
 
     case = sleeve_case(OVERLAP, 0.0)
-    real = local.body_vertices
+    real = regions.body_vertices
 
     def flattened(scene, body, origin):
         vertices, faces = real(scene, body, origin)
@@ -286,7 +286,7 @@ def test_a_solid_flattened_as_placed_is_named(monkeypatch):
             vertices[:, 2] = 0.0
         return vertices, faces
 
-    monkeypatch.setattr(local, "body_vertices", flattened)
+    monkeypatch.setattr(regions, "body_vertices", flattened)
     with pytest.raises(ValueError, match="not as placed"):
         pycinder.Detector(min_depth=D).find_collisions(case.meshes, case.transforms)
 
@@ -318,8 +318,8 @@ def test_dense_pairs_go_straight_to_their_local_depth(overlap, monkeypatch):
     calls = []
     real = hardclash.local_first
 
-    def spy(scene, pack, pairs):
-        out = real(scene, pack, pairs)
+    def spy(scene, pack, pairs, kinds=None):
+        out = real(scene, pack, pairs, kinds)
         calls.append({tuple(p) for p in np.asarray(pairs)[out].tolist()})
         return out
 
@@ -345,3 +345,41 @@ def test_dense_pairs_go_straight_to_their_local_depth(overlap, monkeypatch):
     calls.clear()
     pycinder.Detector(min_depth=D).find_collisions([ball, ball], [move(), move(0.5)])
     assert calls == [set()]  # convex: the whole-pair figure is its depth
+
+
+def _steps() -> trimesh.Trimesh:
+    """Two 1 m boxes meeting along an edge, one vertex list: a balanced mesh with four faces on
+    that edge (a stair's steps modelled as boxes), which manifold3d does not take whole."""
+    low = trimesh.creation.box((1.0, 1.0, 1.0))
+    high = trimesh.creation.box((1.0, 1.0, 1.0))
+    high.apply_translation((1.0, 0.0, 1.0))
+    steps = trimesh.util.concatenate([low, high])
+    steps.merge_vertices()
+    return steps
+
+
+@pytest.mark.filterwarnings("ignore::pycinder.OpenMeshWarning")
+def test_a_solid_of_parts_sharing_an_edge_is_cut_as_their_union():
+    """Boxes meeting along an edge are a solid cut as the union of their parts: two pieces, a
+    block resting on the low step and against the high one is a touching pair (no volume, not
+    reported, as exact geometry says), and pressed 5 mm down into the low step it is reported
+    with its local depth."""
+    from pycinder.focused.modes.local import solid_facts
+    from pycinder.focused.modes.regions import manifold_pieces
+
+    steps = _steps()
+    assert not steps.is_watertight  # four faces on the shared edge
+    assert sorted(len(p) for p in manifold_pieces(steps.faces)) == [12, 12]
+    block = trimesh.creation.box((0.4, 0.6, 0.3))
+    resting = np.eye(4)
+    resting[:3, 3] = (0.3, 0.0, 0.65)  # on the low step's top (z 0.5), against x 0.5
+    pressed = resting.copy()
+    pressed[2, 3] -= OVERLAP
+    det = pycinder.Detector(min_depth=D)
+    result = det.find_collisions([steps, block], [np.eye(4), resting])
+    shape = result.scene.shape_of(0)
+    assert solid_facts(shape).solid and not solid_facts(shape).convex
+    assert result.pairs.shape == (0, 2)
+    result = det.find_collisions([steps, block], [np.eye(4), pressed])
+    assert result.pairs.tolist() == [[0, 1]]
+    assert abs(result.depths[0] - OVERLAP) <= result.depth_errors[0] + 1e-6

@@ -124,7 +124,7 @@ def test_a_body_inside_a_large_one_near_its_face_is_at_distance_zero(offset):
 def test_a_pair_meeting_over_too_many_regions_is_refused_with_what_would_do():
     big = trimesh.creation.box((1e4, 1e4, 1e4))
     shift = np.eye(4)
-    shift[0, 3] = 1e4 - 0.5
+    shift[0, 3] = 1e4 - 0.75e-3  # 0.75 mm deep: the whole pair's rounding cannot tell
     with pytest.raises(ValueError, match=r"(?s)min_depth 0.001 is too small for .*'wall'.*"
                                          r"'slab'.*use a min_depth of at least"):
         pycinder.Detector(min_depth=1e-3).find_collisions([big, big], [np.eye(4), shift],

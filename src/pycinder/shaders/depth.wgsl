@@ -23,7 +23,12 @@
 // thread busy. An item skips the lines its skip bits name (the host found its faces'
 // projections apart along them: they would add nothing) and a line whose view equals an earlier
 // one's (it takes that line's figures). An item that is its pair's whole work stops at the first
-// line that clears the pair. Depths are computed as convex combinations of corner depths
+// line that clears the pair. A pair whose frame has a cap (one whose figure matters only up to
+// the cap: above it, the pair is measured again, locally) stops measuring a line once both its
+// figures reach the cap: a whole item after any block of face pairs, a cluster item before a
+// line its pair's figures already hold at the cap. A line's figures only grow as face pairs
+// add to them, so a line stopped holds figures at least the cap, and the pair's least figure is
+// exact where it is below the cap and at least the cap otherwise. Depths are computed as convex combinations of corner depths
 // (barycentric weights clamped at 0), so a rounding error never takes a figure outside the faces'
 // own depth range. Figures are kept as order-preserving bits: word 2 i holds max(depth_b -
 // depth_a) along line i, word 2 i + 1 max(depth_a - depth_b); 0 means no ray met both bodies.
@@ -64,6 +69,8 @@ var<workgroup> kept: array<atomic<u32>, 2u * LINES>;  // the workgroup's figures
 var<workgroup> cleared: u32;                          // a line cleared the pair
 var<workgroup> todo_lines: u32;                       // bits: the lines measured
 var<workgroup> item_shape: vec3u;                     // rounds of a, blocks of b, whole item
+var<workgroup> item_cap: u32;                         // key of the frame's cap; 0: none
+var<workgroup> capped: u32;                           // a line's figures reached the cap
 
 // The LINES directions: each body's own three axes (its transform's columns), which follow the
 // body when it is turned and most often clear a touching pair at once, then the 13 lines through
@@ -213,6 +220,11 @@ fn clears(i: u32) -> bool {
     let ahead = atomicLoad(&kept[2u * i]);
     let behind = atomicLoad(&kept[2u * i + 1u]);
     return ahead == 0u || ahead <= key(0.0) || behind <= key(0.0);
+}
+
+// Whether both figures of line i, in words ahead and behind, reach the cap (key) cap.
+fn at_cap(ahead: u32, behind: u32, cap: u32) -> bool {
+    return cap != 0u && ahead >= cap && behind >= cap;
 }
 
 // Corners of kept face j of a and of kept face u of b.
@@ -477,6 +489,7 @@ fn start_item(frame: PairFrame, skip: u32, lid: u32) {
     if (lid == 0u) {
         atomicStore(&kept_a, 0u);
         atomicStore(&kept_b, 0u);
+        item_cap = select(0u, key(frame.cap), frame.cap > 0.0);
     }
     workgroupBarrier();
     if (lid < LINES) {
@@ -550,6 +563,7 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
     }
     var todo = workgroupUniformLoad(&todo_lines);  // a barrier, and uniform
     let shape = workgroupUniformLoad(&item_shape);
+    let cap = workgroupUniformLoad(&item_cap);
     var last = LINES - 1u;  // the last line whose figures are written (the early stop)
     if (todo != 0u && shape.x != 0u && shape.y != 0u) {
         loop {
@@ -559,6 +573,7 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
             var most = NONE;   // max(depth_b - depth_a)
             var least = NONE;  // max(depth_a - depth_b)
             var round = 0u;
+            var full = false;  // both figures of the line reached the cap
             loop {
                 let fa = round * WORKGROUP + lid;
                 let pa = project_face(v, face_in_pair(ma, item.a_start
@@ -572,13 +587,25 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
                                             frame.touch, lid);
                     most = max(most, figure.x);
                     least = max(least, figure.y);
+                    if (cap != 0u) {
+                        if (most > NONE) {
+                            atomicMax(&kept[2u * i], key(most));
+                            atomicMax(&kept[2u * i + 1u], key(least));
+                        }
+                        workgroupBarrier();
+                        if (lid == 0u) {
+                            capped = u32(at_cap(atomicLoad(&kept[2u * i]),
+                                                atomicLoad(&kept[2u * i + 1u]), cap));
+                        }
+                        full = workgroupUniformLoad(&capped) != 0u;
+                    }
                     block++;
-                    if (block >= shape.y) {
+                    if (full || block >= shape.y) {
                         break;
                     }
                 }
                 round++;
-                if (round >= shape.x) {
+                if (full || round >= shape.x) {
                     break;
                 }
             }
@@ -622,16 +649,27 @@ fn depth_clusters(@builtin(workgroup_id) wg: vec3u,
     let ta = face_in_pair(frame.m0, item.a_start + min(lid, item.a_count - 1u));
     let tb = face_in_pair(frame.m1, item.b_start + min(lid, item.b_count - 1u));
     var todo = workgroupUniformLoad(&todo_lines);  // a barrier, and uniform
+    let cap = workgroupUniformLoad(&item_cap);
     if (todo != 0u) {
         loop {
             let i = firstTrailingBit(todo);
             todo &= todo - 1u;
+            workgroupBarrier();  // every thread has read the last line's flag
+            if (lid == 0u) {
+                // The pair's figures so far (other items'): they only grow.
+                let row = item.pair * 2u * LINES + 2u * i;
+                capped = u32(at_cap(atomicLoad(&best[row]), atomicLoad(&best[row + 1u]), cap));
+            }
+            let full = workgroupUniformLoad(&capped) != 0u;
             let v = views[i];
-            let figure = face_pairs(project_face(v, ta), lid < item.a_count, project_face(v, tb),
-                                    lid < item.b_count, frame.touch, lid);
-            if (figure.x > NONE) {
-                atomicMax(&kept[2u * i], key(figure.x));
-                atomicMax(&kept[2u * i + 1u], key(figure.y));
+            if (!full) {
+                let figure = face_pairs(project_face(v, ta), lid < item.a_count,
+                                        project_face(v, tb), lid < item.b_count, frame.touch,
+                                        lid);
+                if (figure.x > NONE) {
+                    atomicMax(&kept[2u * i], key(figure.x));
+                    atomicMax(&kept[2u * i + 1u], key(figure.y));
+                }
             }
             if (todo == 0u) {
                 break;

@@ -15,8 +15,10 @@ within any box, so the local depth never exceeds the whole pair's figure; and a 
 around the graze meets only the near wall of the sleeve, so the graze is measured as a graze.
 
 Which pairs: those with a closed body that is not convex (:func:`shape_convex`), both bodies
-solids manifold3d takes. A pair of convex bodies keeps its whole figure, which is its penetration
-depth (see :mod:`~pycinder.focused.modes.hardclash`). A pair with an open body, or a body
+solids manifold3d takes (a solid whose closed parts share edges, a stair of boxes meeting along
+their edges, as the union of its parts: :class:`~pycinder.focused.modes.regions.SolidCutter`).
+A pair of convex bodies keeps its whole figure, which is its penetration depth (see
+:mod:`~pycinder.focused.modes.hardclash`). A pair with an open body, or a body
 manifold3d cannot take as a solid, keeps its whole figure too (an upper bound of its local depth:
 such a pair may be reported where a local measure would not, never the other way).
 """
@@ -29,7 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .regions import SolidCutter, body_vertices
+from .regions import SolidCutter, placed_cutter
 
 if TYPE_CHECKING:
     from ...scene import Scene
@@ -50,7 +52,8 @@ class SolidFacts:
     """What manifold3d says of a shape as a solid (:func:`solid_facts`)."""
 
     solid: bool
-    """Closed, a two-manifold manifold3d takes, wound outward (positive volume)."""
+    """A solid (:attr:`~pycinder.scene.Topology.solid`) manifold3d takes, whole or as the union
+    of its closed parts, wound outward (positive volume)."""
     pieces: int
     """Its connected pieces (0 where not a solid)."""
     convex: bool
@@ -76,7 +79,7 @@ def solid_facts(shape: Shape) -> SolidFacts:
     if shape in _facts:
         return _facts[shape]
     facts = SolidFacts(False, 0, False)
-    if shape.topology.closed and len(shape.topology.faces):
+    if shape.topology.solid and len(shape.topology.faces):
         cutter = SolidCutter(np.asarray(shape.vertices, np.float64),
                              np.asarray(shape.topology.faces, np.int64))
         if cutter.ok:
@@ -170,7 +173,7 @@ def overlap_parts(scene: Scene, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarr
     boxes: list[np.ndarray] = []
     for k, (a, b) in enumerate(np.asarray(pairs, np.int64)):
         origin = 0.5 * (np.maximum(lo_w[a], lo_w[b]) + np.minimum(hi_w[a], hi_w[b]))
-        cutters = [SolidCutter(*body_vertices(scene, int(body), origin)) for body in (a, b)]
+        cutters = [placed_cutter(scene, int(body), origin) for body in (a, b)]
         for body, cutter in zip((a, b), cutters):
             if not cutter.ok:  # a solid in its own space, not where it is placed
                 raise ValueError(

@@ -44,6 +44,8 @@ FRAME = Struct("PairFrame", [
     ("touch", "f32", ("pass H1, a pair of solids: two faces whose projections overlap by no "
                       "more than this width (pair units) only touch there, within rounding (see "
                       "depth.wgsl); 0 for a pair with an open body")),
+    ("cap", "f32", ("pass H1: a line stops once both its figures reach this (pair units), for a "
+                    "pair whose figure matters only up to it; 0: no cap")),
 ], doc="A candidate pair's own frame, centred where its bodies meet.")
 
 PARAMS = Struct("PairParams", [

@@ -24,6 +24,7 @@ for what that means for the depth contract).
 
 from __future__ import annotations
 
+import weakref
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -268,8 +269,50 @@ def _manifold3d() -> Any:
                    "bodies (solids cut to the regions where they meet)", "bim")
 
 
+def manifold_pieces(faces: np.ndarray) -> list[np.ndarray]:
+    """A solid's faces in pieces that are each a two-manifold: faces joined through edges that
+    exactly two faces share. A closed mesh is one piece or more; a solid whose closed parts
+    share an edge (three or more faces on it: steps of a stair modelled as boxes meeting along
+    their edges) falls apart into those parts.
+
+    Parameters
+    ----------
+    faces : (F, 3) int
+
+    Returns
+    -------
+    list of (F_i,) int64
+        The face indices of each piece.
+    """
+    faces = np.asarray(faces, np.int64)
+    n = len(faces)
+    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    _, which, count = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    which = which.reshape(-1)
+    owner = np.repeat(np.arange(n), 3)
+    twice = count[which] == 2
+    order = np.argsort(which[twice], kind="stable")
+    joined = owner[twice][order].reshape(-1, 2)  # the two faces of each edge shared by two
+    label = np.arange(n)
+    while True:  # connected components: the least face index of each, by pointer jumping
+        low = np.minimum(label[joined[:, 0]], label[joined[:, 1]])
+        before = label.copy()
+        np.minimum.at(label, joined[:, 0], low)
+        np.minimum.at(label, joined[:, 1], low)
+        label = label[label]
+        if np.array_equal(label, before):
+            break
+    _, piece = np.unique(label, return_inverse=True)
+    order = np.argsort(piece, kind="stable")
+    return np.split(order, np.flatnonzero(np.diff(piece[order])) + 1)
+
+
 class SolidCutter:
     """A closed body in float64, cut to boxes (manifold3d's exact intersection).
+
+    A solid whose closed parts share an edge (a balanced mesh with edges of more than two faces,
+    which manifold3d does not take whole) is the union of its parts
+    (:func:`manifold_pieces`), less those wound inward (its cavities).
 
     Parameters
     ----------
@@ -282,14 +325,41 @@ class SolidCutter:
     def __init__(self, vertices: np.ndarray, faces: np.ndarray) -> None:
         m3d = _manifold3d()
         self._m3d = m3d
-        mesh = m3d.Mesh64(vert_properties=np.ascontiguousarray(vertices, np.float64),
-                          tri_verts=np.ascontiguousarray(faces, np.uint32))
-        mesh.merge()
-        self.solid = m3d.Manifold(mesh)
+        vertices = np.ascontiguousarray(vertices, np.float64)
+        faces = np.asarray(faces, np.int64)
+        self.solid = self._manifold(vertices, faces)
+        if self.solid.status() != m3d.Error.NoError and len(faces):
+            parts = [faces[f] for f in manifold_pieces(faces)]
+            pieces = [self._manifold(vertices, f) for f in parts]
+            if all(p.status() == m3d.Error.NoError for p in pieces):
+                add = [p for p in pieces if p.volume() > 0]
+                cut = [self._manifold(vertices, f[:, ::-1])  # a cavity, wound outward
+                       for f, p in zip(parts, pieces) if p.volume() < 0]
+                solid = m3d.Manifold.batch_boolean(add, m3d.OpType.Add) if add else None
+                if solid is not None and cut:
+                    solid = solid - m3d.Manifold.batch_boolean(cut, m3d.OpType.Add)
+                if solid is not None:
+                    self.solid = solid
         # Wound inside out (manifold3d takes it, with a negative volume), its inside would be
         # cut as its outside: not a solid to cut.
         self.ok = (self.solid.status() == m3d.Error.NoError and not self.solid.is_empty()
                    and self.solid.volume() > 0)
+
+    def _manifold(self, vertices: np.ndarray, faces: np.ndarray) -> Any:
+        """manifold3d's solid of ``faces`` (F, 3) over ``vertices`` (V, 3), welded."""
+        used, tri = np.unique(faces, return_inverse=True)
+        mesh = self._m3d.Mesh64(vert_properties=np.ascontiguousarray(vertices[used]),
+                                tri_verts=np.ascontiguousarray(tri.reshape(-1, 3), np.uint32))
+        mesh.merge()
+        return self._m3d.Manifold(mesh)
+
+    def moved(self, offset: np.ndarray) -> SolidCutter:
+        """The same solid translated by ``offset`` (3,) float64 (manifold3d's translation, in
+        float64): one body's cutter serves the frames of all its pairs."""
+        out = object.__new__(SolidCutter)
+        out._m3d, out.ok = self._m3d, self.ok
+        out.solid = self.solid.translate(tuple(float(x) for x in offset))
+        return out
 
     def within(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """The solid within the box ``lo``, ``hi`` (3,) as triangles (M, 3, 3) float64."""
@@ -299,6 +369,22 @@ class SolidCutter:
         v = np.asarray(part.vert_properties, np.float64)[:, :3]
         f = np.asarray(part.tri_verts, np.int64).reshape(-1, 3)
         return v[f]
+
+
+_cutters: weakref.WeakKeyDictionary[Scene, dict[int, tuple[np.ndarray, SolidCutter]]] = \
+    weakref.WeakKeyDictionary()
+
+
+def placed_cutter(scene: Scene, body: int, origin: np.ndarray) -> SolidCutter:
+    """A closed body's :class:`SolidCutter` in the frame about ``origin`` (3,): made once per
+    scene and body, about the centre of the body's world box, and translated."""
+    made = _cutters.setdefault(scene, {})
+    if body not in made:
+        lo, hi = scene.world_boxes()
+        centre = 0.5 * (lo[body] + hi[body])
+        made[body] = (centre, SolidCutter(*body_vertices(scene, body, centre)))
+    centre, cutter = made[body]
+    return cutter.moved(centre - np.asarray(origin, np.float64))
 
 
 def world_triangles(scene: Scene, body: int, origin: np.ndarray) -> np.ndarray:
@@ -390,7 +476,12 @@ def meeting_regions(scene: Scene, pairs: np.ndarray, grow: float, side: float, s
         origin, tris, solid, parts, map_a, map_b, stored = bodies[(a, b)]
         if search is not None:
             meet_lo, meet_hi = search[0][k], search[1][k]
-        t_lo, t_hi = meeting_tiles(meet_lo - origin, meet_hi - origin, side, grow, tris, solid)
+        if search is not None and np.all(meet_hi - meet_lo <= side):
+            # One tile: a box where the pair overlaps (the caller's), which holds both.
+            t_lo, t_hi = (meet_lo - origin)[None], (meet_hi - origin)[None]
+        else:
+            t_lo, t_hi = meeting_tiles(meet_lo - origin, meet_hi - origin, side, grow, tris,
+                                       solid)
         if len(t_lo) > MAX_REGIONS:
             # Regions scale with the figure along each axis the pair meets over more than one.
             size = t_hi.max(axis=0) - t_lo.min(axis=0)
@@ -429,7 +520,7 @@ def _pair_bodies(scene: Scene, a: int, b: int, meet_lo: np.ndarray, meet_hi: np.
     parts = []
     for k, body in enumerate((a, b)):
         if solid[k]:
-            cutter = SolidCutter(*body_vertices(scene, body, origin))
+            cutter = placed_cutter(scene, body, origin)
             if not cutter.ok:
                 raise ValueError(
                     f"{scene.label(body)} is closed but not a two-manifold solid wound outward "
@@ -556,6 +647,7 @@ class RegionBuffers:
                 buffer.write(data)
 
 
-__all__ = ["MAX_REGIONS", "ROUNDING", "RegionBuffers", "RegionGeometry", "SolidCutter",
-           "body_vertices", "clip_triangles", "contains", "linear_map", "meeting_regions", "meeting_tiles",
-           "STORED_ROUNDING", "stored_rounding", "tile_side", "triangles_meet_box", "world_triangles"]
+__all__ = ["MAX_REGIONS", "ROUNDING", "RegionBuffers", "RegionGeometry", "STORED_ROUNDING",
+           "SolidCutter", "body_vertices", "clip_triangles", "contains", "linear_map",
+           "manifold_pieces", "meeting_regions", "meeting_tiles", "placed_cutter",
+           "stored_rounding", "tile_side", "triangles_meet_box", "world_triangles"]
