@@ -255,16 +255,16 @@ def test_dense_spheres_against_coal():
             assert got - error - 1e-6 <= exact <= got + 1e-6, (got, error, exact)
 
 
-@pytest.mark.parametrize("first", [1, None])
+@pytest.mark.parametrize("first", [(1,), None])
 @pytest.mark.parametrize("scale", SCALES)
 def test_dense_clearance_is_every_cluster_pairs_and_exact(scale, first, monkeypatch):
     """Clearance over dense pairs (crossing, near and apart): the least distance over the
     cluster pairs that can be nearer is that over every cluster pair within c, bit for bit, and
     within its bound of python-fcl's exact distance (``first``: the cluster pairs measured
-    first, the others only where they can be nearer)."""
+    measured in the rounds before the last, the others only where they can be nearer)."""
     pytest.importorskip("fcl", reason="exact distances come from python-fcl")
     if first is not None:
-        monkeypatch.setattr(distance_mode, "FIRST_ITEMS", first)
+        monkeypatch.setattr(distance_mode, "ROUNDS", first)
     rng = np.random.default_rng(int(scale * 1000) % 89 + 1)
     c = 0.1 * scale
     kinds = list(SHAPES)

@@ -128,8 +128,7 @@ class FocusedStrategy:
                 from .modes.clearance import Clearance
 
                 self._clearance = Clearance(self)
-            return PendingFocused(self, self._clearance.run(scene, stats, c, groups, records,
-                                                            within, tolerance))
+            return PendingFocused(self, self._clearance.run(scene, stats, c, groups, within))
         if d is not None:
             return PendingFocused(self, self._hard_clashes().run(scene, stats, d, groups, within))
         return self.submit_interference(scene, stats, groups, records, within, tolerance,

@@ -7,11 +7,24 @@
 // own frame, in single precision). Two triangles that do not intersect are closest at a pair of
 // features: an edge and an edge, or a vertex and a face; when an edge of one passes through the
 // other, their distance is 0. The smallest distance of each pair is kept with atomicMin on its
-// bits (non-negative floats order as their bits do).
+// bits (non-negative floats order as their bits do). A face of b whose box lies farther from
+// the thread's face's box than the least distance found so far (by a margin of 2^-10 over the
+// rounding of both figures) cannot be nearer, and is skipped: the figure is the same, and the
+// exact test runs only for the faces near the thread's face.
 //!include layout
 //!include pairwork.wgsl
 
 var<workgroup> tri_b: array<vec3f, 3u * CLUSTER_FACES>;  // the corners of a cluster's faces
+var<workgroup> lo_b: array<vec3f, CLUSTER_FACES>;        // and their boxes
+var<workgroup> hi_b: array<vec3f, CLUSTER_FACES>;
+
+const SKIP_MARGIN: f32 = 1.0009765625;  // 1 + 2^-10: a box gap this far over the least skips
+
+// The squared gap between boxes lo_a-hi_a and lo_b-hi_b (0 where they meet).
+fn box_gap2(lo_a: vec3f, hi_a: vec3f, lo_b: vec3f, hi_b: vec3f) -> f32 {
+    let gap = max(max(lo_b - hi_a, lo_a - hi_b), vec3f(0.0));
+    return dot(gap, gap);
+}
 
 // Squared distance between segments p1-q1 and p2-q2 (Ericson, Real-Time Collision Detection 5.1.9).
 fn segment_segment(p1: vec3f, q1: vec3f, p2: vec3f, q2: vec3f) -> f32 {
@@ -152,6 +165,11 @@ fn distance(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) l
         for (var j = 0u; j < 3u; j++) {
             tri_b[3u * lid + j] = to_pair(frame.m1, vertex(faces[3u * f + j]));
         }
+        let b0 = tri_b[3u * lid];
+        let b1 = tri_b[3u * lid + 1u];
+        let b2 = tri_b[3u * lid + 2u];
+        lo_b[lid] = min(min(b0, b1), b2);
+        hi_b[lid] = max(max(b0, b1), b2);
     }
     workgroupBarrier();
     if (lid >= item.a_count) {
@@ -161,12 +179,16 @@ fn distance(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) l
     let a0 = to_pair(frame.m0, vertex(faces[3u * f]));
     let a1 = to_pair(frame.m0, vertex(faces[3u * f + 1u]));
     let a2 = to_pair(frame.m0, vertex(faces[3u * f + 2u]));
+    let lo_a = min(min(a0, a1), a2);
+    let hi_a = max(max(a0, a1), a2);
     var d = 3.4e38;
     for (var i = 0u; i < item.b_count; i++) {
-        d = min(d, triangle_distance2(a0, a1, a2, tri_b[3u * i], tri_b[3u * i + 1u],
-                                      tri_b[3u * i + 2u]));
-        if (d == 0.0) {
-            break;
+        if (box_gap2(lo_a, hi_a, lo_b[i], hi_b[i]) <= d * SKIP_MARGIN) {
+            d = min(d, triangle_distance2(a0, a1, a2, tri_b[3u * i], tri_b[3u * i + 1u],
+                                          tri_b[3u * i + 2u]));
+            if (d == 0.0) {
+                break;
+            }
         }
     }
     atomicMin(&best[item.pair], bitcast<u32>(sqrt(d)));

@@ -18,33 +18,30 @@ distance found are measured (:meth:`~pycinder.focused.modes.distance.Distance.ne
 each pair's cluster pairs with the nearest points, then those of the others whose boxes are
 nearer than the least distance found so far plus :data:`NEAREST_MARGIN` times its error bound
 (none once it is 0); a cluster pair left out could not have been nearer, so the figure is that
-of every cluster pair within ``c``, bit for bit. A distance of surfaces misses a body wholly inside another
-with their surfaces farther apart than ``c``; the focused interference test finds those, run at
-a tolerance ``t`` of ``c / 4`` (or the one given, if finer): such a body reaches at least
-``c = 4 t`` into the other, which the tolerance contract always reports (from ``2 t``). As that
-contract never reports a pair ``t`` apart, a pair it finds with surfaces at least ``2 t`` apart
-is a body inside the other (distance 0); one it finds with surfaces closer may be either, and
-its figure's bound covers both.
+of every cluster pair within ``c``, bit for bit. A distance of surfaces misses a body wholly
+inside another with their surfaces farther apart than ``c``: of such a pair, whose surfaces do
+not meet, one body is inside the other (closed) one exactly where one of its vertices is, which
+a ray-parity test of one vertex finds, in float64 against the other's faces (distance 0). No
+pixels are drawn: the query has no tolerance and keeps no records.
 
 Precision. Each pair is measured in a frame of its own, centred where its bodies can be within
 ``c``; single precision then bounds the error of a distance by :data:`ERROR_SCALE` times ``L``,
 the farthest the measured vertices lie from that centre (``result.distance_errors``). A pair is
 reported when its measured distance is below ``c`` plus that bound (promise 1), which keeps
-promise 2 while the bound is at most ``c / 16``. A pair whose whole bodies would break that is
+promise 2 while the bound is at most ``c / 16``. A pair whose whole bodies would break that, and
+whose whole-pair distance within its bound is neither below ``c`` nor above ``c + c / 8``, is
 measured in regions (:mod:`~pycinder.focused.modes.regions`): boxes where its world boxes meet,
 grown by ``c`` and small enough for a bound of ``c / 32``, with the faces clipped to each in
 float64; two points closer than ``c`` lie in one region, so the least distance over the regions
-is the pair's. Its bodies are tested by the interference test only as finely as single precision
-resolves them, and a body inside the other is found by a ray-parity test of one of its vertices
-in float64. A pair that would need more than
+is the pair's. A pair that would need more than
 :data:`~pycinder.focused.modes.regions.MAX_REGIONS` regions raises a ``ValueError`` naming it.
 
 Cost. The distance pass runs over cluster pairs (64 x 64 triangle pairs each) near the pair's
 closest approach: surfaces that cross cost the few cluster pairs measured first, surfaces apart
 those whose boxes are within the least distance of each other, so the cost grows with the
-surface near the closest approach rather than with all the surface within ``c``; the
-interference test at ``c / 4`` is coarser, and cheaper, than the default tolerance wherever
-``c`` is larger than 4% of the bodies. Two overlapping spheres of 20,480 faces each at
+surface near the closest approach rather than with all the surface within ``c``; the test of
+a vertex inside the other body runs once per pair whose surfaces do not meet, against the
+other body's faces when the vertex lies in its box. Two overlapping spheres of 20,480 faces each at
 ``c`` = 10% of their radius take 0.02 s, a pair 0.5% of their radius apart 0.24 s
 (lavapipe on 2 shared CPU cores, ``benchmarks/results/dense.md``; every cluster pair within
 ``c`` took 0.8 s).
@@ -57,11 +54,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ...records import pair_keys
+from ...records import empty_records
 from ...result import CollisionResult, Stats
 from ...scene import Scene
 from ...scene.pack import ShapePack
-from ...tolerance import resolvable_tolerance
 from ..broad.prune import PairList, sweep_and_prune
 from .distance import ITEM, Distance
 from .pairwork import pair_frames, spread
@@ -78,8 +74,7 @@ if TYPE_CHECKING:
     from .base import ModeHost
 
 PASSES = (Distance,)
-"""The clearance query's own pass, after the interference test's (the pass table is generated
-from it)."""
+"""The clearance query's one pass (the pass table is generated from it)."""
 
 ERROR_SCALE = 2.0**-16
 """Bound of a measured distance's error, per unit of the pair's reach from its frame's centre."""
@@ -217,79 +212,53 @@ class Clearance:
         self._boxes: tuple[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
 
     def run(self, scene: Scene, stats: Stats, c: float, groups: np.ndarray | None,
-            records: str | None, within: np.ndarray | PairList | None,
-            tolerance: np.ndarray | None) -> CollisionResult:
+            within: np.ndarray | PairList | None) -> CollisionResult:
         """The pairs within ``c`` of a validated scene (see the module's contract)."""
-        n = len(scene)
-        given = np.full(n, np.nan) if tolerance is None else np.asarray(tolerance, np.float64)
-        if self.strategy.request.tolerance is not None:
-            given = np.where(np.isnan(given), self.strategy.request.tolerance, given)
-        fine = np.where(np.isnan(given), c / 4, np.minimum(given, c / 4))
-        if n >= 2:
-            # Bodies too large (or too far from the origin) for c / 4 are tested as finely as
-            # single precision resolves them; their pairs are measured in regions, and which
-            # of them is inside the other is found there (below), not from this test.
-            lo, hi = scene.world_boxes()
-            near_pairs = sweep_and_prune(lo - c, hi + c, within, groups)
-            floor = np.zeros(n)
-            if len(near_pairs):
-                resolved = resolvable_tolerance(scene, near_pairs)
-                np.maximum.at(floor, near_pairs[:, 0], resolved)
-                np.maximum.at(floor, near_pairs[:, 1], resolved)
-            fine = np.maximum(fine, floor * (1 + 2**-20))
-        overlap = self.strategy.submit_interference(scene, stats, groups, records, within,
-                                                    fine).result()
-        overlap.pairs = np.asarray(overlap.pairs, np.int64).reshape(-1, 2)
-        if not overlap.stats.tolerance[1]:  # no candidate overlapped: say what it would be
-            overlap.stats.tolerance = (float(np.nanmin(fine)), float(np.nanmax(fine)))
-        if n < 2:
-            return _with_figures(overlap, overlap.pairs, np.zeros(0), np.zeros(0))
+        if len(scene) < 2:
+            return _with_figures(CollisionResult.empty(stats), np.zeros((0, 2), np.int64),
+                                 np.zeros(0), np.zeros(0))
+        t0 = time.perf_counter()
         lo, hi = scene.world_boxes()
         pairs = sweep_and_prune(lo - 0.5 * c, hi + 0.5 * c, within, groups)
+        stats.candidates = len(pairs)
+        stats.broad_phase = "numpy"
+        stats.add_ms("broad phase", (time.perf_counter() - t0) * 1e3)
         pack = self.strategy.pack(scene, stats)
         items, frames, reach, gap, apart = plan(scene, pack, pairs, c,
                                                 self._cluster_boxes(pack, scene))
         error = ERROR_SCALE * reach
-        # Pairs too large (or too far from the origin) for the whole-pair frame are measured in
-        # the regions where they come within c.
-        local = error > c / 16
-        mine = ~local[items["pair"]]
-        items, gap, apart = items[mine], gap[mine], apart[mine]
         t0 = time.perf_counter()
         buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
         # Cluster pairs farther apart than the least distance found are not measured (the
         # figures are those of every cluster pair within c: see Distance.nearest).
         measured = self.distance.nearest(buffers.positions, buffers.faces, items, frames, gap,
                                          apart, NEAREST_MARGIN * error).astype(np.float64)
+        # Pairs too large (or too far from the origin) for the whole-pair frame to decide are
+        # measured in the regions where they come within c: those whose distance, within its
+        # rounding, may be c or more and at most c + c / 8.
+        local = (error > c / 16) & (measured + error >= c) & (measured - error <= 1.125 * c)
         if local.any():
             k = np.flatnonzero(local)
             measured[k], error[k] = self._measure_regions(scene, pairs[k], c)
         stats.add_ms("distance", (time.perf_counter() - t0) * 1e3)
-        found = set(pair_keys(overlap.pairs[:, 0], overlap.pairs[:, 1]).tolist())
-        inside = np.isin(pair_keys(pairs[:, 0], pairs[:, 1]), list(found)) if found \
-            else np.zeros(len(pairs), bool)
-        tol = fine[pairs[:, 0]]
-        # Found by the interference test although its surfaces are at least 2 t apart: a body
-        # inside the other (promise 1 of the tolerance contract rules out a pair t apart).
-        contained = inside & (measured >= 2 * tol)
-        # Pairs measured in regions: overlapping where their surfaces cross (measured 0), and
-        # one inside the other where a vertex of one lies within the other (closed) one,
-        # however near their surfaces are (a pipe inside a slab, 0.5 c from its face: 0).
-        open_body = scene.open
-        for k in np.flatnonzero(local):
-            inside[k] = contained[k] = measured[k] > 0 and \
-                _nested(scene, int(pairs[k, 0]), int(pairs[k, 1]), lo, hi, open_body)
+        t0 = time.perf_counter()
         near = measured < c + error
-        keep = near | inside
+        # A pair whose surfaces do not meet overlaps only where one body lies wholly inside the
+        # other (closed) one: then any vertex of it does (distance 0, however far apart its
+        # surfaces are: a pipe inside a slab, 0.5 c or 2 c from its face).
+        contained = np.zeros(len(pairs), bool)
+        open_body = scene.open
+        for k in np.flatnonzero(measured > 0):
+            contained[k] = _nested(scene, int(pairs[k, 0]), int(pairs[k, 1]), lo, hi, open_body)
+        stats.add_ms("inside", (time.perf_counter() - t0) * 1e3)
+        keep = near | contained
         distances = np.where(contained, 0.0, np.minimum(measured, np.finfo(np.float64).max))
-        # A pair the interference test found with surfaces closer than 2 t may be a body just
-        # inside the other (distance 0) or one just outside it: its figure is good to itself.
-        errors = error + np.where(inside & ~contained, distances, 0.0)
         kept = pairs[keep]
         order = np.lexsort((kept[:, 1], kept[:, 0]))
-        stats.candidates = max(stats.candidates, len(pairs))
-        return _with_figures(overlap, kept[order].astype(np.int64), distances[keep][order],
-                             errors[keep][order])
+        result = CollisionResult(kept[order].astype(np.int64), empty_records(), stats,
+                                 scene=scene, records_kept="none")
+        return _with_figures(result, kept[order].astype(np.int64), distances[keep][order],
+                             error[keep][order])
 
     def _measure_regions(self, scene: Scene, pairs: np.ndarray, c: float
                          ) -> tuple[np.ndarray, np.ndarray]:
@@ -347,11 +316,10 @@ def _nested(scene: Scene, a: int, b: int, lo: np.ndarray, hi: np.ndarray,
     return False
 
 
-def _with_figures(overlap: CollisionResult, pairs: np.ndarray, distances: np.ndarray,
+def _with_figures(result: CollisionResult, pairs: np.ndarray, distances: np.ndarray,
                   errors: np.ndarray) -> CollisionResult:
-    """The interference result's records and stats, with the clearance's pairs and figures."""
-    result = CollisionResult(pairs, overlap.records, overlap.stats, tiles=overlap.tiles,
-                             scene=overlap.scene)
+    """``result`` with the clearance's pairs and figures."""
+    result.pairs = pairs
     result.distances = distances
     result.distance_errors = errors
     return result

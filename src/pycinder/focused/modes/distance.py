@@ -16,9 +16,10 @@ from .pairwork import FRAME, ITEM, PARAMS, ClusterPairPass
 FAR = int(np.float32(np.inf).view(np.uint32))
 """The figure of a pair no item measured (its bits: +inf)."""
 
-FIRST_ITEMS = 16
-"""Items of each pair measured first by :meth:`Distance.nearest`: those whose clusters' points
-are nearest each other."""
+ROUNDS = (1, 8)
+"""Items of each pair measured by the rounds of :meth:`Distance.nearest` before the last: the
+first round measures each pair's item whose clusters are nearest each other (where touching
+pairs touch), the next its next 7, the last all the others still within reach."""
 
 
 class Distance(ClusterPairPass):
@@ -50,10 +51,10 @@ class Distance(ClusterPairPass):
         An item's distance lies between its ``gap`` and its ``apart``; measured, it is at least
         its gap less its rounding. So an item whose gap exceeds a pair's least ``apart``, or the
         least distance measured so far, by more than ``margin`` (at least twice that rounding)
-        could not be below the least found, and is left out: first each pair's
-        :data:`FIRST_ITEMS` items of least ``apart`` are measured, then those of its others
-        still within reach (none once a distance of 0 is found). The figures are :meth:`run`'s
-        over every item, bit for bit.
+        could not be below the least found, and is left out: each pair's items are measured in
+        rounds, in the order of their ``apart`` (:data:`ROUNDS`), each round taking only the
+        items still within reach of the least distance found (none once it is 0). The figures
+        are :meth:`run`'s over every item, bit for bit.
 
         Parameters
         ----------
@@ -75,13 +76,16 @@ class Distance(ClusterPairPass):
         within = np.flatnonzero(gap <= bound[pair] + margin[pair])
         order = within[np.lexsort((apart[within], pair[within]))]
         rank = np.arange(len(order)) - np.searchsorted(pair[order], pair[order])
-        found = self.run(positions, faces, items[order[rank < FIRST_ITEMS]], frames)
-        rest = order[rank >= FIRST_ITEMS]
-        least = found[pair[rest]].astype(np.float64)
-        rest = rest[(least > 0) & (gap[rest] <= least + margin[pair[rest]])]
-        if len(rest):
-            found = np.minimum(found, self.run(positions, faces, items[rest], frames))
+        found = np.full(len(frames), np.inf, np.float32)
+        start = 0
+        for end in (*ROUNDS, None):
+            part = order[(rank >= start) & ((rank < end) if end is not None else True)]
+            least = found[pair[part]].astype(np.float64)
+            part = part[(least > 0) & (gap[part] <= least + margin[pair[part]])]
+            if len(part):
+                found = np.minimum(found, self.run(positions, faces, items[part], frames))
+            start = end if end is not None else start
         return found
 
 
-__all__ = ["FAR", "FIRST_ITEMS", "FRAME", "ITEM", "PARAMS", "Distance"]
+__all__ = ["FAR", "FRAME", "ITEM", "PARAMS", "ROUNDS", "Distance"]
