@@ -90,7 +90,7 @@ def depth_figures(det, meshes, transforms, cull: bool, rounds: bool = True) -> n
     depth = strategy._hard_clashes().depth
     if not rounds:
         words = depth.words(buffers.positions, buffers.faces, items, frames)
-        return decode(words).reshape(-1, LINES, 2)
+        return decode(words[:, :2 * LINES]).reshape(-1, LINES, 2)
     return depth.run(buffers.positions, buffers.faces, items, frames)
 
 

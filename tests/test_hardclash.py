@@ -895,3 +895,74 @@ def test_edges_crossing_at_a_shallow_angle_on_a_touching_face_are_not_a_clash():
             d = 16 * hardclash.ERROR_SCALE * reach * 1.001
             result = pycinder.Detector(min_depth=d).find_collisions([a, b])
             assert result.pairs.tolist() == [], (delta, off)
+
+
+@pytest.mark.parametrize("ball, sections", [(4, None), (None, 768)])
+def test_a_whole_item_of_many_rounds_keeps_every_figure(ball, sections):
+    """A pair measured as one whole item of many rounds (a 5,120-face ball, a 3,072-face
+    cylinder, each against a box 0.25 m inside it): every thread of the workgroup must finish,
+    or the figures are lost and the pair is missed (a CPU adapter ended such workgroups early;
+    they are measured again in items of a cluster of each body). Both bodies reach x = 1 m
+    exactly (a vertex of each), so the box's shortest separating translation is 0.25 m along
+    x (any other way it must travel farther)."""
+    body = (trimesh.creation.icosphere(subdivisions=ball) if ball is not None
+            else trimesh.creation.cylinder(radius=1.0, height=1.0, sections=sections))
+    assert body.vertices[:, 0].max() == pytest.approx(1.0)
+    box = trimesh.creation.box((0.5, 0.5, 0.5))
+    place = move(1.0)
+    result = pycinder.Detector(min_depth=0.01).find_collisions([body, box], [np.eye(4), place])
+    assert result.pairs.tolist() == [[0, 1]]
+    assert result.depths[0] - result.depth_errors[0] - 1e-6 <= 0.25 <= result.depths[0] + 1e-6
+
+
+def test_pairs_whose_threads_did_not_all_finish_are_measured_again(monkeypatch):
+    """A dispatch whose word DONE says some threads of a pair's items did not finish: the pair is
+    measured again, every line, in items of a cluster of each body, with the same answer; if
+    that fails too, a RuntimeError (never figures that miss a clash)."""
+    from pycinder.focused.modes import depth as depth_pass
+
+    meshes = [trimesh.creation.icosphere(subdivisions=3), BOX]
+    transforms = [np.eye(4), move(1.2)]
+    expected = pycinder.Detector(min_depth=0.01).find_collisions(meshes, transforms)
+    real = depth_pass.Depth.words
+    calls = []
+
+    def short(self, positions, faces, items, frames):
+        words = real(self, positions, faces, items, frames)
+        calls.append(len(items))
+        if len(calls) == 1:
+            words[:, depth_pass.DONE] = 8  # as a CPU adapter cut the workgroups short
+        return words
+
+    monkeypatch.setattr(depth_pass.Depth, "words", short)
+    again = pycinder.Detector(min_depth=0.01).find_collisions(meshes, transforms)
+    assert len(calls) == 2 and calls[1] > calls[0]  # measured again in more, smaller items
+    assert again.pairs.tolist() == expected.pairs.tolist() == [[0, 1]]
+    assert again.depths[0] == pytest.approx(expected.depths[0], abs=1e-5)
+
+    def never(self, positions, faces, items, frames):
+        words = real(self, positions, faces, items, frames)
+        words[:, depth_pass.DONE] = 0
+        return words
+
+    monkeypatch.setattr(depth_pass.Depth, "words", never)
+    with pytest.raises(RuntimeError, match="before all their threads finished"):
+        pycinder.Detector(min_depth=0.01).find_collisions(meshes, transforms)
+
+
+def test_split_items_cover_every_face_pair_once():
+    from pycinder.focused.modes.depth import ITEM, ITEM_FLIPPED, ITEM_WHOLE, split_items
+
+    items = ITEM.zeros(2)
+    items[0] = (0, 10, 200, 500, 70, ITEM_WHOLE)
+    items[1] = (1, 900, 40, 1000, 130, ITEM_WHOLE | ITEM_FLIPPED)  # a's faces are 1000...
+    parts = split_items(items)
+    assert np.all(parts["a_count"] <= 64) and np.all(parts["b_count"] <= 64)
+    assert np.all(parts["whole"] == 0)
+    for pair, (a0, na, b0, nb) in ((0, (10, 200, 500, 70)), (1, (1000, 130, 900, 40))):
+        mine = parts[parts["pair"] == pair]
+        covered = np.zeros((na, nb), int)
+        for p in mine:
+            covered[p["a_start"] - a0:p["a_start"] - a0 + p["a_count"],
+                    p["b_start"] - b0:p["b_start"] - b0 + p["b_count"]] += 1
+        assert np.all(covered == 1)

@@ -24,14 +24,18 @@
 // projections apart along them: they would add nothing) and a line whose view equals an earlier
 // one's (it takes that line's figures). An item that is its pair's whole work stops at the first
 // line that clears the pair. A pair whose frame has a cap (one whose figure matters only up to
-// the cap: above it, the pair is measured again, locally) stops measuring a line once both its
-// figures reach the cap: a whole item after any block of face pairs, a cluster item before a
-// line its pair's figures already hold at the cap. A line's figures only grow as face pairs
-// add to them, so a line stopped holds figures at least the cap, and the pair's least figure is
-// exact where it is below the cap and at least the cap otherwise. Depths are computed as convex combinations of corner depths
-// (barycentric weights clamped at 0), so a rounding error never takes a figure outside the faces'
-// own depth range. Figures are kept as order-preserving bits: word 2 i holds max(depth_b -
-// depth_a) along line i, word 2 i + 1 max(depth_a - depth_b); 0 means no ray met both bodies.
+// the cap: above it, the pair is measured again, locally; or, for the greatest float, any
+// pair whose figure is only its least line's) stops measuring a line once both its figures
+// reach the cap: a whole item after any block of face pairs, a cap lowered to the least figure
+// of the lines it has measured whole, a cluster item before a line its pair's figures already
+// hold at the cap. A line's figures only grow as face pairs add to them, so a line stopped
+// holds figures at least the cap, and the pair's least figure is exact where it is below the
+// cap and at least the cap otherwise. Depths are computed as convex combinations of corner
+// depths (barycentric weights clamped at 0), so a rounding error never takes a figure outside
+// the faces' own depth range. Figures are kept as order-preserving bits: of a pair's WORDS
+// words, word 2 i holds max(depth_b - depth_a) along line i, word 2 i + 1 max(depth_a -
+// depth_b) (0: no ray met both bodies), and word DONE counts the threads that finished its
+// items.
 //
 // Touching adds nothing between solids. For a pair of solids (a frame whose touch width is not
 // 0) the figures are the largest over the rays that meet both bodies in an area, not along a
@@ -70,7 +74,7 @@ var<workgroup> cleared: u32;                          // a line cleared the pair
 var<workgroup> todo_lines: u32;                       // bits: the lines measured
 var<workgroup> item_shape: vec3u;                     // rounds of a, blocks of b, whole item
 var<workgroup> item_cap: u32;                         // key of the frame's cap; 0: none
-var<workgroup> capped: u32;                           // a line's figures reached the cap
+var<workgroup> capped: u32;                           // a line reached the cap; its figure
 
 // The LINES directions: each body's own three axes (its transform's columns), which follow the
 // body when it is turned and most often clear a touching pair at once, then the 13 lines through
@@ -521,7 +525,10 @@ fn start_item(frame: PairFrame, skip: u32, lid: u32) {
     }
 }
 
-// The item's figures (lines up to last, those not skipped), added to its pair's.
+// The item's figures (lines up to last, those not skipped), added to its pair's; then every
+// thread counts itself in the pair's word DONE, so that the host knows every thread of the
+// item got here (a CPU adapter has been seen to end a workgroup of many rounds before its
+// later threads did).
 fn end_item(pair: u32, skip: u32, last: u32, flipped: bool, lid: u32) {
     workgroupBarrier();
     if (lid < 2u * LINES) {
@@ -529,10 +536,11 @@ fn end_item(pair: u32, skip: u32, last: u32, flipped: bool, lid: u32) {
         if (i <= last && ((skip >> i) & 1u) == 0u) {
             let word = atomicLoad(&kept[2u * source[i] + (lid & 1u)]);
             if (word != 0u) {
-                atomicMax(&best[pair * 2u * LINES + (lid ^ u32(flipped))], word);
+                atomicMax(&best[pair * WORDS + (lid ^ u32(flipped))], word);
             }
         }
     }
+    atomicAdd(&best[pair * WORDS + DONE], 1u);
 }
 
 // Items of a pair's two bodies whole (the first entry point: items before params.split): rounds
@@ -563,7 +571,9 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
     }
     var todo = workgroupUniformLoad(&todo_lines);  // a barrier, and uniform
     let shape = workgroupUniformLoad(&item_shape);
-    let cap = workgroupUniformLoad(&item_cap);
+    // The cap a line stops at: the frame's, lowered (in a pair's whole item) to the least figure
+    // of a line measured whole, which a line stopped there cannot go below.
+    var cap = workgroupUniformLoad(&item_cap);
     var last = LINES - 1u;  // the last line whose figures are written (the early stop)
     if (todo != 0u && shape.x != 0u && shape.y != 0u) {
         loop {
@@ -624,6 +634,12 @@ fn depth(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_index) lid:
                     last = i;
                     break;
                 }
+                if (cap != 0u && !full) {
+                    if (lid == 0u) {
+                        capped = min(atomicLoad(&kept[2u * i]), atomicLoad(&kept[2u * i + 1u]));
+                    }
+                    cap = min(cap, workgroupUniformLoad(&capped));
+                }
             }
             if (todo == 0u) {
                 break;
@@ -657,7 +673,7 @@ fn depth_clusters(@builtin(workgroup_id) wg: vec3u,
             workgroupBarrier();  // every thread has read the last line's flag
             if (lid == 0u) {
                 // The pair's figures so far (other items'): they only grow.
-                let row = item.pair * 2u * LINES + 2u * i;
+                let row = item.pair * WORDS + 2u * i;
                 capped = u32(at_cap(atomicLoad(&best[row]), atomicLoad(&best[row + 1u]), cap));
             }
             let full = workgroupUniformLoad(&capped) != 0u;

@@ -12,6 +12,7 @@ from typing import ClassVar
 import numpy as np
 
 from ...gpu.buffers import GrowableBuffer
+from ...gpu.layout import CLUSTER_FACES, WORKGROUP
 from ...gpu.table import PassInfo
 from .pairwork import FRAME, ITEM, PARAMS, ClusterPairPass
 
@@ -38,6 +39,9 @@ yet."""
 ITEM_SKIP_SHIFT = 8
 """First of the ``whole`` bits (one per line, :data:`LINES` in all) naming the lines an item
 skips: its faces' projections along them are apart, so they add nothing there."""
+DONE = 2 * LINES
+"""The word of each pair that counts the threads that finished its items (after its figures'
+``2 * LINES``)."""
 
 
 _WORLD = np.array([(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, -1, 0), (1, 0, 1), (1, 0, -1),
@@ -135,11 +139,12 @@ class Depth(ClusterPairPass):
         "H1", "depth", "how far one body of each candidate pair must move along each of 19 "
         "lines, either way, to clear the other, face pair by face pair", when="hard-clash "
         "queries")
-    SHADER, ENTRY, WORDS, START = "depth", "depth", 2 * LINES, 0
+    SHADER, ENTRY, WORDS, START = "depth", "depth", 2 * LINES + 1, 0
     SECOND = "depth_clusters"
     CONSTS: ClassVar[dict[str, int | float]] = {
         "LINES": LINES, "SLACK": SLACK, "WHOLE_FACES": WHOLE_FACES, "ITEM_WHOLE": ITEM_WHOLE,
-        "ITEM_FLIPPED": ITEM_FLIPPED, "ITEM_SKIP_SHIFT": ITEM_SKIP_SHIFT}
+        "ITEM_FLIPPED": ITEM_FLIPPED, "ITEM_SKIP_SHIFT": ITEM_SKIP_SHIFT, "WORDS": 2 * LINES + 1,
+        "DONE": DONE}
 
     def second(self, items: np.ndarray) -> np.ndarray:
         """The items of a cluster of each body (not whole): the second entry point's."""
@@ -162,8 +167,11 @@ class Depth(ClusterPairPass):
             (-inf where no ray meets both bodies).
         """
         later = self.second(items)
+        unfinished = np.zeros(len(frames), bool)
         if not later.any():
-            return decode(self.words(positions, faces, items, frames)).reshape(-1, LINES, 2)
+            words = self._finished(positions, faces, items, frames, unfinished)
+            return decode(self._again(positions, faces, items, frames, words, unfinished)
+                          ).reshape(-1, LINES, 2)
         every = (1 << LINES) - 1
         words = np.zeros((len(frames), 2 * LINES), np.uint32)
         open_pairs = np.ones(len(frames), bool)
@@ -181,7 +189,8 @@ class Depth(ClusterPairPass):
             part = part[(part["whole"] >> ITEM_SKIP_SHIFT) & every != every]
             batch = np.concatenate([batch, part])
             if len(batch):
-                words = np.maximum(words, self.words(positions, faces, batch, frames))
+                words = np.maximum(words, self._finished(positions, faces, batch, frames,
+                                                         unfinished))
             for axis in range(3):
                 if 6 + axis in group:
                     k = np.flatnonzero(open_pairs & (same[:, axis] >= 0)
@@ -191,7 +200,65 @@ class Depth(ClusterPairPass):
                     words[k, 2 * (6 + axis) + 1] = words[k, line + 1]
             open_pairs &= ~_clears(words, group)
             batch = items[:0]
+        words = self._again(positions, faces, items, frames, words, unfinished)
         return decode(words).reshape(-1, LINES, 2)
+
+    def _finished(self, positions: GrowableBuffer, faces: GrowableBuffer, items: np.ndarray,
+                  frames: np.ndarray, unfinished: np.ndarray) -> np.ndarray:
+        """One dispatch's figures, (K, 2 LINES) uint32; marks in ``unfinished`` (K,) bool the
+        pairs some of whose items' threads did not all finish (word :data:`DONE`)."""
+        words = self.words(positions, faces, items, frames)
+        expected = WORKGROUP * np.bincount(items["pair"].astype(np.int64),
+                                           minlength=len(frames))
+        unfinished |= words[:, DONE] < expected
+        return words[:, :DONE]
+
+    def _again(self, positions: GrowableBuffer, faces: GrowableBuffer, items: np.ndarray,
+               frames: np.ndarray, words: np.ndarray, unfinished: np.ndarray) -> np.ndarray:
+        """``words`` with the pairs ``unfinished`` measured again, every line of theirs, in
+        items of at most a cluster of each body (:func:`split_items`): a whole item's rounds
+        run as many workgroups of one round each. A pair whose items still do not finish is a
+        RuntimeError: its figures would be wrong, and a clash could be missed."""
+        if not unfinished.any():
+            return words
+        again = split_items(items[unfinished[items["pair"]]])
+        still = np.zeros(len(frames), bool)
+        words = words.copy()
+        measured = self._finished(positions, faces, again, frames, still)
+        k = np.flatnonzero(unfinished)
+        words[k] = measured[k]
+        if still.any():
+            raise RuntimeError(
+                f"this adapter ({self.gpu.description}) ended pass H1's workgroups of "
+                f"{int(still.sum())} pairs before all their threads finished, even in items of "
+                f"one cluster of each body; their hard-clash figures cannot be trusted")
+        return words
+
+
+def split_items(items: np.ndarray) -> np.ndarray:
+    """Items of at most :data:`~pycinder.gpu.layout.CLUSTER_FACES` faces of each body covering
+    ``items`` (I,) (whole items unflipped: body a's faces as a), measuring every line.
+
+    Returns
+    -------
+    (J,) structured array of :data:`ITEM`
+    """
+    out = []
+    for item in items:
+        flipped = bool(item["whole"] & ITEM_FLIPPED)
+        a_start, a_count = int(item["a_start"]), int(item["a_count"])
+        b_start, b_count = int(item["b_start"]), int(item["b_count"])
+        if flipped:
+            a_start, a_count, b_start, b_count = b_start, b_count, a_start, a_count
+        starts_a = np.arange(0, a_count, CLUSTER_FACES)
+        starts_b = np.arange(0, b_count, CLUSTER_FACES)
+        part = ITEM.zeros(len(starts_a) * len(starts_b))
+        part["pair"] = item["pair"]
+        sa, sb = np.repeat(starts_a, len(starts_b)), np.tile(starts_b, len(starts_a))
+        part["a_start"], part["a_count"] = a_start + sa, np.minimum(CLUSTER_FACES, a_count - sa)
+        part["b_start"], part["b_count"] = b_start + sb, np.minimum(CLUSTER_FACES, b_count - sb)
+        out.append(part)
+    return np.concatenate(out) if out else ITEM.zeros(0)
 
 
 def _same_axes(frames: np.ndarray) -> np.ndarray:
@@ -216,6 +283,6 @@ def _clears(words: np.ndarray, group: tuple[int, ...]) -> np.ndarray:
     return np.any((ahead == 0) | (ahead <= zero) | (behind <= zero), axis=1)
 
 
-__all__ = ["FRAME", "ITEM", "ITEM_FLIPPED", "ITEM_SKIP_SHIFT", "ITEM_WHOLE", "LINES", "PARAMS",
-           "ROUNDS", "SLACK", "WHOLE_FACES", "WHOLE_WORK", "WORLD_LINES", "Depth", "decode",
-           "hull_lower_bound", "lines"]
+__all__ = ["DONE", "FRAME", "ITEM", "ITEM_FLIPPED", "ITEM_SKIP_SHIFT", "ITEM_WHOLE", "LINES",
+           "PARAMS", "ROUNDS", "SLACK", "WHOLE_FACES", "WHOLE_WORK", "WORLD_LINES", "Depth",
+           "decode", "hull_lower_bound", "lines", "split_items"]

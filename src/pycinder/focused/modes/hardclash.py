@@ -132,6 +132,10 @@ LOCAL_FIRST_WORK = 2**22
 """Face pairs (the product of two bodies' face counts) above which a pair measured locally
 skips the whole-pair pass (:func:`local_first`): about two 2,000-face bodies."""
 
+LEAST_LINE = float(np.finfo(np.float32).max)
+"""Pass H1's cap for a pair whose figure is its least line's alone: a line stops once both its
+figures reach the least figure of the lines measured before it (see ``depth.wgsl``)."""
+
 DIRECTION_COS = 0.886
 """Every direction is within this cosine of one of the 26 directions through a cube's centre and
 its faces, edges and corners (the least over all directions is 0.88645)."""
@@ -303,14 +307,17 @@ class HardClash:
         figures = np.zeros((len(pairs), LINES, 2))
         # Pairs measured locally whenever their whole figure may be over d: that figure
         # matters only up to d (the frames' cap), and dense ones skip the whole-pair pass
-        # (see local_first).
+        # (see local_first). Of the others, only a pair of convex solids needs every line's
+        # figure (the hull's bound): the rest need their least line's.
         kinds = pair_kinds(scene, pairs) if d is not None else np.zeros(len(pairs), bool)
+        convex = convex_pairs(scene, pairs) if d is not None else np.zeros(len(pairs), bool)
+        cap = np.where(kinds, d or 0.0, np.where(convex, 0.0, LEAST_LINE))
         first = local_first(scene, pack, pairs, kinds)
         whole = np.flatnonzero(~first)
         for start in range(0, max(len(whole), 1), CHUNK_PAIRS):
             part = whole[start:start + CHUNK_PAIRS]
             items, frames, reach = plan(scene, pack, pairs[part])
-            frames["cap"] = np.where(kinds[part], d or 0.0, 0.0)
+            frames["cap"] = cap[part]
             error[part] = ERROR_SCALE * reach
             t2 = time.perf_counter()
             stats.add_ms("upload", (t2 - t1) * 1e3)
@@ -344,7 +351,7 @@ class HardClash:
             # convex pairs: their measured points lie on the boundary of the translations that
             # keep them overlapping, which the hull then lies within.
             k = np.flatnonzero((figure > d - rounding) & ~local)
-            k = k[convex_pairs(scene, pairs[k])]
+            k = k[convex[k]]
             lower = np.maximum(DIRECTION_COS * depth[k], hull_lower_bound(flat[k], direction[k]))
             bound[k] = depth[k] - lower + error[k]
         along = direction[np.arange(len(pairs)), best // 2]
