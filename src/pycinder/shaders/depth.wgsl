@@ -59,9 +59,9 @@ var<workgroup> box_a: array<vec4f, WORKGROUP>;        // and screen boxes: lo, h
 var<workgroup> flat_b: array<vec2f, 3u * WORKGROUP>;  // the same of the kept faces of b
 var<workgroup> deep_b: array<f32, 3u * WORKGROUP>;
 var<workgroup> box_b: array<vec4f, WORKGROUP>;
-var<workgroup> red_a: array<vec4f, WORKGROUP>;        // the box of the faces of a, reduced
-var<workgroup> red_b: array<vec4f, WORKGROUP>;        // and of b
-var<workgroup> red_size: array<vec2f, WORKGROUP>;     // and their largest faces
+// The boxes of a face_pairs call's faces of a and of b, and their largest faces, reduced: keys of
+// -lo.x, -lo.y, hi.x, hi.y and size for a (0 to 4), then for b (5 to 9); 0 where none.
+var<workgroup> reduced: array<atomic<u32>, 10>;
 var<workgroup> kept_a: atomic<u32>;                   // faces of a and of b kept
 var<workgroup> kept_b: atomic<u32>;
 var<workgroup> hits: array<vec2u, WORKGROUP>;         // per face of a: bits of the b faces it meets
@@ -195,6 +195,41 @@ fn key(f: f32) -> u32 {
         return ~b;
     }
     return b | 0x80000000u;
+}
+
+// The float of a key (0, no key, gives -inf).
+fn unkey(k: u32) -> f32 {
+    if (k == 0u) {
+        return NONE;
+    }
+    if ((k & 0x80000000u) != 0u) {
+        return bitcast<f32>(k & 0x7fffffffu);
+    }
+    return bitcast<f32>(~k);
+}
+
+// Adds a face's screen box and size to the reduced box at word o.
+fn reduce_box(o: u32, lo: vec2f, hi: vec2f, size: f32) {
+    atomicMax(&reduced[o], key(-lo.x));
+    atomicMax(&reduced[o + 1u], key(-lo.y));
+    atomicMax(&reduced[o + 2u], key(hi.x));
+    atomicMax(&reduced[o + 3u], key(hi.y));
+    atomicMax(&reduced[o + 4u], key(size));
+}
+
+// The reduced box at word o (NO_BOX where no face added to it).
+fn reduced_box(o: u32) -> vec4f {
+    if (atomicLoad(&reduced[o + 2u]) == 0u) {
+        return NO_BOX;
+    }
+    return vec4f(-unkey(atomicLoad(&reduced[o])), -unkey(atomicLoad(&reduced[o + 1u])),
+                 unkey(atomicLoad(&reduced[o + 2u])), unkey(atomicLoad(&reduced[o + 3u])));
+}
+
+fn clear_reduced() {
+    for (var i = 0u; i < 10u; i++) {
+        atomicStore(&reduced[i], 0u);
+    }
 }
 
 fn same_view(a: mat3x3f, b: mat3x3f) -> bool {
@@ -377,29 +412,19 @@ fn face_pairs(pa: array<vec3f, 3>, has_a: bool, pb: array<vec3f, 3>, has_b: bool
     let b_lo = min(pb[0].xy, min(pb[1].xy, pb[2].xy));
     let b_hi = max(pb[0].xy, max(pb[1].xy, pb[2].xy));
     let b_size = max(b_hi.x - b_lo.x, b_hi.y - b_lo.y);
-    red_a[lid] = select(NO_BOX, vec4f(a_lo, a_hi), has_a);
-    red_b[lid] = select(NO_BOX, vec4f(b_lo, b_hi), has_b);
-    red_size[lid] = vec2f(select(0.0, a_size, has_a), select(0.0, b_size, has_b));
-    workgroupBarrier();
-    var half = WORKGROUP / 2u;
-    loop {
-        if (lid < half) {
-            let ra = red_a[lid + half];
-            let rb = red_b[lid + half];
-            red_a[lid] = vec4f(min(red_a[lid].xy, ra.xy), max(red_a[lid].zw, ra.zw));
-            red_b[lid] = vec4f(min(red_b[lid].xy, rb.xy), max(red_b[lid].zw, rb.zw));
-            red_size[lid] = max(red_size[lid], red_size[lid + half]);
-        }
-        workgroupBarrier();
-        half >>= 1u;
-        if (half == 0u) {
-            break;
-        }
+    // One barrier, not one per halving: a CPU adapter pays for every barrier in every thread.
+    if (has_a) {
+        reduce_box(0u, a_lo, a_hi, a_size);
     }
+    if (has_b) {
+        reduce_box(5u, b_lo, b_hi, b_size);
+    }
+    workgroupBarrier();
     // The kept faces go to the front of the arrays, in any order (the figures are maxima).
-    let all_a = red_a[0];
-    let all_b = red_b[0];
-    let all_size = red_size[0];
+    let all_a = reduced_box(0u);
+    let all_b = reduced_box(5u);
+    let all_size = vec2f(max(unkey(atomicLoad(&reduced[4u])), 0.0),
+                         max(unkey(atomicLoad(&reduced[9u])), 0.0));
     if (has_a && !apart(a_lo, a_hi, a_size, all_b, all_size.y)) {
         let slot = atomicAdd(&kept_a, 1u);
         for (var c = 0u; c < 3u; c++) {
@@ -454,8 +479,10 @@ fn face_pairs(pa: array<vec3f, 3>, has_a: bool, pb: array<vec3f, 3>, has_b: bool
         hit_count = sum;
         atomicStore(&kept_a, 0u);
         atomicStore(&kept_b, 0u);
+        clear_reduced();  // every thread read them before the last barrier
     }
-    let total = workgroupUniformLoad(&hit_count);
+    workgroupBarrier();
+    let total = hit_count;  // the loop below holds no barrier: it need not be uniform
     // The face pairs found, shared among the threads: entry e is bit e - first_hit[j] of face
     // j's hits.
     var most = NONE;
@@ -477,7 +504,8 @@ fn face_pairs(pa: array<vec3f, 3>, has_a: bool, pb: array<vec3f, 3>, has_b: bool
             break;
         }
     }
-    workgroupBarrier();  // every thread is done with these faces
+    // No barrier here: the next call writes these faces only after its first barrier, which
+    // every thread reaches once done with them.
     return vec2f(most, least);
 }
 
@@ -493,6 +521,7 @@ fn start_item(frame: PairFrame, skip: u32, lid: u32) {
     if (lid == 0u) {
         atomicStore(&kept_a, 0u);
         atomicStore(&kept_b, 0u);
+        clear_reduced();
         item_cap = select(0u, key(frame.cap), frame.cap > 0.0);
     }
     workgroupBarrier();
