@@ -966,3 +966,34 @@ def test_split_items_cover_every_face_pair_once():
             covered[p["a_start"] - a0:p["a_start"] - a0 + p["a_count"],
                     p["b_start"] - b0:p["b_start"] - b0 + p["b_count"]] += 1
         assert np.all(covered == 1)
+
+
+@pytest.mark.parametrize("pressed, reported", [(0.0004, False), (0.003, True)])
+def test_pairs_their_boxes_clear_by_half_d_take_no_pass(monkeypatch, pressed, reported):
+    """An L-shaped column and a box turned 30 degrees about z stand on a slab, pressed into it by
+    0.4 mm or by 3 mm, with d = 2 mm. Lifting either by how far it is pressed in separates it
+    from the slab, so that is how deep it is. Pressed 0.4 mm (at most d / 2), their world
+    boxes show it: neither pair is reported, and pass H1 measures neither. Pressed 3 mm, both
+    are measured and reported, 3 mm deep within their bounds."""
+    from pycinder.focused.modes import depth as depth_pass
+
+    slab = trimesh.creation.box((4.0, 4.0, 0.2))
+    column, box = l_shape(), trimesh.creation.box((0.5, 0.5, 0.5))
+    turn = trimesh.transformations.rotation_matrix(np.pi / 6, (0, 0, 1))
+    up = 0.25 - pressed  # the column's and the box's centres: their bottoms at z = -pressed
+    transforms = [move(z=-0.1), move(-1.0, 0.0, up), move(1.0, 0.0, up, turn)]
+    measured = []
+    real = depth_pass.Depth.run
+
+    def counted(self, positions, faces, items, frames):
+        measured.append(len(frames))
+        return real(self, positions, faces, items, frames)
+
+    monkeypatch.setattr(depth_pass.Depth, "run", counted)
+    result = pycinder.Detector(min_depth=0.002).find_collisions([slab, column, box], transforms)
+    if not reported:
+        assert result.pairs.tolist() == [] and sum(measured) == 0
+        return
+    assert result.pairs.tolist() == [[0, 1], [0, 2]] and sum(measured) > 0
+    for depth, error in zip(result.depths, result.depth_errors):
+        assert depth - error - 1e-6 <= pressed <= depth + 1e-6

@@ -65,26 +65,29 @@ frame of its own) is measured in the same way, in regions covering its overlappi
 instead, grown by :data:`~pycinder.focused.modes.local.LOCAL_GROW` ``d``, and reports its deepest
 region's figure as its depth, with that region's rounding.
 
-Cost. No pixels, tolerance or records. A pair of small bodies is one item, one workgroup's
-work, which stops at the first line that clears the pair: touching and apart pairs, most of a
-building's candidates, cost a line or a few. A pair of larger bodies is measured cluster pair by
-cluster pair, and a face pair adds to a line's figures only where the faces' projections along
-it meet: each pair of face clusters is measured only along the lines where their projections
-meet (:mod:`~pycinder.focused.modes.cull`, on the host), and within it only the face pairs whose
-screen boxes meet are tested exactly (on the GPU), so the cost follows the faces that meet along
-each line rather than the product of the two face counts. Where both bodies are solids wound
-outward, a cluster pair whose clusters face the same way along a line is left out along it too:
-on a ray, body a's nearest point is where it enters and b's farthest where it leaves (and the
-other way round), so such a pair adds nothing. Such a pair measures its bodies' axes first and
-stops there when one clears it. A pair measured locally whatever its whole figure, with more
-than :data:`LOCAL_FIRST_WORK` face pairs, skips the whole-pair pass (:func:`local_first`); the
-others measured locally whenever their figure may be over ``d`` need that figure only up to
-``d``, their frame's cap: a line stops as soon as both its figures reach it (a pair overlapping
-in volume stops each line at the first face pairs deeper than ``d``). Two
-spheres of 20,480 faces each overlapping deeply take 0.8 to 1.4 s as placed and 1.2 s turned,
-pressed together by 0.4% of their radius 0.55 s, 0.5% apart 0.23 s, and a 20,000-face torus
-through one 1.5 s (measured locally, in regions), where every cluster pair along every line took
-194 to 274 s (lavapipe on 2 shared CPU cores: ``benchmarks/results/dense.md``).
+Cost. No pixels, tolerance or records. A pair whose world boxes a translation of at most ``d / 2``
+along a world axis clears (a wall standing on its slab, a beam on its column: a third to a half of
+the candidate pairs of the real models in the building benchmark) is at most that deep, and takes no
+pass at all (:func:`box_figures`). A pair of small bodies is one item, one workgroup's work, which
+stops at the first line that clears the pair: touching and apart pairs, most of a building's other
+candidates, cost a line or a few. A pair of larger bodies is measured cluster pair by cluster pair,
+and a face pair adds to a line's figures only where the faces' projections along it meet: each pair
+of face clusters is measured only along the lines where their projections meet
+(:mod:`~pycinder.focused.modes.cull`, on the host), and within it only the face pairs whose screen
+boxes meet are tested exactly (on the GPU), so the cost follows the faces that meet along each line
+rather than the product of the two face counts. Where both bodies are solids wound outward, a
+cluster pair whose clusters face the same way along a line is left out along it too: on a ray, body
+a's nearest point is where it enters and b's farthest where it leaves (and the other way round), so
+such a pair adds nothing. Such a pair measures its bodies' axes first and stops there when one
+clears it. A pair measured locally whatever its whole figure, with more than
+:data:`LOCAL_FIRST_WORK` face pairs, skips the whole-pair pass (:func:`local_first`); the others
+measured locally whenever their figure may be over ``d`` need that figure only up to ``d``, their
+frame's cap: a line stops as soon as both its figures reach it (a pair overlapping in volume stops
+each line at the first face pairs deeper than ``d``). Two spheres of 20,480 faces each overlapping
+deeply take 0.8 to 1.4 s as placed and 1.2 s turned, pressed together by 0.4% of their radius 0.55
+s, 0.5% apart 0.23 s, and a 20,000-face torus through one 1.5 s (measured locally, in regions),
+where every cluster pair along every line took 194 to 274 s (lavapipe on 2 shared CPU cores:
+``benchmarks/results/dense.md``).
 """
 
 from __future__ import annotations
@@ -107,6 +110,7 @@ from .depth import (
     LINES,
     WHOLE_FACES,
     WHOLE_WORK,
+    WORLD_LINES,
     Depth,
     hull_lower_bound,
     lines,
@@ -210,6 +214,44 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, cull: bool = True
     return np.concatenate([whole, items]), frames, reach
 
 
+def box_figures(scene: Scene, pairs: np.ndarray, figures: np.ndarray, most: float
+                ) -> np.ndarray:
+    """Which pairs their world boxes clear by at most ``most`` along a world axis, with those
+    axes' figures written (in place) for them.
+
+    Moving body a along world axis ``x`` by ``hi_b - lo_a`` (or against it by ``hi_a - lo_b``)
+    takes it past body b's box, and so past b on every ray parallel to ``x``: a separating
+    translation along the line, never less than the pair's figure along it (pass H1's) nor than
+    its local depth. The boxes hold the bodies (:meth:`~pycinder.scene.Scene.world_boxes`), in
+    double precision, so the bound needs no rounding allowance. Such a pair is at most ``most``
+    deep; its other lines' figures are set to the largest float so that its least figure is the
+    boxes'.
+
+    Parameters
+    ----------
+    scene : Scene
+    pairs : (K, 2) int
+    figures : (K, LINES, 2) float64
+        Written for the pairs returned: the three world axes' figures (lines 6 to 8, both
+        ways) and :data:`LEAST_LINE` elsewhere.
+    most : float
+        The largest such translation that clears a pair.
+
+    Returns
+    -------
+    (K,) bool
+    """
+    lo, hi = scene.world_boxes()
+    a, b = np.asarray(pairs, np.int64).T
+    box = np.maximum(np.stack([hi[b] - lo[a], hi[a] - lo[b]], axis=2), 0.0)  # (K, 3, 2)
+    out = box.min(axis=(1, 2)) <= most
+    k = np.flatnonzero(out)
+    figures[k] = LEAST_LINE
+    world = LINES - WORLD_LINES  # the first world line, x (then y and z)
+    figures[k, world:world + 3] = box[k]
+    return out
+
+
 def local_first(scene: Scene, pack: ShapePack, pairs: np.ndarray,
                 kinds: np.ndarray | None = None) -> np.ndarray:
     """Which pairs go straight to their local depth, without the whole-pair pass: those measured
@@ -305,15 +347,21 @@ class HardClash:
         buffers = self.strategy.frames.buffers  # the shapes as just uploaded, current vertices
         error = np.zeros(len(pairs))
         figures = np.zeros((len(pairs), LINES, 2))
+        # Pairs their world boxes clear by at most d / 2 along a world axis (a wall on its
+        # slab) are never reported: that translation is their figure, with no pass at all.
+        boxed = np.zeros(len(pairs), bool)
+        if d is not None and len(pairs):
+            boxed = box_figures(scene, pairs, figures, d / 2)
         # Pairs measured locally whenever their whole figure may be over d: that figure
         # matters only up to d (the frames' cap), and dense ones skip the whole-pair pass
         # (see local_first). Of the others, only a pair of convex solids needs every line's
         # figure (the hull's bound): the rest need their least line's.
         kinds = pair_kinds(scene, pairs) if d is not None else np.zeros(len(pairs), bool)
         convex = convex_pairs(scene, pairs) if d is not None else np.zeros(len(pairs), bool)
+        kinds &= ~boxed
         cap = np.where(kinds, d or 0.0, np.where(convex, 0.0, LEAST_LINE))
         first = local_first(scene, pack, pairs, kinds)
-        whole = np.flatnonzero(~first)
+        whole = np.flatnonzero(~first & ~boxed)
         for start in range(0, max(len(whole), 1), CHUNK_PAIRS):
             part = whole[start:start + CHUNK_PAIRS]
             items, frames, reach = plan(scene, pack, pairs[part])
@@ -449,4 +497,4 @@ def _with_figures(result: CollisionResult, depths: np.ndarray, errors: np.ndarra
 
 
 __all__ = ["DIRECTION_COS", "ERROR_SCALE", "LOCAL_FIRST_WORK", "PASSES", "Figures", "HardClash",
-           "local_first", "plan"]
+           "box_figures", "local_first", "plan"]
