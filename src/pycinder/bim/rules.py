@@ -160,7 +160,8 @@ class SetAside:
         if not total:
             return "the clash rules set no pair aside"
         parts = [f"{name} {self.counts[name]}" for name in self.rules.on() if self.counts[name]]
-        return f"the clash rules set {total} pair{'' if total == 1 else 's'} aside ({', '.join(parts)})"
+        plural = "" if total == 1 else "s"
+        return f"the clash rules set {total} pair{plural} aside ({', '.join(parts)})"
 
 
 def candidate_pairs(model: Any, used: np.ndarray, groups: np.ndarray | None,
@@ -340,7 +341,8 @@ def set_aside(model: Any, used: np.ndarray, candidates: np.ndarray,
     if rules.duplicates:
         gid = np.array([b.global_id for b in bodies], dtype=object)
         files = np.array([b.file for b in bodies], dtype=object)
-        found["duplicates"] = (gid[global_a] == gid[global_b]) & (files[global_a] != files[global_b])
+        found["duplicates"] = ((gid[global_a] == gid[global_b])
+                               & (files[global_a] != files[global_b]))
     taken = np.zeros(len(candidates), bool)
     rule = np.empty(len(candidates), dtype=object)
     counts: dict[str, int] = {}
