@@ -24,9 +24,10 @@ The rules, for a hard-clash depth ``d``, a clearance ``c`` and the default query
 * the default query: must report a pair whose overlap holds a ball of radius ``0.71 t``; must not
   report one at least ``t`` apart.
 
-Distances and volumes are computed from the tessellation both pycinder and IfcClash test (the
-same IfcOpenShell iterator), so the truth is that of the meshes tested; a 1 nm slack
-(:data:`EXACT`) absorbs the placements' rounding.
+Distances and volumes are computed from the meshes pycinder tests (IfcOpenShell's iterator, as
+:func:`~pycinder.bim.ifc.read_ifc` runs it); IfcClash tessellates the same files again with its
+own settings, so a pair within a tessellation's chord error of a threshold may differ for it. A
+1 nm slack (:data:`EXACT`) absorbs the placements' rounding.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from ..focused.modes.regions import mesh_solid
 from ..util.optional import require
 
 EXACT = 1e-9
@@ -97,7 +99,8 @@ class PairTruth:
 def verdict(p: PairTruth | None, mode: str, value: float | None = None) -> str:
     """``"must"``, ``"never"`` or ``"either"``: what a pair's truth asks of ``mode``
     (``"min_depth"`` with ``value`` d, ``"clearance"`` with ``value`` c, or ``"default"``; see
-    the module's rules). A pair outside the truth (None) is farther apart than its margin."""
+    the module's rules). A pair outside the truth (None) is farther apart than its margin and
+    its default tolerance (:func:`candidate_pairs`)."""
     if p is None:
         return "never"
     if mode == "clearance":
@@ -127,21 +130,6 @@ def _fcl_object(mesh: Any) -> Any:
     bvh.addSubModel(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int32))
     bvh.endModel()
     return fcl.CollisionObject(bvh, fcl.Transform())
-
-
-def _solid(mesh: Any, origin: np.ndarray) -> Any:
-    """The element as a manifold3d solid in float64 about ``origin``, wound as pycinder winds it
-    (:mod:`pycinder.scene.winding`); None where it is open or manifold3d refuses it."""
-    from ..focused.modes.regions import SolidCutter
-    from ..scene.topology import build_topology
-
-    v = np.asarray(mesh.vertices, np.float64)
-    topo = build_topology(np.asarray(mesh.faces), len(v), "")
-    if not topo.closed:
-        return None
-    topo.orient(v.astype(np.float32))
-    cutter = SolidCutter(v - origin, np.asarray(topo.faces, np.int64))
-    return cutter.solid if cutter.ok else None
 
 
 def inscribed_radius(part: Any) -> float:
@@ -187,24 +175,41 @@ def _separated_by(a: Any, b: Any, shift: float, part: Any) -> bool:
 
 
 def candidate_pairs(model: Any, margin: float) -> np.ndarray:
-    """(K, 2) int64: the pairs of the model's bodies whose world boxes lie within ``margin``."""
+    """(K, 2) int64: the pairs of the model's bodies whose world boxes lie within ``margin`` of
+    each other, or within the pair's default tolerance (:func:`tolerances`) where that is
+    more: a pair left out is farther apart than every threshold its verdicts use."""
     from ..focused.broad.prune import sweep_and_prune
 
     bounds = np.array([b.mesh.bounds for b in model.bodies], np.float64).reshape(-1, 2, 3)
-    return sweep_and_prune(bounds[:, 0] - margin / 2, bounds[:, 1] + margin / 2)
+    size = tolerances(model)
+    widest = max(margin, float(size.max(initial=0.0)))
+    pairs = sweep_and_prune(bounds[:, 0] - widest / 2, bounds[:, 1] + widest / 2)
+    a, b = pairs[:, 0], pairs[:, 1]
+    gap = np.maximum(np.maximum(bounds[b, 0] - bounds[a, 1], bounds[a, 0] - bounds[b, 1]), 0.0)
+    keep = np.linalg.norm(gap, axis=1) <= np.maximum(margin, np.minimum(size[a], size[b]))
+    return pairs[keep]
+
+
+def tolerances(model: Any) -> np.ndarray:
+    """(N,) float64: each element's default tolerance alone, 1% of its box diagonal (a pair's is
+    the smaller of its two)."""
+    return np.array([0.01 * float(np.linalg.norm(b.mesh.extents)) for b in model.bodies])
 
 
 def exact_truth(model: Any, margin: float, depths: Sequence[float] = (),
                 progress: Any = None) -> dict[tuple[int, int], PairTruth]:
-    """Every pair of the model's elements within ``margin`` of each other, with its exact
-    figures (:class:`PairTruth`), the certificates made for each hard-clash depth of
-    ``depths``.
+    """Every pair of the model's elements within ``margin`` of each other (or within their
+    default tolerance, :func:`candidate_pairs`), with its exact figures (:class:`PairTruth`),
+    the certificates made for each hard-clash depth of ``depths``. The overlap volume is
+    computed for every pair within ``margin`` and every pair one of whose boxes holds the
+    other's (one element inside the other, its surfaces apart).
 
     Parameters
     ----------
     model : IfcModel
     margin : float
-        Metres: pairs whose boxes lie farther apart are apart by more, and left out.
+        Metres: pairs whose boxes lie farther apart (and farther than their tolerance) are
+        apart by more, and left out.
     depths : sequence of float
         Hard-clash depths ``d`` whose ``d / 2`` translations are tried on overlapping pairs.
     progress : callable, optional
@@ -217,7 +222,7 @@ def exact_truth(model: Any, margin: float, depths: Sequence[float] = (),
     """
     fcl = require("fcl", "the real-model truth", "bench", package="python-fcl")
     bodies = model.bodies
-    size = np.array([float(np.linalg.norm(b.mesh.extents)) for b in bodies])
+    size = tolerances(model)
     objects: dict[int, Any] = {}
     out: dict[tuple[int, int], PairTruth] = {}
     pairs = candidate_pairs(model, margin)
@@ -232,11 +237,16 @@ def exact_truth(model: Any, margin: float, depths: Sequence[float] = (),
         distance = 0.0 if hit else float(fcl.distance(
             objects[i], objects[j], fcl.DistanceRequest(), fcl.DistanceResult()))
         truth = PairTruth(i, j, max(distance, 0.0), None,
-                          tolerance=0.01 * float(min(size[i], size[j])))
-        if distance <= margin:
+                          tolerance=float(min(size[i], size[j])))
+        # Surfaces apart, yet overlapping: one element inside the other (its box inside the
+        # other's), however far their surfaces lie apart.
+        inside = bool(np.all(a.bounds[0] >= b.bounds[0]) and np.all(a.bounds[1] <= b.bounds[1])
+                      or np.all(b.bounds[0] >= a.bounds[0]) and np.all(b.bounds[1] <= a.bounds[1]))
+        if distance <= margin or inside:
             lo, hi = np.maximum(a.bounds[0], b.bounds[0]), np.minimum(a.bounds[1], b.bounds[1])
             origin = 0.5 * (lo + hi)
-            sa, sb = _solid(a, origin), _solid(b, origin)
+            sa = mesh_solid(a.vertices, a.faces, origin)
+            sb = mesh_solid(b.vertices, b.faces, origin)
             if sa is not None and sb is not None:
                 overlap = sa ^ sb
                 truth.volume = max(float(overlap.volume()), 0.0)
@@ -244,9 +254,8 @@ def exact_truth(model: Any, margin: float, depths: Sequence[float] = (),
                     truth.distance = 0.0  # one inside the other has surfaces apart
                     parts = [p for p in overlap.decompose() if p.volume() > VOLUME]
                     truth.ball = max((inscribed_radius(p) for p in parts), default=0.0)
-                    deepest = max(parts, key=lambda p: p.volume())
                     truth.shallow = {d: 2.0 * truth.ball <= d and
-                                     _separated_by(sa, sb, 0.5 * d, deepest)
+                                     _separated_by(sa, sb, 0.5 * d, parts[0])
                                      for d in depths} if len(parts) == 1 else {}
         out[(i, j)] = truth
     return out
@@ -287,4 +296,4 @@ def score(truth: dict[tuple[int, int], PairTruth], reported: set[tuple[int, int]
 
 
 __all__ = ["BALL_RADIUS", "EXACT", "VOLUME", "PairTruth", "candidate_pairs", "exact_truth",
-           "inscribed_radius", "score", "verdict"]
+           "inscribed_radius", "score", "tolerances", "verdict"]

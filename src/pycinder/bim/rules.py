@@ -205,21 +205,6 @@ OPENING_SLACK = 1e-9
 makes of an element that only touches the opening's sides."""
 
 
-def _solid(mesh: Any, origin: np.ndarray) -> Any:
-    """A mesh as a manifold3d solid in float64 about ``origin``, wound outward; None where it
-    is not closed (or manifold3d refuses it)."""
-    from ..focused.modes.regions import SolidCutter
-    from ..scene.topology import build_topology
-
-    vertices = np.asarray(mesh.vertices, np.float64)
-    topo = build_topology(np.asarray(mesh.faces), len(vertices), "")
-    if not topo.closed:
-        return None
-    topo.orient(vertices.astype(np.float32))
-    cutter = SolidCutter(vertices - origin, np.asarray(topo.faces, np.int64))
-    return cutter.solid if cutter.ok else None
-
-
 def _through_openings(model: Any, index: dict[tuple[str, str], int], a: np.ndarray,
                       b: np.ndarray) -> np.ndarray:
     """(K,) bool: which pairs of bodies ``a``, ``b`` (K,) hold an element and a host whose
@@ -246,13 +231,15 @@ def _through_openings(model: Any, index: dict[tuple[str, str], int], a: np.ndarr
 
 def _reaches_into(mesh: Any, opening: Any) -> bool:
     """Whether an element's volume reaches into an opening (see :func:`_through_openings`)."""
+    from ..focused.modes.regions import mesh_solid
+
     lo = np.maximum(mesh.bounds[0], opening.bounds[0])
     hi = np.minimum(mesh.bounds[1], opening.bounds[1])
     if np.any(hi <= lo):
         return False  # boxes apart or only touching
     origin = 0.5 * (lo + hi)
-    hole = _solid(opening, origin)
-    body = _solid(mesh, origin)
+    hole = mesh_solid(opening.vertices, opening.faces, origin)
+    body = mesh_solid(mesh.vertices, mesh.faces, origin)
     if hole is None:
         return False
     if body is None:  # a surface: a vertex of it inside the opening's box

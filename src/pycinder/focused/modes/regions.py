@@ -269,6 +269,35 @@ def _manifold3d() -> Any:
                    "bodies (solids cut to the regions where they meet)", "bim")
 
 
+def mesh_solid(vertices: np.ndarray, faces: np.ndarray, origin: np.ndarray) -> Any:
+    """A closed mesh as a manifold3d solid about ``origin``, in float64, each part wound outward
+    as pycinder winds a closed mesh wound inconsistently (:mod:`pycinder.scene.winding`, here
+    with the vertices about ``origin`` in float64, so that a georeferenced part faces as it
+    does); None where the mesh is open or manifold3d refuses it.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+        World vertices.
+    faces : (F, 3) int
+    origin : (3,) float64
+        The solid's origin in the world (near where it is cut).
+
+    Returns
+    -------
+    manifold3d.Manifold or None
+    """
+    from ...scene.topology import build_topology
+
+    local = np.asarray(vertices, np.float64) - origin
+    topo = build_topology(np.asarray(faces), len(local), "")
+    if not topo.closed:
+        return None
+    topo.orient(local)
+    cutter = SolidCutter(local, np.asarray(topo.faces, np.int64))
+    return cutter.solid if cutter.ok else None
+
+
 def manifold_pieces(faces: np.ndarray) -> list[np.ndarray]:
     """A solid's faces in pieces that are each a two-manifold: faces joined through edges that
     exactly two faces share. A closed mesh is one piece or more; a solid whose closed parts
@@ -649,5 +678,5 @@ class RegionBuffers:
 
 __all__ = ["MAX_REGIONS", "ROUNDING", "RegionBuffers", "RegionGeometry", "STORED_ROUNDING",
            "SolidCutter", "body_vertices", "clip_triangles", "contains", "linear_map",
-           "manifold_pieces", "meeting_regions", "meeting_tiles", "placed_cutter",
+           "manifold_pieces", "meeting_regions", "mesh_solid", "meeting_tiles", "placed_cutter",
            "stored_rounding", "tile_side", "triangles_meet_box", "world_triangles"]
