@@ -1,7 +1,7 @@
 """The building benchmark on real IFC models: pycinder and IfcClash on public models other people
 made (Archicad, Revit), every pair either reports scored against exact geometry
 (:mod:`pycinder.benchmarks.realtruth`), and the clash step timed against IfcClash's in the same
-run.
+run::
 
     models (files in a folder: see MODELS for where to get them)
       -> read_ifc (IfcOpenShell's iterator; the tessellation, cached per file)

@@ -1,6 +1,6 @@
 """Exact truth for real IFC models: every pair of elements whose boxes meet (or lie within a
 margin), classified by exact geometry, for the real-model building benchmark
-(:mod:`pycinder.benchmarks.buildingreal`).
+(:mod:`pycinder.benchmarks.buildingreal`)::
 
     IfcModel -> pairs whose world boxes lie within the margin
              -> per pair: python-fcl distance, manifold3d overlap volume (float64), and where

@@ -8,23 +8,23 @@ reads one kind of relation the files hold (:attr:`pycinder.files.ifc.IfcModel.re
 sets aside the candidate pairs it names, before the query: those pairs are neither tested nor
 reported, and each rule says how many it set aside.
 
-======================  ===========================================================  =======
-rule                    sets aside                                                   default
-======================  ===========================================================  =======
-``fills``               a door or window and the element whose opening it fills       on
+======================  ==============================================================  =======
+rule                    sets aside                                                      default
+======================  ==============================================================  =======
+``fills``               a door or window and the element whose opening it fills         on
                         (IfcRelFillsElement, IfcRelVoidsElement)
-``openings``            an element in an opening and the element the opening voids:   on
+``openings``            an element in an opening and the element the opening voids:     on
                         one that fills it (IfcRelFillsElement) other than a door or
                         window, or one whose volume reaches into it (a stair through
                         its slab's opening, a duct through its provision for a void)
-``assembly``            parts of one assembly, and each part with the whole           on
+``assembly``            parts of one assembly, and each part with the whole             on
                         (IfcRelAggregates: a stair's flights, a curtain wall's plates)
-``connected``           elements the model connects (IfcRelConnectsElements and its   on
+``connected``           elements the model connects (IfcRelConnectsElements and its     on
                         subclasses: walls joined at their ends; IfcRelConnectsPorts)
-``system``              elements of one system (IfcRelAssignsToGroup to an IfcSystem)  off
-``duplicates``          the copies of one GlobalId in two files: reported apart, as    on
+``system``              elements of one system (IfcRelAssignsToGroup to an IfcSystem)   off
+``duplicates``          the copies of one GlobalId in two files: reported apart, as     on
                         duplicates, not tested against each other
-======================  ===========================================================  =======
+======================  ==============================================================  =======
 
 A candidate pair is one whose elements' boxes meet (grown by the clearance in a clearance
 query): a pair set aside is one the query would have tested. A pair two rules name is counted
