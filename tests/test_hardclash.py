@@ -91,11 +91,11 @@ def fcl_crosses(case) -> bool:
     """Whether python-fcl finds the two surfaces in contact (a crossing, for the open cases)."""
     import fcl
 
-    from pycinder.testing import _fcl_object, world_mesh
+    from pycinder.testing import fcl_object, world_mesh
 
     (a, b), (ta, tb) = case.meshes, case.transforms
     request = fcl.CollisionRequest(num_max_contacts=1, enable_contact=False)
-    return fcl.collide(_fcl_object(world_mesh(a, ta)), _fcl_object(world_mesh(b, tb)), request,
+    return fcl.collide(fcl_object(world_mesh(a, ta)), fcl_object(world_mesh(b, tb)), request,
                        fcl.CollisionResult()) > 0
 
 

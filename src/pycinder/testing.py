@@ -351,7 +351,9 @@ def sample_mesh_path(name: str) -> Path:
     return path
 
 
-def _fcl_object(mesh: trimesh.Trimesh) -> Any:
+def fcl_object(mesh: Any) -> Any:
+    """A mesh (trimesh, or anything with ``vertices`` (V, 3) and ``faces`` (F, 3)) as
+    python-fcl's collision object of its triangles, in float64, at the identity."""
     fcl = require("fcl", "exact distances", "test", "python-fcl")
     model = fcl.BVHModel()
     model.beginModel(len(mesh.vertices), len(mesh.faces))
@@ -401,7 +403,7 @@ def surface_distance(a: Any, b: Any, transforms: Any = None) -> float:
     import fcl
 
     ta, tb = (None, None) if transforms is None else transforms
-    oa, ob = _fcl_object(world_mesh(a, ta)), _fcl_object(world_mesh(b, tb))
+    oa, ob = fcl_object(world_mesh(a, ta)), fcl_object(world_mesh(b, tb))
     return float(fcl.distance(oa, ob, fcl.DistanceRequest(), fcl.DistanceResult()))
 
 
@@ -453,7 +455,7 @@ def first_contact(a: trimesh.Trimesh, b: trimesh.Trimesh, direction: np.ndarray,
 
     d = np.asarray(direction, dtype=np.float64)
     d = d / np.linalg.norm(d)
-    oa, ob = _fcl_object(a), _fcl_object(b)
+    oa, ob = fcl_object(a), fcl_object(b)
     far = float(np.linalg.norm(a.extents) + np.linalg.norm(b.extents)) + 2 * gap + float(
         np.linalg.norm(a.centroid - b.centroid))
     step = 0.25 * min(float(a.extents.min()), float(b.extents.min()))

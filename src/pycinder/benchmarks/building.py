@@ -62,9 +62,9 @@ __all__ = ["CASES", "CIRCLE_SEGMENTS", "CLEARANCE", "CLI_DEPTH", "DENSE_JSON", "
            "GRAZE", "IFCCLASH_RUNS", "MAP_OFFSET", "MARGIN", "PITCH", "PLACEMENTS",
            "PYCINDER_RUNS", "SHALLOW", "SLAB", "Building", "D", "H", "Part", "Relation", "W",
            "check_depths", "check_distances", "chord_error", "cli_check", "dense_entry",
-           "generate", "group_counts", "main", "markdown", "must_not_report", "must_report",
-           "relation", "run_building", "score", "smart_group_count", "truth_classes",
-           "write_federated", "write_ifc"]
+           "generate", "group_counts", "ifcclash_tree", "main", "markdown", "must_not_report",
+           "must_report", "relation", "run_building", "score", "smart_group_count",
+           "truth_classes", "write_federated", "write_ifc"]
 
 MAP_OFFSET = (500_000.0, 500_000.0, 0.0)
 """Where the building's site is placed in map coordinates (metres): 707 km from the origin."""
@@ -146,12 +146,18 @@ def _pycinder_runs(model: Any, building: Building, placement: str,
     return rows, hard
 
 
-def _ifcclash_runs(paths: Sequence[Path], building: Building, placement: str,
-                   say: Say) -> list[dict[str, Any]]:
-    """IfcClash's runs of ``placement``, with its own steps (:class:`ifcclash.Clasher`): its
-    iterator fills one tree (tessellation), then each mode clashes the elements against
-    themselves (an element's clash with itself left out), and its smart grouping groups the
-    clashes."""
+def ifcclash_tree(paths: Sequence[Path]) -> tuple[Any, list[Any], float]:
+    """IfcClash's first step (:class:`ifcclash.Clasher`): its iterator tessellates every element
+    of the files (but features) into one tree.
+
+    Returns
+    -------
+    tree : ifcopenshell.geom.tree
+    elements : list
+        The elements, one per GlobalId (IfcClash keys them by GlobalId alone).
+    seconds : float
+        How long the tree took.
+    """
     import logging
 
     require("ifcopenshell", "the building benchmark", "bim")
@@ -164,15 +170,23 @@ def _ifcclash_runs(paths: Sequence[Path], building: Building, placement: str,
     settings = ClashSettings()
     settings.logger = logging.getLogger("ifcclash")
     clasher = Clasher(settings)
-    say(f"building: IfcClash's tree, {placement}")
     t0 = time.perf_counter()
     clasher.tree = ifcopenshell.geom.tree(backend="opencascade.trianglebvh")
     clasher.create_group("a")
     for p in paths:
         clasher.add_collision_objects("a", clasher.load_ifc(str(p)), {"file": str(p)})
-    tess = time.perf_counter() - t0
-    elements = list(clasher.groups["a"]["elements"].values())
-    tree = clasher.tree
+    seconds = time.perf_counter() - t0
+    return clasher.tree, list(clasher.groups["a"]["elements"].values()), seconds
+
+
+def _ifcclash_runs(paths: Sequence[Path], building: Building, placement: str,
+                   say: Say) -> list[dict[str, Any]]:
+    """IfcClash's runs of ``placement``, with its own steps (:class:`ifcclash.Clasher`): its
+    iterator fills one tree (tessellation), then each mode clashes the elements against
+    themselves (an element's clash with itself left out), and its smart grouping groups the
+    clashes."""
+    say(f"building: IfcClash's tree, {placement}")
+    tree, elements, tess = ifcclash_tree(paths)
     calls = {"intersection": lambda v: tree.clash_intersection_many(
                 elements, elements, tolerance=v, check_all=True),
              "collision": lambda v: tree.clash_collision_many(

@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
-import logging
 import sys
 import time
 import warnings
@@ -33,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from .building import ifcclash_tree
 from .realtruth import exact_truth, score
 
 DEPTH = 0.002
@@ -130,21 +130,8 @@ def _ifcclash_rows(model: Any, paths: Sequence[Path], truth: dict, names: list[s
     """IfcClash's steps (:class:`ifcclash.Clasher`): its tree of the files' elements (its own
     tessellation), then each mode over every element against every other, timed as pycinder's
     are (after a warm run, the fastest of ``repeats``)."""
-    import ifcopenshell.geom
-    from ifcclash.ifcclash import Clasher, ClashSettings
-
-    settings = ClashSettings()
-    settings.logger = logging.getLogger("ifcclash")
-    clasher = Clasher(settings)
     say("real models: IfcClash's tree")
-    t0 = time.perf_counter()
-    clasher.tree = ifcopenshell.geom.tree(backend="opencascade.trianglebvh")
-    clasher.create_group("a")
-    for p in paths:
-        clasher.add_collision_objects("a", clasher.load_ifc(str(p)), {"file": str(p)})
-    tessellation = time.perf_counter() - t0
-    elements = list(clasher.groups["a"]["elements"].values())
-    tree = clasher.tree
+    tree, elements, tessellation = ifcclash_tree(paths)
     # IfcClash keys its elements by GlobalId alone (its groups' "elements"), so a GlobalId
     # that two files share is one element to it: mapped to the first body that has it.
     index: dict[str, int] = {}

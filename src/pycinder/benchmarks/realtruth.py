@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from ..focused.modes.regions import mesh_solid
+from ..testing import fcl_object
 from ..util.optional import require
 
 EXACT = 1e-9
@@ -121,15 +122,6 @@ def verdict(p: PairTruth | None, mode: str, value: float | None = None) -> str:
     if 2.0 * p.ball > value + EXACT:
         return "must"
     return "never" if p.shallow.get(value, False) else "either"
-
-
-def _fcl_object(mesh: Any) -> Any:
-    fcl = require("fcl", "the real-model truth", "bench", package="python-fcl")
-    bvh = fcl.BVHModel()
-    bvh.beginModel(len(mesh.vertices), len(mesh.faces))
-    bvh.addSubModel(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int32))
-    bvh.endModel()
-    return fcl.CollisionObject(bvh, fcl.Transform())
 
 
 def inscribed_radius(part: Any) -> float:
@@ -232,7 +224,7 @@ def exact_truth(model: Any, margin: float, depths: Sequence[float] = (),
         a, b = bodies[i].mesh, bodies[j].mesh
         for k in (i, j):
             if k not in objects:
-                objects[k] = _fcl_object(bodies[k].mesh)
+                objects[k] = fcl_object(bodies[k].mesh)
         hit = fcl.collide(objects[i], objects[j], fcl.CollisionRequest(), fcl.CollisionResult())
         distance = 0.0 if hit else float(fcl.distance(
             objects[i], objects[j], fcl.DistanceRequest(), fcl.DistanceResult()))
