@@ -356,9 +356,11 @@ class HardClash:
         # matters only up to d (the frames' cap), and dense ones skip the whole-pair pass
         # (see local_first). Of the others, only a pair of convex solids needs every line's
         # figure (the hull's bound): the rest need their least line's.
-        kinds = pair_kinds(scene, pairs) if d is not None else np.zeros(len(pairs), bool)
-        convex = convex_pairs(scene, pairs) if d is not None else np.zeros(len(pairs), bool)
-        kinds &= ~boxed
+        kinds, convex = np.zeros(len(pairs), bool), np.zeros(len(pairs), bool)
+        rest = np.flatnonzero(~boxed)
+        if d is not None and len(rest):
+            kinds[rest] = pair_kinds(scene, pairs[rest])
+            convex[rest] = convex_pairs(scene, pairs[rest])
         cap = np.where(kinds, d or 0.0, np.where(convex, 0.0, LEAST_LINE))
         first = local_first(scene, pack, pairs, kinds)
         whole = np.flatnonzero(~first & ~boxed)
