@@ -209,39 +209,50 @@ def _through_openings(model: Any, index: dict[tuple[str, str], int], a: np.ndarr
                       b: np.ndarray) -> np.ndarray:
     """(K,) bool: which pairs of bodies ``a``, ``b`` (K,) hold an element and a host whose
     opening the element's volume reaches into (by more than :data:`OPENING_SLACK`; an open
-    element, by one of its vertices inside the opening's box)."""
+    element, by one of its vertices inside the opening's box). Only an element whose box
+    overlaps the opening's (more than touching it) is cut with it."""
     out = np.zeros(len(a), bool)
-    holes: dict[int, list[Any]] = {}
-    for opening in model.openings:
+    holes: dict[int, list[int]] = {}
+    for n, opening in enumerate(model.openings):
         host = index.get((opening.file, opening.host))
         if host is not None:
-            holes.setdefault(host, []).append(opening)
+            holes.setdefault(host, []).append(n)
     if not holes:
         return out
+    rows, elements, openings = [], [], []
     for k, (i, j) in enumerate(zip(a.tolist(), b.tolist())):
         for element, host in ((i, j), (j, i)):
-            for opening in holes.get(host, ()):
-                if _reaches_into(model.bodies[element].mesh, opening.mesh):
-                    out[k] = True
-                    break
-            if out[k]:
-                break
+            for n in holes.get(host, ()):
+                rows.append(k)
+                elements.append(element)
+                openings.append(n)
+    if not rows:
+        return out
+    # Each mesh's box read once (trimesh checks its cache on every read).
+    body_ids, body_of = np.unique(elements, return_inverse=True)
+    hole_ids, hole_of = np.unique(openings, return_inverse=True)
+    body_box = np.array([model.bodies[k].mesh.bounds for k in body_ids], np.float64)
+    hole_box = np.array([model.openings[n].mesh.bounds for n in hole_ids], np.float64)
+    lo = np.maximum(body_box[body_of, 0], hole_box[hole_of, 0])
+    hi = np.minimum(body_box[body_of, 1], hole_box[hole_of, 1])
+    for m in np.flatnonzero(np.all(hi > lo, axis=1)):  # boxes apart or touching: not in it
+        k = rows[m]
+        if not out[k] and _reaches_into(model.bodies[elements[m]].mesh,
+                                        model.openings[openings[m]].mesh, lo[m], hi[m]):
+            out[k] = True
     return out
 
 
-def _reaches_into(mesh: Any, opening: Any) -> bool:
-    """Whether an element's volume reaches into an opening (see :func:`_through_openings`)."""
+def _reaches_into(mesh: Any, opening: Any, lo: np.ndarray, hi: np.ndarray) -> bool:
+    """Whether an element's volume reaches into an opening whose box overlaps its own in
+    ``lo``, ``hi`` (3,) (see :func:`_through_openings`)."""
     from ..focused.modes.regions import mesh_solid
 
-    lo = np.maximum(mesh.bounds[0], opening.bounds[0])
-    hi = np.minimum(mesh.bounds[1], opening.bounds[1])
-    if np.any(hi <= lo):
-        return False  # boxes apart or only touching
     origin = 0.5 * (lo + hi)
     hole = mesh_solid(opening.vertices, opening.faces, origin)
-    body = mesh_solid(mesh.vertices, mesh.faces, origin)
     if hole is None:
         return False
+    body = mesh_solid(mesh.vertices, mesh.faces, origin)
     if body is None:  # a surface: a vertex of it inside the opening's box
         v = np.asarray(mesh.vertices, np.float64)
         return bool(np.any(np.all((v > lo) & (v < hi), axis=1)))
