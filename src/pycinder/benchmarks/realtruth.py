@@ -101,7 +101,7 @@ def verdict(p: PairTruth | None, mode: str, value: float | None = None) -> str:
     """``"must"``, ``"never"`` or ``"either"``: what a pair's truth asks of ``mode``
     (``"min_depth"`` with ``value`` d, ``"clearance"`` with ``value`` c, or ``"default"``; see
     the module's rules). A pair outside the truth (None) is farther apart than its margin and
-    its default tolerance (:func:`candidate_pairs`)."""
+    its default tolerance (:func:`truth_pairs`)."""
     if p is None:
         return "never"
     if mode == "clearance":
@@ -166,7 +166,7 @@ def _separated_by(a: Any, b: Any, shift: float, part: Any) -> bool:
     return False
 
 
-def candidate_pairs(model: Any, margin: float) -> np.ndarray:
+def truth_pairs(model: Any, margin: float) -> np.ndarray:
     """(K, 2) int64: the pairs of the model's bodies whose world boxes lie within ``margin`` of
     each other, or within the pair's default tolerance (:func:`tolerances`) where that is
     more: a pair left out is farther apart than every threshold its verdicts use."""
@@ -191,7 +191,7 @@ def tolerances(model: Any) -> np.ndarray:
 def exact_truth(model: Any, margin: float, depths: Sequence[float] = (),
                 progress: Any = None) -> dict[tuple[int, int], PairTruth]:
     """Every pair of the model's elements within ``margin`` of each other (or within their
-    default tolerance, :func:`candidate_pairs`), with its exact figures (:class:`PairTruth`),
+    default tolerance, :func:`truth_pairs`), with its exact figures (:class:`PairTruth`),
     the certificates made for each hard-clash depth of ``depths``. The overlap volume is
     computed for every pair within ``margin`` and every pair one of whose boxes holds the
     other's (one element inside the other, its surfaces apart).
@@ -217,7 +217,7 @@ def exact_truth(model: Any, margin: float, depths: Sequence[float] = (),
     size = tolerances(model)
     objects: dict[int, Any] = {}
     out: dict[tuple[int, int], PairTruth] = {}
-    pairs = candidate_pairs(model, margin)
+    pairs = truth_pairs(model, margin)
     for n, (i, j) in enumerate(pairs.tolist()):
         if progress is not None and n % 500 == 0:
             progress(f"exact truth: {n:,} of {len(pairs):,} pairs")
@@ -287,5 +287,5 @@ def score(truth: dict[tuple[int, int], PairTruth], reported: set[tuple[int, int]
             "wrong": [said(k) for k in false[:shown]]}
 
 
-__all__ = ["BALL_RADIUS", "EXACT", "VOLUME", "PairTruth", "candidate_pairs", "exact_truth",
-           "inscribed_radius", "score", "tolerances", "verdict"]
+__all__ = ["BALL_RADIUS", "EXACT", "VOLUME", "PairTruth", "exact_truth", "inscribed_radius",
+           "score", "tolerances", "truth_pairs", "verdict"]
