@@ -27,7 +27,7 @@ CHILD = r"""
 import json, statistics, sys, time
 import numpy as np
 import pycinder
-from pycinder.benchmarks.scenes import DeformingBunnies, ManyBodies, Stairs
+from pycinder.testing.scenes import DeformingBunnies, ManyBodies, Stairs
 name, frames = sys.argv[1], int(sys.argv[2])
 scene = {"stairs": lambda: Stairs(250, frames), "many": lambda: ManyBodies(1000, frames),
          "deforming": lambda: DeformingBunnies(16, frames)}[name]().cached()

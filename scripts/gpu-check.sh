@@ -41,7 +41,7 @@ export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp} PYTHONUNBUFFERED=1
 if [[ $quick == 1 ]]; then
     suite_s=${SUITE_S:-240}; processes_s=${PROCESSES_S:-300}; bench_s=${BENCH_S:-240}
     repro_s=${REPRO_S:-120}; test_s=${TEST_S:-120}
-    tests=(tests/test_api.py tests/test_device_loss.py tests/test_answers.py)
+    tests=(tests/test_api.py tests/gpu/test_device_loss.py tests/test_answers.py)
     bench_args=(--repeat 1)
     repro_args=(--frames 1 --bodies 300 --stairs 60 --deadline 30 --dump-after 100)
 else

@@ -140,8 +140,8 @@ class Geometry:
         depth; a depth it cannot prove is left in the band). With an open body, by the
         surfaces' exact distance (python-fcl), an edge crossing the other's surface with both
         ends ``2 t`` from it, and, for a solid, how deep the other's surface lies inside it."""
-        t = float(exact.pair_tolerances(self.meshes, self.transforms, np.array([[i, j]]),
-                                  self.tolerance)[0])
+        t = float(exact.mesh_pair_tolerances(self.meshes, self.transforms,
+                                            np.array([[i, j]]), self.tolerance)[0])
         a = exact.world_mesh(self.meshes[i], self.transforms[i])
         b = exact.world_mesh(self.meshes[j], self.transforms[j])
         if a.is_volume and b.is_volume:

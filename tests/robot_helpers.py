@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from pycinder.benchmarks import robots as R
+from pycinder.testing import robots as R
 from pycinder.robot import AllowedCollisionMatrix, Robot
 
 TABLE_PLACE = np.array([[1.0, 0.0, 0.0, 0.35], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, -0.035],

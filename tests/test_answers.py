@@ -81,10 +81,10 @@ import trimesh
 from conftest import Geometry
 
 import pycinder
-from pycinder.benchmarks.scenes import (DeformingBunnies, ManyBodies, NarrowPhase, SpreadPairs,
-                                        Stairs)
-from pycinder.testing import (holed_scene, nested_scene, open_body_cases, pair_tolerances,
+from pycinder.testing import (holed_scene, mesh_pair_tolerances, nested_scene, open_body_cases,
                               random_scene)
+from pycinder.testing.scenes import (DeformingBunnies, ManyBodies, NarrowPhase, SpreadPairs,
+                                     Stairs)
 
 DATA = Path(__file__).parent / "data" / "answers"
 KEY = "__key__"
@@ -249,8 +249,8 @@ Source = Iterator[tuple[str, Answer, Geometry | None]]
 
 
 def _tolerances(meshes, transforms, tolerance: float | None) -> Callable[[np.ndarray], np.ndarray]:
-    return lambda pairs: pair_tolerances(meshes, transforms, np.asarray(pairs, np.int64),
-                                         tolerance)
+    return lambda pairs: mesh_pair_tolerances(meshes, transforms, np.asarray(pairs, np.int64),
+                                              tolerance)
 
 
 def _scene_pixel(meshes, transforms, resolution: int) -> float:
@@ -265,7 +265,7 @@ def _scene_pixel(meshes, transforms, resolution: int) -> float:
 
 REFERENCE = {"planner": "numpy"}
 """The answers are the NumPy planner's, the reference (``planner="auto"`` plans large queries on
-the GPU; ``tests/test_gpu_planner.py`` compares the two planners and exact geometry)."""
+the GPU; ``tests/focused/plan/test_gpu_planner.py`` compares the two planners and exact geometry)."""
 
 
 def _frames(scene, frames: int, **options) -> Source:

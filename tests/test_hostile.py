@@ -16,7 +16,7 @@ import trimesh
 import pycinder
 from pycinder.errors import GpuMemoryError, GpuTimeoutError, PrecisionWarning
 from pycinder.gpu import buffers as gpu_buffers
-from pycinder.focused.frame.atlas import EDGE_ENTRY_BYTES
+from pycinder.focused.frame.atlas_buffers import EDGE_ENTRY_BYTES
 
 
 def move(x=0.0, y=0.0, z=0.0) -> np.ndarray:

@@ -9,6 +9,7 @@ circle at all. The same checks run on a copy of the package with one circle adde
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import sys
@@ -27,6 +28,12 @@ MOST_LINES = 800
 """Most lines of one module of the package."""
 MOST_TOP_MODULES = 15
 """Most modules directly in ``src/pycinder/`` (the rest live in subpackages)."""
+MOST_CLI_LINES = 300
+"""Most lines of one module of the command-line tool (one module per command)."""
+SHADER_OWNERS = {"broad": "focused/broad", "plan": "focused/plan", "frame": "focused/frame",
+                 "measure": "focused/measure", "wholescene": "wholescene", "robot": "robot",
+                 "debug": "debug"}
+"""Each shader's prefix and the folder of the package that owns it."""
 
 
 def lint_imports(cwd: Path, pythonpath: Path | None = None) -> subprocess.CompletedProcess:
@@ -92,3 +99,78 @@ def test_the_checks_fail_when_a_circle_is_added(circled: Path) -> None:
         capture_output=True, text=True, timeout=300)
     assert found.returncode == 0, found.stderr
     assert "pycinder.util.text" in found.stdout and "pycinder.detector" in found.stdout
+
+
+def test_one_base_name_per_module() -> None:
+    """No two modules of the package share a base name (``cull.py`` was three different things):
+    a search for a file name finds the one thing it names."""
+    seen: dict[str, list[str]] = {}
+    for path in PACKAGE.rglob("*.py"):
+        if path.name not in ("__init__.py", "__main__.py"):
+            seen.setdefault(path.name, []).append(str(path.relative_to(PACKAGE)))
+    assert not {n: p for n, p in seen.items() if len(p) > 1}
+
+
+def test_every_shader_is_prefixed_by_its_owner() -> None:
+    """``frame_cull.wgsl`` belongs to ``focused/frame``: every shader's name starts with its
+    owner's, and its owner's folder names it (or a shader that does includes it)."""
+    shaders = sorted((PACKAGE / "shaders").glob("*.wgsl"))
+    assert shaders
+    named = {}
+    for owner, folder in SHADER_OWNERS.items():
+        named[owner] = "".join(p.read_text(encoding="utf-8")
+                               for p in (PACKAGE / folder).rglob("*.py"))
+    wgsl = {p.stem: p.read_text(encoding="utf-8") for p in shaders}
+    for path in shaders:
+        owner = path.stem.split("_")[0]
+        assert owner in SHADER_OWNERS and "_" in path.stem, f"{path.name} has no owner's prefix"
+        used = f'"{path.stem}"' in named[owner] or any(
+            f"//!include {path.stem}" in text for text in wgsl.values())
+        assert used, f"{path.name}: nothing in {SHADER_OWNERS[owner]} or the shaders uses it"
+
+
+def test_every_pass_names_its_file_and_shader() -> None:
+    """The code layout's table (``.. pass-files::``): each pass class's module carries its pass
+    code in its name, and its shader exists under its owner's prefix."""
+    sys.path.insert(0, str(ROOT / "docs" / "_ext"))
+    try:
+        import passtable
+    finally:
+        sys.path.remove(str(ROOT / "docs" / "_ext"))
+    rows = passtable.pass_files()
+    assert len(rows) >= 29
+    for code, path, shader, _ in rows:
+        assert (PACKAGE / path).is_file() and (PACKAGE / shader).is_file(), (code, path, shader)
+        if code[0] in "BCFHKP" and code[1:2].isdigit():
+            assert Path(path).stem.startswith(code[0].lower()), (code, path)
+
+
+def test_the_cli_is_one_small_module_per_command() -> None:
+    cli = PACKAGE / "cli"
+    assert cli.is_dir() and (cli / "__init__.py").is_file()
+    long = {p.name: n for p in cli.glob("*.py")
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > MOST_CLI_LINES}
+    assert not long, f"cli modules over {MOST_CLI_LINES} lines: {long}"
+
+
+def test_the_package_holds_no_benchmark() -> None:
+    """The benchmark harness (timing peers, with the bench extra) lives beside its results in the
+    checkout's ``benchmarks/``, not in the wheel; no module of the package imports it."""
+    assert not (PACKAGE / "benchmarks").exists()
+    graph = grimp.build_graph("pycinder", cache_dir=None)
+    assert not [m for m in graph.modules if m.startswith("pycinder.benchmarks")]
+    uses = [str(p.relative_to(PACKAGE)) for p in PACKAGE.rglob("*.py")
+            if re.search(r"^\s*(from|import) benchmarks\b", p.read_text(encoding="utf-8"), re.M)]
+    assert uses in ([], ["cli/bench.py"]), uses
+
+
+def test_the_tests_mirror_the_source() -> None:
+    """A test of ``focused/plan`` lives in ``tests/focused/plan``: every folder of tests names a
+    package of the source, but ``data`` (the files the tests read) and ``harness`` (the
+    benchmark harness's tests, which lives in the checkout's ``benchmarks/``)."""
+    tests = Path(__file__).resolve().parent
+    folders = [p for p in tests.rglob("*") if p.is_dir() and "__pycache__" not in p.parts
+               and p.relative_to(tests).parts[0] not in ("data", "harness")]
+    assert folders
+    for folder in folders:
+        assert (PACKAGE / folder.relative_to(tests) / "__init__.py").is_file(), folder

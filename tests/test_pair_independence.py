@@ -103,7 +103,7 @@ def test_a_configuration_gets_the_same_pairs_in_every_batch(monkeypatch):
     through first contact): each configuration's pairs are the same checked alone, in batches
     of 7 and 64, and in one batch of all."""
     pytest.importorskip("yourdfpy")
-    from pycinder.benchmarks import robots as R
+    from pycinder.testing import robots as R
     from pycinder.robot import AllowedCollisionMatrix, Environment
 
     with warnings.catch_warnings():

@@ -7,9 +7,8 @@ import trimesh
 
 import pycinder
 from pycinder.request import FOUND_RECORDS_PER_PAIR, RecordMode, record_mode
-from pycinder.testing import pair_tolerances
-from pycinder.tolerance import DEFAULT_RELATIVE_TOLERANCE, body_sizes, pair_tolerance
-from pycinder.testing import pair_tolerances
+from pycinder.testing import mesh_pair_tolerances
+from pycinder.tolerance import DEFAULT_RELATIVE_TOLERANCE, body_sizes, default_pair_tolerances
 
 from conftest import assert_matches_truth
 
@@ -43,9 +42,10 @@ def test_default_tolerance_is_one_percent_of_the_smaller_diagonal():
     sizes = body_sizes(lo, hi, np.stack([np.eye(4), turned]))
     np.testing.assert_allclose(sizes, [13.0, 6.0], rtol=1e-12)
     assert DEFAULT_RELATIVE_TOLERANCE == 0.01
-    np.testing.assert_allclose(pair_tolerance(sizes[[0, 0]], sizes[[1, 0]]), [0.06, 0.13],
+    np.testing.assert_allclose(default_pair_tolerances(sizes[[0, 0]], sizes[[1, 0]]), [0.06, 0.13],
                                rtol=1e-12)
-    np.testing.assert_array_equal(pair_tolerance(sizes[[0, 0]], sizes[[1, 0]], 0.5), [0.5, 0.5])
+    np.testing.assert_array_equal(default_pair_tolerances(sizes[[0, 0]], sizes[[1, 0]], 0.5),
+                                  [0.5, 0.5])
 
 
 def test_pair_tolerances_agree_with_the_query(detector):
@@ -63,7 +63,7 @@ def test_pair_tolerances_agree_with_the_query(detector):
     result = detector.find_collisions(meshes, transforms)
     assert result.pairs.tolist() == [[0, 1], [0, 2]]
     assert_matches_truth(result.pairs, pycinder.testing.ground_truth(meshes, transforms))
-    expected = pair_tolerances(meshes, transforms, result.pairs, None)
+    expected = mesh_pair_tolerances(meshes, transforms, result.pairs, None)
     np.testing.assert_allclose(expected, [0.06, 0.013], rtol=1e-12)
     assert result.stats.candidates == 2
     # The query measures the bodies from their vertices as stored on the GPU (single precision).
@@ -76,6 +76,6 @@ def test_pair_tolerances_agree_with_the_query(detector):
     given = detector.find_collisions(meshes, transforms, records="none")
     assert given.pairs.tolist() == result.pairs.tolist() and len(given.records) == 0
     fixed = pycinder.Detector(tolerance=0.02).find_collisions(meshes, transforms)
-    np.testing.assert_array_equal(pair_tolerances(meshes, transforms, fixed.pairs, 0.02),
+    np.testing.assert_array_equal(mesh_pair_tolerances(meshes, transforms, fixed.pairs, 0.02),
                                   [0.02, 0.02])
     assert fixed.stats.tolerance == (0.02, 0.02)

@@ -42,7 +42,7 @@ def test_records_are_decoded_when_first_read(detector, monkeypatch):
     tolerance), on the penetrating body's surface."""
     import threading
 
-    from pycinder.focused import strategy as focused
+    from pycinder.focused import focused_strategy as focused
 
     calls = []
     decode = focused.decode_records

@@ -1,6 +1,7 @@
 """``pycinder-cli``: the help text of ``pycinder`` and of each of its commands, from the parser.
 
-Rendered at build time from :func:`pycinder.cli.build_parser`, so the reference follows the code.
+Rendered at build time from :func:`pycinder.cli.build_parser` (each command's parser comes from
+its module's ``add_parser``), so the reference follows the code.
 """
 
 from __future__ import annotations

@@ -7,8 +7,9 @@ scene, and the result split back per scene (:meth:`pycinder.Detector.find_collis
 
 A query has a floor of a few milliseconds however small it is (a submission, a readback, host work
 per stage). A batch pays it once for all its scenes. Each scene keeps its own answer: the broad
-phase pairs only bodies of one scene (:func:`pycinder.focused.broad.prune.side_by_side`), and every
-pair gets its scene's tolerance, so a scene's pairs are those a query of that scene alone gives.
+phase pairs only bodies of one scene (:func:`pycinder.focused.broad.broad_numpy.side_by_side`), and
+every pair gets its scene's tolerance, so a scene's pairs are those a query of that scene alone
+gives.
 """
 
 from __future__ import annotations
@@ -86,7 +87,7 @@ class JoinedScenes:
         The validated bodies of every scene, scene after scene.
     key : (N,) int
         The scene of each body: the broad phase pairs only bodies of one scene.
-    tolerance : (N,) float
+    body_tolerances : (N,) float
         The tolerance of each body's scene; NaN where the detector's own applies.
     counts : (S,) int
         Bodies per scene.
@@ -96,7 +97,7 @@ class JoinedScenes:
 
     scene: Scene
     key: np.ndarray
-    tolerance: np.ndarray
+    body_tolerances: np.ndarray
     counts: np.ndarray
     names: list[list | None]
 

@@ -304,7 +304,7 @@ def _width(region: np.ndarray, n: int, along: np.ndarray, from_a: np.ndarray) ->
 
 class TileViews(Protocol):
     """What contacts read of a focused query's tiles (a
-    :class:`~pycinder.focused.plan.tiles.TilePlan`): each tile's pixel size and view axes."""
+    :class:`~pycinder.focused.plan.plan_numpy.TilePlan`): each tile's pixel size and view axes."""
 
     pixel: np.ndarray
     """(T,) float: world size of a pixel."""

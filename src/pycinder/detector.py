@@ -19,16 +19,20 @@ import wgpu
 
 from .batching import join_scenes, split
 from .errors import GpuError, GpuTimeoutError, with_message
-from .focused.broad.prune import PairList
-from .focused.strategy import FocusedStrategy
+from .focused.broad.broad_numpy import PairList
+from .focused.focused_strategy import FocusedStrategy
 from .gpu.device import (check_not_forked, device_lost, fork_generation, get_gpu,
                          keep_from_parent, renew_gpu)
 from .request import CollisionRequest
 from .result import CollisionResult, Stats
 from .scene import PreparedBodies, Scene, ShapeCache, prepare_scene
 from .scene.prepared import check_body_count
+from .strategy import Pending, Query, Strategy, refuse
 from .view import View
-from .wholescene.strategy import WholeSceneStrategy
+from .wholescene.scene_strategy import WholeSceneStrategy
+
+STRATEGIES: dict[str, type[Strategy]] = {"focused": FocusedStrategy, "scene": WholeSceneStrategy}
+"""The strategies by the name a request gives (``CollisionRequest.strategy``)."""
 
 
 class Detector:
@@ -80,7 +84,7 @@ class Detector:
         self._generation = fork_generation()
         self._lock = self.gpu.lock  # one query at a time on the device, from any thread
         with self._lock:  # pipelines and buffers are made on the device too
-            self.strategy: FocusedStrategy | WholeSceneStrategy = self._make_strategy()
+            self.strategy: Strategy = self._make_strategy()
 
     @property
     def in_this_process(self) -> bool:
@@ -96,10 +100,8 @@ class Detector:
         check_not_forked(self._generation, "this Detector")
         return self._lock
 
-    def _make_strategy(self) -> FocusedStrategy | WholeSceneStrategy:
-        if self.request.strategy == "focused":
-            return FocusedStrategy(self.gpu, self.request)
-        return WholeSceneStrategy(self.gpu, self.request)
+    def _make_strategy(self) -> Strategy:
+        return STRATEGIES[self.request.strategy](self.gpu, self.request)
 
     def _recover(self, exc: Exception) -> GpuError:
         """After a GPU error: rebuild the strategy's pipelines and buffers (on a new device
@@ -246,7 +248,7 @@ class Detector:
                      names: Sequence[str | None] | None = None, groups: Any = None,
                      pairs: Any = None) -> bool:
         """Whether any two bodies interfere, as :meth:`find_collisions` would answer, for less:
-        the pairs likeliest to collide (:func:`~pycinder.focused.plan.tiles.likely_pairs`) run
+        the pairs likeliest to collide (:func:`~pycinder.focused.plan.plan_numpy.likely_pairs`) run
         first, and the GPU skips every tile that has not started once any pair is found (the
         focused strategy; the scene strategy runs its whole query). Arguments as
         :meth:`find_collisions`.
@@ -257,9 +259,6 @@ class Detector:
             Whether a pair was found, each tile tested as :meth:`find_collisions` tests it: the
             contract's promises hold for the answer (see :mod:`pycinder.request`).
         """
-        if self.request.strategy != "focused":
-            return bool(len(self.find_collisions(bodies, transforms, names=names,
-                                                 groups=groups, pairs=pairs).pairs))
         pending = self._pending(bodies, transforms, names, groups, None, "none",
                                 stop_at_first=True, pairs=pairs)
         return bool(len(pending.result().pairs))
@@ -275,23 +274,19 @@ class Detector:
         if isinstance(bodies, PreparedBodies) and names is not None:
             raise ValueError("prepared bodies have their names (given to Detector.prepare); "
                              "pass names=None")
-        if view is not None and self.request.strategy != "scene":
-            raise ValueError("view applies to strategy='scene'; the focused strategy chooses a "
-                             "view per candidate pair")
+        if view is not None:
+            refuse(self.strategy, "view")
         with self._device_lock():  # one query at a time: the GPU buffers are the detector's own
             t0 = time.perf_counter()
             scene = self._scene(bodies, transforms, names)
             groups = _checked_groups(groups, len(scene))
             within = None
             if pairs is not None:
-                if self.request.strategy != "focused":
-                    raise ValueError("pairs applies to strategy='focused': the scene strategy "
-                                     "draws every body in one image")
+                refuse(self.strategy, "pairs")
                 within, groups = allowed_pairs(pairs, len(scene), groups), None
-            return PendingQuery(self, self._submit(scene, t0, groups=groups, view=view,
-                                                   records=records, within=within,
-                                                   stop_at_first=stop_at_first),
-                                t0, records)
+            query = Query(groups=groups, records=records, within=within,
+                          stop_at_first=stop_at_first, view=view)
+            return PendingQuery(self, self._submit(scene, t0, query), t0)
 
     def find_collisions_batch(self, scenes: Sequence[Any], *, tolerance: Any = None,
                               labels: Sequence[Any] | None = None, records: str | None = None,
@@ -300,37 +295,33 @@ class Detector:
         as :meth:`find_collisions` gives it (with ``contacts=True``, each result's contacts).
         See :func:`pycinder.batch.find_collisions_batch`."""
         request = self.request
-        if request.strategy != "focused":
-            raise ValueError("find_collisions_batch needs strategy='focused': the scene strategy "
-                             "draws one image of everything")
+        refuse(self.strategy, "batch")
         records = request.call_records(records, contacts)
         with self._device_lock():  # one query at a time: the GPU buffers are the detector's own
             t0 = time.perf_counter()
             joined = join_scenes(scenes, labels, tolerance, strict=request.strict,
                                  cache=self.shapes, max_bodies=request.max_bodies)
-            pending = self._submit(joined.scene, t0, records=records, within=joined.key,
-                                   tolerance=joined.tolerance)
-            result = self._finish(pending, t0, records)
+            pending = self._submit(joined.scene, t0, Query(records=records, within=joined.key,
+                                                           body_tolerances=joined.body_tolerances))
+            result = self._finish(pending, t0)
         return split(result, joined)
 
     def _find_within(self, scene: Scene, within: np.ndarray | PairList,
-                     tolerance: np.ndarray | None) -> CollisionResult:
+                     body_tolerances: np.ndarray | None) -> CollisionResult:
         """One query of a validated scene holding many small ones (``within`` (N,): each body's
-        scene; pairs only inside one; or a :class:`~pycinder.focused.broad.prune.PairList` of
-        the only pairs to test), each body's scene's tolerance in ``tolerance`` (N,), NaN for
+        scene; pairs only inside one; or a :class:`~pycinder.focused.broad.broad_numpy.PairList` of
+        the only pairs to test), each body's scene's tolerance in ``body_tolerances`` (N,), NaN for
         the request's: :meth:`find_collisions_batch` without joining and splitting scenes (for
         callers that make the scene themselves, from :meth:`PreparedBodies.copies`, and read
         its pairs with the bodies' global indices)."""
-        if self.request.strategy != "focused":
-            raise ValueError("many scenes in one query need strategy='focused': the scene "
-                             "strategy draws one image of everything")
+        refuse(self.strategy, "scenes")
         check_body_count(len(scene), self.request.max_bodies)
         records = self.request.call_records(None, None)
         with self._device_lock():
             t0 = time.perf_counter()
-            pending = self._submit(scene, t0, records=records, within=within,
-                                   tolerance=tolerance)
-            return self._finish(pending, t0, records)
+            pending = self._submit(scene, t0, Query(records=records, within=within,
+                                                    body_tolerances=body_tolerances))
+            return self._finish(pending, t0)
 
     def _scene(self, bodies: Sequence[Any], transforms: Any,
                names: Sequence[str | None] | None) -> Scene:
@@ -342,11 +333,7 @@ class Detector:
         return prepare_scene(bodies, transforms, names=names, strict=self.request.strict,
                              cache=self.shapes, max_bodies=self.request.max_bodies)
 
-    def _submit(self, scene: Scene, t0: float, *, groups: np.ndarray | None = None,
-                view: View | Sequence[View] | None = None, records: str | None = None,
-                within: np.ndarray | PairList | None = None,
-                tolerance: np.ndarray | None = None,
-                stop_at_first: bool = False) -> Any:
+    def _submit(self, scene: Scene, t0: float, query: Query) -> Pending:
         """Submit a validated scene to the strategy (the one path of single and batched
         queries; the caller holds the device lock); :meth:`_finish` completes it.
 
@@ -355,23 +342,12 @@ class Detector:
         scene : Scene
         t0 : float
             ``time.perf_counter()`` at the query's start (validation is timed from it).
-        groups : (N,) int, optional
-            Checked groups: only pairs across them are tested.
-        view : View or sequence of View, optional
-            Scene strategy only.
-        records : {"found", "all", "none"}, optional
-            Focused strategy: the records kept (default: the request's).
-        within : (N,) int or PairList, optional
-            Focused strategy: only pairs of bodies with the same key (a batch's scenes), or only
-            the pairs of a list (:class:`~pycinder.focused.broad.prune.PairList`).
-        tolerance : (N,) float, optional
-            Focused strategy: a pair's tolerance from its first body, where not NaN.
-        stop_at_first : bool
-            Focused strategy: only whether anything collides (records "none").
+        query : Query
+            What the call asks (checked groups, records, pairs, tolerances per body, view).
 
         Returns
         -------
-        PendingFocused or _Done
+        Pending
             ``.result()`` gives the strategy's :class:`CollisionResult`.
 
         Raises
@@ -383,30 +359,24 @@ class Detector:
                       bodies=len(scene))
         stats.add_ms("validate", (time.perf_counter() - t0) * 1e3)
         try:
-            if isinstance(self.strategy, WholeSceneStrategy):
-                result = self.strategy.run(scene, stats, view)
-                return _Done(result.across(groups) if groups is not None else result)
-            return self.strategy.submit(scene, stats, groups, records, within, tolerance,
-                                        stop_at_first=stop_at_first)
+            return self.strategy.submit(scene, stats, query)
         except (GpuTimeoutError, wgpu.GPUError) as exc:
             raise self._recover(exc) from exc
 
-    def _finish(self, pending: Any, t0: float, records: str | None) -> CollisionResult:
-        """The result of a query :meth:`_submit` submitted, waiting for the GPU: its total time
-        and the records it kept (``records``, default the request's) written in."""
+    def _finish(self, pending: Pending, t0: float) -> CollisionResult:
+        """The result of a query :meth:`_submit` submitted, waiting for the GPU, with its total
+        time written in."""
         with self._lock:
             try:
                 result = pending.result()
             except (GpuTimeoutError, wgpu.GPUError) as exc:
                 raise self._recover(exc) from exc
             result.stats.wall_ms["total"] = (time.perf_counter() - t0) * 1e3
-            if self.request.strategy == "focused" and result.depths is None:
-                result.records_kept = records or self.request.records
             return result
 
 
 def allowed_pairs(pairs: Any, n: int, groups: np.ndarray | None = None) -> PairList:
-    """The pairs a query may test, as a :class:`~pycinder.focused.broad.prune.PairList`: each
+    """The pairs a query may test, as a :class:`~pycinder.focused.broad.broad_numpy.PairList`: each
     ``(i, j)`` with ``i < j``, once, sorted, and only across ``groups`` where given.
 
     Parameters
@@ -456,9 +426,8 @@ def _checked_groups(groups: Any, n: int) -> np.ndarray | None:
 class PendingQuery:
     """A query submitted with :meth:`Detector.submit`; :meth:`result` waits for it."""
 
-    def __init__(self, detector: Detector, pending: Any, t0: float, records: str | None
-                 ) -> None:
-        self._detector, self._pending, self._t0, self._records = detector, pending, t0, records
+    def __init__(self, detector: Detector, pending: Pending, t0: float) -> None:
+        self._detector, self._pending, self._t0 = detector, pending, t0
         self._result: CollisionResult | None = None
 
     @property
@@ -471,19 +440,7 @@ class PendingQuery:
         """The query's result, waiting for the GPU if it has not finished (at most the request's
         ``timeout`` per wait)."""
         if self._result is None:
-            self._result = self._detector._finish(self._pending, self._t0, self._records)
-        return self._result
-
-
-class _Done:
-    """A query answered when it was submitted (the scene strategy's, and empty ones)."""
-
-    ready = True
-
-    def __init__(self, result: CollisionResult) -> None:
-        self._result = result
-
-    def result(self) -> CollisionResult:
+            self._result = self._detector._finish(self._pending, self._t0)
         return self._result
 
 

@@ -31,7 +31,8 @@ Without a tolerance, each pair gets ``DEFAULT_RELATIVE_TOLERANCE`` (1%) of the s
 size (the length of its bounding box's diagonal in world units,
 :func:`~pycinder.tolerance.body_sizes`): the promises
 then hold per pair at that scale, again independent of the rest of the scene
-(:func:`~pycinder.tolerance.pair_tolerance`; the whole policy is :mod:`pycinder.tolerance`).
+(:func:`~pycinder.tolerance.default_pair_tolerances`; the whole policy is
+:mod:`pycinder.tolerance`).
 
 Open bodies. A body that is not a closed solid (it has holes, or faces wound inconsistently: any
 edge walked more often one way than the other) has no inside, so ray parity is never used for it.
@@ -82,7 +83,7 @@ README, "Measurements behind the constants")."""
 GPU_PLANNER_PAIRS = {"gpu": 250, "cpu": 1000}
 """Candidate pairs from which ``planner="auto"`` plans the tiles on the GPU, on a GPU and on a CPU
 adapter (lavapipe, llvmpipe): below that its second submission and map cost more than planning on
-the host saves. Measured with ``python -m pycinder.benchmarks.hostcpu --planner-sweep`` on
+the host saves. Measured with ``python -m benchmarks.hostcpu --planner-sweep`` on
 ManyBodies scenes (``benchmarks/results/hostcpu.md``, "Which planner"): on an NVIDIA H200 the GPU
 planner's frame is as fast from 236 pairs and 1.6-1.7 times as fast from 4,559; on lavapipe as fast
 from 1,009 pairs and slower at 236."""
@@ -206,9 +207,9 @@ class CollisionRequest:
     planner : {"auto", "numpy", "gpu"}
         Focused strategy: where the tiles are planned. ``"numpy"``: on the host, in float64.
         ``"gpu"``: compute passes plan every pair's view and window and pack the atlas
-        (:class:`pycinder.focused.plan.gpu.GpuPlanner`), one more submission and map per query; a
-        plan equals the host's up to single precision's rounding, relative to each pair's own
-        extent (see :mod:`pycinder.focused.plan.gpu`). ``"auto"`` (default): the GPU from
+        (:class:`pycinder.focused.plan.plan_gpu.GpuPlanner`), one more submission and map per query;
+        a plan equals the host's up to single precision's rounding, relative to each pair's own
+        extent (see :mod:`pycinder.focused.plan.plan_gpu`). ``"auto"`` (default): the GPU from
         :data:`GPU_PLANNER_PAIRS` candidate pairs (fewer on a GPU than on a CPU adapter), where
         its frame was measured as fast or faster, else the host. A query that stops at its first
         pair plans on the host. ``result.stats.planner`` says which planned.

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .records import RECORD_DTYPE
+from .records import RECORD_DTYPE, pair_keys
 from .util.text import plural
 
 from .contacts import Contacts, TileViews, reduce_contacts
@@ -406,6 +406,83 @@ class CollisionResult:
         contacts.names = self.names
         self._contacts = contacts
         return contacts
+
+    def pair_samples(self) -> np.ndarray:
+        """How many of the records each colliding pair has: the interfering samples read back
+        for it.
+
+        Returns
+        -------
+        (K,) int64
+            One count per row of :attr:`pairs`, 0 for a pair with no record (a query that kept
+            none, or a pair found by a measuring query's own pass).
+        """
+        rec = self.records
+        keys, counts = np.unique(pair_keys(rec["penetrating"], rec["penetrated"]),
+                                 return_counts=True)
+        if not len(keys):
+            return np.zeros(len(self.pairs), dtype=np.int64)
+        wanted = pair_keys(self.pairs[:, 0], self.pairs[:, 1])
+        at = np.searchsorted(keys, wanted).clip(max=len(keys) - 1)
+        return np.where(keys[at] == wanted, counts[at], 0).astype(np.int64)
+
+    def report(self, names: Sequence[str] | None = None, *, mode: str = "default",
+               tolerance: Sequence[float] | None = None,
+               warnings: Sequence[dict[str, Any]] = ()) -> dict[str, Any]:
+        """This result as the object ``pycinder check --json`` prints (``json.dumps`` of it).
+
+        Parameters
+        ----------
+        names : sequence of str, optional
+            One name per body (default: the names the query was given, or the bodies'
+            indices as text where it was given none).
+        mode : {"default", "min_depth", "clearance"}
+            The query's mode; any other than ``"default"`` is the report's ``mode``.
+        tolerance : (2,) sequence of float, optional
+            Focused strategy: the report's ``tolerance``, [smallest, largest] in world units
+            (see :func:`pycinder.files.tolerance_range`); None makes it null (a hard-clash
+            query measures with no pixels). Ignored for the scene strategy.
+        warnings : sequence of dict
+            The report's ``warnings``, one ``{"category": ..., "message": ...}`` each.
+
+        Returns
+        -------
+        dict
+            In this order: ``collision`` (bool); ``pairs``, one ``{"a": NAME, "b": NAME,
+            "samples": N}`` per row of :attr:`pairs` (:meth:`pair_samples`), with ``depth`` and
+            ``depth_error`` (:attr:`depths`) or ``distance`` and ``distance_error``
+            (:attr:`distances`) where the query measured them; ``bodies`` (the names);
+            ``strategy``; ``tolerance`` and ``candidates`` (focused) or ``resolution`` (scene:
+            the image's width in pixels); ``mode`` (unless ``"default"``); ``adapter``;
+            ``warnings``; ``errors`` (``[]``: the query ran).
+        """
+        if names is None:
+            given = self.names or [None] * self.stats.bodies
+            names = [str(i) if n is None else str(n) for i, n in enumerate(given)]
+        names = list(names)
+        st = self.stats
+        samples = self.pair_samples().tolist()
+        report: dict[str, Any] = {
+            "collision": bool(len(self.pairs)),
+            "pairs": [{"a": names[i], "b": names[j], "samples": n}
+                      for (i, j), n in zip(self.pairs.tolist(), samples)],
+            "bodies": names,
+            "strategy": st.strategy,
+        }
+        for figures, bounds, name in ((self.depths, self.depth_errors, "depth"),
+                                      (self.distances, self.distance_errors, "distance")):
+            if figures is not None:
+                for pair, d, e in zip(report["pairs"], figures.tolist(), bounds.tolist()):
+                    pair[name], pair[f"{name}_error"] = d, e
+        if st.strategy == "focused":
+            report["tolerance"] = None if tolerance is None else [float(t) for t in tolerance]
+            report["candidates"] = st.candidates
+        else:
+            report["resolution"] = st.resolution[0]
+        if mode != "default":
+            report["mode"] = mode
+        report.update(adapter=st.adapter, warnings=list(warnings), errors=[])
+        return report
 
     def pair_names(self, names: Sequence[Any] | None = None) -> set[tuple[Any, Any]]:
         """The pairs as a set of sorted name tuples, as trimesh's ``return_names`` gives them.

@@ -1,5 +1,13 @@
 """The tolerance policy of the focused strategy, in one place.
 
+A tolerance comes in three shapes, and each has its own name everywhere in the package:
+
+- ``tolerance``: the request's (a float, or None for the default), ``CollisionRequest.tolerance``;
+- ``body_tolerances``: (N,) float, one per body, NaN where the request's applies (a batch gives
+  each scene's to its bodies);
+- ``pair_tolerances``: (K,) float, one per candidate pair, what the tiles' pixels are sized by
+  (:func:`pair_tolerances`).
+
 A pair's tolerance ``t`` (world units) is the width of its tiles' pixels, and what the contract
 promises is stated in it (a pair at least ``t`` apart is never reported, one at least ``2 t``
 deep always is). It is, in order:
@@ -47,8 +55,8 @@ def body_sizes(local_lo: np.ndarray, local_hi: np.ndarray, transforms: np.ndarra
     return np.sqrt(sum3(placed * placed))
 
 
-def pair_tolerance(size_a: np.ndarray, size_b: np.ndarray, tolerance: float | None = None
-                   ) -> np.ndarray:
+def default_pair_tolerances(size_a: np.ndarray, size_b: np.ndarray,
+                            tolerance: float | None = None) -> np.ndarray:
     """(K,) tolerance of pairs of bodies ``size_a`` and ``size_b`` ((K,) :func:`body_sizes`)
     across: ``tolerance`` where given, else :data:`DEFAULT_RELATIVE_TOLERANCE` of the smaller
     body's size."""
@@ -84,7 +92,7 @@ def resolvable_tolerance(scene: Scene, pairs: np.ndarray, size: np.ndarray | Non
 
 
 def pair_tolerances(scene: Scene, pairs: np.ndarray, tolerance: float | None = None,
-                    given: np.ndarray | None = None) -> np.ndarray:
+                    body_tolerances: np.ndarray | None = None) -> np.ndarray:
     """(K,) tolerance of each candidate pair, in world units, by the policy above.
 
     Parameters
@@ -93,7 +101,7 @@ def pair_tolerances(scene: Scene, pairs: np.ndarray, tolerance: float | None = N
     pairs : (K, 2) int
     tolerance : float, optional
         The request's tolerance.
-    given : (N,) float, optional
+    body_tolerances : (N,) float, optional
         A tolerance per body, used for a pair from its first body where not NaN.
 
     Raises
@@ -104,10 +112,10 @@ def pair_tolerances(scene: Scene, pairs: np.ndarray, tolerance: float | None = N
     size = body_sizes(scene.local_lo, scene.local_hi, scene.transforms)
     a, b = pairs[:, 0], pairs[:, 1]
     floor = resolvable_tolerance(scene, pairs, size)
-    tol = pair_tolerance(size[a], size[b], tolerance)
+    tol = default_pair_tolerances(size[a], size[b], tolerance)
     chosen = np.full(len(pairs), tolerance is not None)
-    if given is not None:
-        g = np.asarray(given, dtype=np.float64)[a]
+    if body_tolerances is not None:
+        g = np.asarray(body_tolerances, dtype=np.float64)[a]
         chosen |= ~np.isnan(g)
         tol = np.where(np.isnan(g), tol, g)
     bad = np.flatnonzero(chosen & (tol < floor))
@@ -134,5 +142,5 @@ def pair_tolerances(scene: Scene, pairs: np.ndarray, tolerance: float | None = N
 
 
 __all__ = ["DEFAULT_RELATIVE_TOLERANCE", "MAX_PIXELS_ACROSS", "MAX_PIXELS_FROM_ORIGIN",
-           "SMALLEST_TOLERANCE", "body_sizes", "pair_tolerance", "pair_tolerances",
+           "SMALLEST_TOLERANCE", "body_sizes", "default_pair_tolerances", "pair_tolerances",
            "resolvable_tolerance"]

@@ -1,7 +1,7 @@
 """Buildings: IFC files in, clash sets, clashes out (``pip install 'pycinder[bim]'``).
 
-IFC files are read by :mod:`pycinder.files.ifc` (:func:`read_ifc`: one body per element, in a
-federated :class:`IfcModel`; :class:`Group` selects clash sets); :func:`find_clashes` checks
+IFC files are read by :mod:`pycinder.files.ifc_elements` (:func:`read_ifc`: one body per element, in
+a federated :class:`IfcModel`; :class:`Group` selects clash sets); :func:`find_clashes` checks
 group A against group B (or A against itself) and gives a :class:`Clash` list, which
 :mod:`pycinder.bim.bcf` writes as BCF. ``pycinder.ifc`` is this module under its earlier name.
 
@@ -23,8 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from ..files.ifc import (IfcBody, IfcModel, Group, default_cache_dir, files_are_ifc, load_file,
-                         read_ifc)
+from ..files.ifc_elements import (IfcBody, IfcModel, Group, default_cache_dir, files_are_ifc,
+
+    load_file, read_ifc)
 from .rules import ClashRules, SetAside, candidate_pairs, set_aside
 
 __all__ = ["IfcBody", "IfcModel", "Group", "Clash", "ClashList", "ClashRules", "read_ifc",

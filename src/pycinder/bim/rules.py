@@ -4,8 +4,8 @@
 Building elements touch and overlap by design where the model says they belong together: a door
 stands in its wall's opening, the flights of a stair are one stair, walls are joined at their
 corners. Navisworks, Solibri and IfcClash users set such pairs aside with rules. Each rule here
-reads one kind of relation the files hold (:attr:`pycinder.files.ifc.IfcModel.relations`) and
-sets aside the candidate pairs it names, before the query: those pairs are neither tested nor
+reads one kind of relation the files hold (:attr:`pycinder.files.ifc_elements.IfcModel.relations`)
+and sets aside the candidate pairs it names, before the query: those pairs are neither tested nor
 reported, and each rule says how many it set aside.
 
 ======================  ==============================================================  =======
@@ -182,7 +182,7 @@ def candidate_pairs(model: Any, used: np.ndarray, groups: np.ndarray | None,
     (K, 2) int64
         Indices into ``used``, ``i < j``, sorted.
     """
-    from ..focused.broad.prune import sweep_and_prune
+    from ..focused.broad.broad_numpy import sweep_and_prune
 
     bounds = np.array([model.bodies[k].mesh.bounds for k in used], np.float64).reshape(-1, 2, 3)
     return sweep_and_prune(bounds[:, 0] - margin / 2, bounds[:, 1] + margin / 2, None, groups)
@@ -246,7 +246,7 @@ def _through_openings(model: Any, index: dict[tuple[str, str], int], a: np.ndarr
 def _reaches_into(mesh: Any, opening: Any, lo: np.ndarray, hi: np.ndarray) -> bool:
     """Whether an element's volume reaches into an opening whose box overlaps its own in
     ``lo``, ``hi`` (3,) (see :func:`_through_openings`)."""
-    from ..focused.modes.regions import mesh_solid
+    from ..focused.measure.regions import mesh_solid
 
     origin = 0.5 * (lo + hi)
     hole = mesh_solid(opening.vertices, opening.faces, origin)

@@ -1,10 +1,10 @@
 """One labelled picture of the scene strategy's buffers, to put beside the paper's Figures 9-13.
 
-:class:`~pycinder.debug.buffers.BufferCapture` reads the depth, stencil and colour buffers after
-passes 1, 2, 3, 4 and 7 and after the self-interference filter; :func:`buffer_montage` lays the six
-out in a grid, each titled with the paper's figure and what the pass did, above a legend of the
-colours (the scheme of :func:`pycinder.debug.buffers.to_image`). ``pycinder example`` writes it for
-the paper's three boxes as ``montage.png``.
+:class:`~pycinder.debug.pass_buffers.BufferCapture` reads the depth, stencil and colour buffers
+after passes 1, 2, 3, 4 and 7 and after the self-interference filter; :func:`buffer_montage` lays
+the six out in a grid, each titled with the paper's figure and what the pass did, above a legend of
+the colours (the scheme of :func:`pycinder.debug.pass_buffers.to_image`). ``pycinder example``
+writes it for the paper's three boxes as ``montage.png``.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ import numpy as np
 from ..detector import Detector
 from ..util.optional import require
 from ..view import View
-from .buffers import (DEPTH_FAR, DEPTH_NEAR, BufferCapture, id_colours, png_bytes, stencil_image,
-                      three_boxes, to_image)
+from .pass_buffers import (DEPTH_FAR, DEPTH_NEAR, BufferCapture, id_colours, png_bytes,
+    stencil_image, three_boxes, to_image)
 
 PANELS = (
     ("pass1_depth", "Figure 9b: depth after pass 1",
@@ -133,8 +133,8 @@ def buffer_montage(buffers: dict[str, np.ndarray], *, title: str | None = None) 
     Parameters
     ----------
     buffers : dict of str to ndarray
-        What :meth:`pycinder.debug.buffers.BufferCapture.capture` returns: ``pass1_depth`` (H, W)
-        float32, ``pass2_stencil`` and ``pass3_stencil`` (H, W) uint32, ``pass4_colour``,
+        What :meth:`pycinder.debug.pass_buffers.BufferCapture.capture` returns: ``pass1_depth`` (H,
+        W) float32, ``pass2_stencil`` and ``pass3_stencil`` (H, W) uint32, ``pass4_colour``,
         ``pass7_colour`` and ``filtered_colour`` (H, W, 4) uint32. Missing keys are skipped.
     title : str, optional
         A line above the grid.

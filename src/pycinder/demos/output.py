@@ -112,7 +112,7 @@ class FrameWriter:
         elif self.kind == ".gif":
             self._gif.append(image)
         else:
-            from ..debug.buffers import png_bytes
+            from ..debug.pass_buffers import png_bytes
 
             (self.out / f"frame_{self.count:04d}.png").write_bytes(png_bytes(image))
         self.count += 1

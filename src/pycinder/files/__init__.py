@@ -6,7 +6,7 @@
 
 * **Formats**: STL, OBJ, PLY, OFF, glTF (``.gltf`` and ``.glb``) and 3MF (which needs lxml:
   ``pip install 'pycinder[files]'``). Point clouds and 2-D drawings are not meshes. IFC files
-  (``.ifc``) are read by :mod:`pycinder.files.ifc`, one body per element (``pip install
+  (``.ifc``) are read by :mod:`pycinder.files.ifc_elements`, one body per element (``pip install
   'pycinder[bim]'``).
 * **Scene files** (glTF, 3MF, OBJ with several ``o`` objects) give one body per geometry instance,
   named ``file:node`` after the scene graph, with the instance's transform; a file with one body
@@ -23,7 +23,9 @@
   ``a.stl#2``, in the order given.
 * **Components**: a body may hold several disconnected parts (two boxes in one STL file).
   :func:`split_components` makes each part a body of its own, named ``a.stl[0]``, ``a.stl[1]``,
-  ... in the order of their first triangles in the file.
+  ... in the order of their first triangles in the file; without it,
+  :func:`warn_overlapping_components` warns about a body whose parts overlap each other (one
+  body is never tested against itself).
 
 Every problem raises :class:`FileError` with the file's name and what is wrong with it;
 :func:`load_bodies` reads every file and raises one :class:`FileErrors` naming every bad file.
@@ -36,7 +38,7 @@ import os
 import re
 import warnings
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -46,6 +48,10 @@ from .checks import (DEFAULT_MAX_BYTES, DEFAULT_MAX_TRIANGLES, MAX_ARCHIVE_MEMBE
                      FileBody, FileCheck, FileError, FileErrors, FileWarning, Limits,
                      OverlappingComponentsWarning, check_file, display_name, file_labels,
                      human_bytes, parse_size)
+
+if TYPE_CHECKING:
+    from ..detector import Detector
+    from ..result import Stats
 
 
 # -- loading --------------------------------------------------------------------------------
@@ -156,7 +162,7 @@ def load_file(path: str, label: str, limits: Limits = Limits()) -> list[FileBody
 
     ext = check_file(path, label, limits)
     if ext == "ifc":  # one body per element, by IfcOpenShell (pycinder[bim])
-        from .ifc import load_file as load_ifc
+        from .ifc_elements import load_file as load_ifc
 
         return load_ifc(path, label, limits)
     scene, logged = _load_scene(path, ext, label)
@@ -312,9 +318,130 @@ def split_components(bodies: Sequence[FileBody]) -> list[FileBody]:
     return out
 
 
+
+# -- what one query of the bodies does not say ----------------------------------------------
+
+
+def tolerance_range(bodies: Sequence[FileBody], stats: Stats, tolerance: float | None = None
+                    ) -> list[float] | None:
+    """The tolerance of a focused query of ``bodies``, smallest and largest over its pairs (the
+    ``tolerance`` of ``pycinder check --json``).
+
+    Parameters
+    ----------
+    bodies : sequence of FileBody
+        The N bodies the query ran on.
+    stats : Stats
+        The focused query's stats: its ``candidates`` and ``tolerance``.
+    tolerance : float, optional
+        The request's tolerance in world units (default: relative to each pair's smaller body,
+        :func:`pycinder.tolerance.default_pair_tolerances`).
+
+    Returns
+    -------
+    list of 2 float, or None
+        [smallest, largest] in world units over the candidate pairs; with no candidate pair,
+        what any pair of the bodies would have had; None with fewer than two bodies.
+    """
+    from ..tolerance import body_sizes, default_pair_tolerances
+
+    if stats.candidates:
+        return [float(t) for t in stats.tolerance]
+    if len(bodies) < 2:
+        return None
+    lo = np.array([b.mesh.bounds[0] for b in bodies])
+    hi = np.array([b.mesh.bounds[1] for b in bodies])
+    size = np.sort(body_sizes(lo, hi, np.array([b.transform for b in bodies])))
+    # A pair's default tolerance follows its smaller body: the smallest over all pairs is the
+    # smallest body's, the largest the second largest body's.
+    tol = default_pair_tolerances(size[[0, -2]], size[[1, -1]], tolerance)
+    return [float(t) for t in tol]
+
+
+def boxes_meeting(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Whether each box meets another one (the broad phase's sweep, touching included).
+
+    Parameters
+    ----------
+    lo, hi : (n, 3) float
+        The boxes' corners.
+
+    Returns
+    -------
+    (n,) bool
+        True for each box that meets at least one other box.
+    """
+    from ..focused.broad.broad_numpy import sweep_and_prune
+
+    meets = np.zeros(len(lo), dtype=bool)
+    meets[sweep_and_prune(lo, hi).ravel()] = True
+    return meets
+
+
+_QUERY_ERRORS = (ValueError, RuntimeError, OSError, TypeError, ImportError, MemoryError)
+"""What a failed query of the components raises: said in a warning, not raised."""
+
+
+def warn_overlapping_components(bodies: Sequence[FileBody], detector: Detector) -> None:
+    """Warn (:class:`OverlappingComponentsWarning`) about each body whose disconnected
+    components overlap each other, which one query of the bodies cannot report: one body is
+    never tested against itself.
+
+    Components whose bounding boxes meet (:func:`boxes_meeting`) are tested as bodies of their
+    own by ``detector``, in one query; inside-out closed components (cavities of a hollow body)
+    are left out. When that query fails, each body concerned gets a warning that says so.
+
+    Parameters
+    ----------
+    bodies : sequence of FileBody
+        The bodies, each made of one or more components (:func:`body_components`).
+    detector : Detector
+        The detector that ran the bodies' query (its request is the components' too).
+    """
+    parts: list[Any] = []
+    transforms: list[np.ndarray] = []
+    labels: list[tuple[int, int]] = []  # (body, component) of each part tested
+    split = body_components(bodies)
+    for b, (body, pieces) in enumerate(zip(bodies, split)):
+        keep = [k for k, piece in enumerate(pieces)
+                if len(pieces) > 1 and not (piece.is_watertight and piece.volume < 0)]
+        lo = np.array([pieces[k].bounds[0] for k in keep]).reshape(-1, 3)
+        hi = np.array([pieces[k].bounds[1] for k in keep]).reshape(-1, 3)
+        touching = [k for k, meets in zip(keep, boxes_meeting(lo, hi)) if meets]
+        parts += [pieces[k] for k in touching]
+        transforms += [body.transform] * len(touching)
+        labels += [(b, k) for k in touching]
+    if not parts:
+        return
+    try:
+        with warnings.catch_warnings():  # the bodies' own warnings are given already
+            warnings.simplefilter("ignore")
+            found = detector.find_collisions(parts, np.array(transforms)).pairs
+    except _QUERY_ERRORS as exc:
+        for b in sorted({b for b, _ in labels}):
+            warnings.warn(f"{bodies[b].name}: its disconnected components could not be tested "
+                          f"against each other ({exc}); pass --split to test them as bodies",
+                          OverlappingComponentsWarning, stacklevel=2)
+        return
+    overlaps: dict[int, list[str]] = {}
+    for i, j in found.tolist():
+        (b, k), (c, m) = labels[i], labels[j]
+        if b == c:
+            overlaps.setdefault(b, []).append(f"[{min(k, m)}] and [{max(k, m)}]")
+    for b, which in sorted(overlaps.items()):
+        name, count = bodies[b].name, len(split[b])
+        shown = ", ".join(sorted(which)[:5]) + (", ..." if len(which) > 5 else "")
+        warnings.warn(
+            f"{name}: {plural(count, 'disconnected component')}, of which "
+            f"{plural(len(which), 'pair overlaps', 'pairs overlap')} ({shown}); a body is not "
+            "tested against itself, so this is not reported as a collision: pass --split to "
+            f"test each component as a body of its own ({name}[0], {name}[1], ...)",
+            OverlappingComponentsWarning, stacklevel=2)
+
 __all__ = [
     "DEFAULT_MAX_BYTES", "DEFAULT_MAX_TRIANGLES", "MAX_ARCHIVE_MEMBERS", "MESH_FORMATS", "FileBody",
     "FileError", "FileErrors", "FileWarning", "Limits", "OverlappingComponentsWarning",
-    "body_components", "check_file", "component_labels", "components", "display_name",
-    "file_labels", "human_bytes", "load_bodies", "load_file", "parse_size", "split_components",
+    "body_components", "boxes_meeting", "check_file", "component_labels", "components",
+    "display_name", "file_labels", "human_bytes", "load_bodies", "load_file", "parse_size",
+    "split_components", "tolerance_range", "warn_overlapping_components",
 ]

@@ -1,7 +1,7 @@
 """What every file reader shares: the bodies read (:class:`FileBody`), the errors and warnings,
 the limits (:class:`Limits`), the checks made before a file is loaded (:func:`check_file`) and the
 names messages give files (:func:`file_labels`). Mesh files (:mod:`pycinder.files`) and IFC files
-(:mod:`pycinder.files.ifc`) are read with them."""
+(:mod:`pycinder.files.ifc_elements`) are read with them."""
 
 from __future__ import annotations
 
@@ -356,7 +356,7 @@ def _check_3mf(c: FileCheck, head: bytes) -> None:
 
 def _check_ifc(c: FileCheck, head: bytes) -> None:
     """An IFC file is STEP text (ISO 10303-21); its elements are read by
-    :mod:`pycinder.files.ifc`."""
+    :mod:`pycinder.files.ifc_elements`."""
     if not head.lstrip().startswith(b"ISO-10303-21"):
         raise c.fail("is not an IFC file in STEP form (it does not start with ISO-10303-21; "
                      "ifcXML and ifcZIP are not read)")

@@ -7,9 +7,11 @@ The stages, in the order a query flows through them, one subpackage each:
 - :mod:`~pycinder.focused.plan`: each pair's window and the atlas of tiles (NumPy, or passes
   P0-P3);
 - :mod:`~pycinder.focused.frame`: the frame's passes F0-F8, their buffers and their readback;
-- :mod:`~pycinder.focused.modes`: the query modes that measure pairs exactly (hard clashes, pass
-  H1; clearance, pass C1), plug-ins the strategy calls and that never import it.
+- :mod:`~pycinder.focused.measure`: what those modes measure with (passes H1 and C1, the
+  cluster pairs they measure, regions and local depth);
+- :mod:`~pycinder.focused.modes`: the query modes that measure pairs exactly (hard clashes,
+  clearance), plug-ins the strategy calls and that never import it.
 
-:mod:`~pycinder.focused.strategy` joins them; :mod:`~pycinder.focused.frame.again` runs the pairs a
-frame left undecided again.
+:mod:`~pycinder.focused.focused_strategy` joins them; :mod:`~pycinder.focused.frame.rerun` runs
+the pairs a frame left undecided again.
 """

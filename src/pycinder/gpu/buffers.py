@@ -67,8 +67,8 @@ class GrowableBuffer:
 
 class SceneBuffers:
     """The packed scene on the GPU, for the whole-scene strategy's passes 1-7: each storage
-    buffer under the name ``raycast.wgsl`` binds it by (:attr:`NAMES`), and the index buffer.
-    (The view's own constants, the ``Frame`` block, belong to the passes:
+    buffer under the name ``wholescene_raycast.wgsl`` binds it by (:attr:`NAMES`), and the index
+    buffer. (The view's own constants, the ``Frame`` block, belong to the passes:
     :class:`~pycinder.wholescene.raycast.RaycastPasses`.)"""
 
     NAMES = ("positions", "vertex_body", "clip_from_body", "edges", "vertex_normals",

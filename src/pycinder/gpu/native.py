@@ -3,8 +3,8 @@
 wgpu-py wraps each C function of wgpu-native in Python: checking arguments, building descriptor
 structs and capturing errors around the call. A compute dispatch (``set_pipeline``,
 ``set_bind_group``, ``dispatch_workgroups``) costs about 20 µs of host CPU that way, and the C
-functions themselves about a fifth of it (``python -m pycinder.benchmarks.hostfloor``). A frame
-makes dozens, so :class:`Encoder` records compute passes, render passes of one colour
+functions themselves about a fifth of it (``python -m benchmarks.hostfloor`` from a checkout). A
+frame makes dozens, so :class:`Encoder` records compute passes, render passes of one colour
 attachment, buffer clears and copies with the C functions themselves, on the command encoder
 wgpu-py made; everything else (other render passes, timed passes, ``finish``, which raises the
 encoder's validation errors) stays wgpu-py's.

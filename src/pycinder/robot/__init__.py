@@ -11,7 +11,7 @@
 A :class:`Robot` is read from a URDF with :meth:`Robot.from_urdf` (the ``robot`` extra brings
 yourdfpy). Its collision geometry is taken as the URDF gives it: meshes as they are (an open mesh
 is tested as a surface, see :mod:`pycinder.request`), boxes, cylinders and spheres as meshes.
-Forward kinematics runs on the GPU for every batch (pass K1, :mod:`pycinder.robot.kinematics`;
+Forward kinematics runs on the GPU for every batch (pass K1, :mod:`pycinder.robot.k1_kinematics`;
 :data:`~pycinder.robot.robot.GPU_FRONT_FROM`), so that a configuration's poses, and its pairs,
 do not depend on the batch it is checked in; a configuration whose joint values K1's error
 estimate does not hold for (a prismatic joint past its travel) takes the host's float64

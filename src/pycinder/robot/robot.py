@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import wgpu
 
-from ..focused.broad.prune import PairList
+from ..focused.broad.broad_numpy import PairList
 from ..tolerance import DEFAULT_RELATIVE_TOLERANCE, body_sizes
 from .acm import AllowedCollisionMatrix, matrix_from_samples
 from .model import Body, Environment, RobotModel
@@ -21,7 +21,7 @@ from .model import Body, Environment, RobotModel
 if TYPE_CHECKING:
     from ..detector import Detector
     from ..scene import PreparedBodies
-    from .cull import GpuPairCull
+    from .k2_pair_cull import GpuPairCull
 
 DEFAULT_BODIES_PER_QUERY = 12_000
 """Most bodies one batched query holds by default on a CPU adapter (configurations per query:
@@ -52,7 +52,7 @@ configurations spends more host CPU on the passes' own submission and map than t
 kinematics would: on lavapipe 1.3-1.5 times the host path's in queries of one; from 32 a query
 K1/K2 take less (115 against 128 us a Panda configuration), and on an NVIDIA H200 they check
 more configurations a second from 32 for the Panda and from 16 for the Unitree A1
-(:func:`pycinder.benchmarks.batch.run_front_sweep`, ``benchmarks/results/robots.md``). The
+(``benchmarks.batch.run_front_sweep`` in the checkout, ``benchmarks/results/robots.md``). The
 benchmarks set it above a batch's size to time the host's path."""
 
 PLANS_KEPT = 8
@@ -325,16 +325,16 @@ class Robot(RobotModel):
     def _gpu_front(self, plan: _Plan, bodies: list[Body], clearance: float | None
                    ) -> GpuPairCull | None:
         """Passes K1 and K2 of a check: the robot's poses and the plan's pairs culled by world
-        boxes, on the GPU (:mod:`pycinder.robot.cull`; made once per plan, and again when the
-        objects attached or the device changed; the environment's poses placed anew). None
+        boxes, on the GPU (:mod:`pycinder.robot.k2_pair_cull`; made once per plan, and again when
+        the objects attached or the device changed; the environment's poses placed anew). None
         where the plan checks no pair, and where, for some checked pair, K1's poses of its
         bodies may lie farther from float64's than
-        :data:`~pycinder.robot.kinematics.POSE_MARGIN` of the tolerance the query gives the
+        :data:`~pycinder.robot.k1_kinematics.POSE_MARGIN` of the tolerance the query gives the
         pair (:meth:`GpuKinematics.error_estimate`, both bodies' added): the host's
         :meth:`poses` and box test then. ``clearance``: a padded check's (its queries test
         at most a quarter of it finely)."""
-        from .cull import GpuPairCull
-        from .kinematics import POSE_MARGIN, GpuKinematics
+        from .k2_pair_cull import GpuPairCull
+        from .k1_kinematics import POSE_MARGIN, GpuKinematics
 
         if not len(plan.pairs):
             return None
@@ -555,8 +555,8 @@ class Robot(RobotModel):
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One query of a batch of configurations (``poses``: each body's pose in each):
         copies of the check's bodies, prepared once, in one scene whose only candidates are each
-        configuration's checked pairs (a :class:`~pycinder.focused.broad.prune.PairList`, culled
-        by their world boxes). Without ``survivors``, a copy per configuration of every
+        configuration's checked pairs (a :class:`~pycinder.focused.broad.broad_numpy.PairList`,
+        culled by their world boxes). Without ``survivors``, a copy per configuration of every
         body some checked pair names, the pairs culled by the host's boxes; with them (pass K2's
         (S, 3): configuration and positions in ``plan.used``), copies of the bodies of the
         pairs kept alone, and those pairs the candidates, the scene's world boxes K1's; a

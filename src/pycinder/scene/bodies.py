@@ -573,7 +573,7 @@ class Scene:
     and ``body_shape`` of a scene never change)."""
     boxes: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
     """World boxes (N, 3) minimum and maximum known to hold every body, made by whoever placed
-    the bodies (a robot check's pass K1, :mod:`pycinder.robot.kinematics`): :meth:`world_boxes`
+    the bodies (a robot check's pass K1, :mod:`pycinder.robot.k1_kinematics`): :meth:`world_boxes`
     gives them instead of measuring its own; None: measured."""
 
     def __len__(self) -> int:

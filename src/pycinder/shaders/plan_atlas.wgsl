@@ -1,7 +1,8 @@
-// Pass P2 of the GPU tile planner, atlas (compute): the integer part of pycinder.focused.plan.tiles.plan_tiles
-// (lead=None): every kept window cut into tiles, in phases, the tiles packed into the atlas's
-// bands and the bands into rounds, with the same tiles in the same order as _phases_of, _layout,
-// _place and concat_plans make them (see passes/atlasplan.py for the whole argument).
+// Pass P2 of the GPU tile planner, atlas (compute): the integer part of
+// pycinder.focused.plan.plan_numpy.plan_tiles (lead=None): every kept window cut into tiles, in
+// phases, the tiles packed into the atlas's bands and the bands into rounds, with the same tiles in
+// the same order as _phases_of, _layout, _place and concat_plans make them (see passes/atlasplan.py
+// for the whole argument).
 //
 // Four entry points, dispatched in order in one compute pass:
 //   count  (one workgroup of GROUP): totals over the pairs, which windows are probed, and per
@@ -91,7 +92,7 @@ fn ceil_div(a: u32, b: u32) -> u32 {
 // ---------------------------------------------------------------------------------------------
 // Tiles of a window.
 
-//!include height_classes.wgsl
+//!include plan_height_classes.wgsl
 
 // Pieces of a window cut into a grid of tiles of at most MAX_TILE_W x MAX_TILE_H (saturated).
 fn pieces(w: u32, h: u32) -> u32 {

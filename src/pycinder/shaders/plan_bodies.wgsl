@@ -1,5 +1,5 @@
-// Tile planner, pass P0 (compute; pycinder/focused/plan/bodies.py): every body's bounds as pass
-// P1 reads them (PlanBody), from its pose and boxes, as pycinder.focused.plan.bodies.plan_bodies
+// Tile planner, pass P0 (compute; pycinder/focused/plan/p0_bodies.py): every body's bounds as pass
+// P1 reads them (PlanBody), from its pose and boxes, as pycinder.focused.plan.p0_bodies.plan_bodies
 // finds them in float64. One invocation per body.
 //
 // Everything is measured from the body's anchor (its oriented box's centre, exactly hi + lo):
@@ -17,8 +17,8 @@
 
 // -sign(x) as LAPACK's dlarfg takes it (BETA = -SIGN(norm, ALPHA)), a zero of either sign
 // counting as positive: the host's reference decomposes its matrices with every -0.0 made +0.0
-// (hostwindows._qr_frames), where LAPACK never meets a -0.0 diagonal element. A GPU's compiler
-// need not keep the sign of a zero, so none is relied on here.
+// (plan_numpy_windows._qr_frames), where LAPACK never meets a -0.0 diagonal element. A GPU's
+// compiler need not keep the sign of a zero, so none is relied on here.
 fn negated_sign(x: f32) -> f32 {
     return select(1.0, -1.0, x >= 0.0);
 }
@@ -59,7 +59,7 @@ fn reflect(h: Reflector, x: vec3f) -> vec3f {
 
 // The Q of the QR decomposition of m (columns), as NumPy's qr makes it (LAPACK's dgeqr2 and
 // dorg2r: Q = H0 H1, the third reflector being none), made proper by negating its last column
-// (hostwindows._qr_frames).
+// (plan_numpy_windows._qr_frames).
 fn frame_of(given: mat3x3f) -> mat3x3f {
     // Elements below float32's smallest normal number are zeros, as the host's reference makes
     // them (a GPU may flush them to zero in arithmetic, or not).

@@ -1,5 +1,6 @@
 // Tile planner, pass P1 (compute; pycinder/passes/windows.py): the window of each candidate
-// pair, as pycinder.focused.plan.hostwindows._plan_chunk plans it, in single precision. One invocation per pair.
+// pair, as pycinder.focused.plan.plan_numpy_windows._plan_chunk plans it, in single precision. One
+// invocation per pair.
 //
 // Each body comes measured from its own anchor (a point at its oriented box's centre, given
 // exactly as hi + lo in two f32 vectors). A pair is planned in the frame of its anchor body
@@ -14,7 +15,7 @@
 
 @group(0) @binding(0) var<storage, read> bodies: array<PlanBody>;
 @group(0) @binding(1) var<storage, read> pairs: array<vec2u>;
-@group(0) @binding(2) var<storage, read> tolerance: array<f32>;
+@group(0) @binding(2) var<storage, read> pair_tolerances: array<f32>;
 @group(0) @binding(3) var<storage, read_write> windows: array<PlanWindow>;
 @group(0) @binding(4) var<uniform> params: PlanParams;
 @group(0) @binding(5) var<storage, read> faces: array<u32>;
@@ -105,7 +106,7 @@ fn plan_windows(@builtin(workgroup_id) wg: vec3u, @builtin(local_invocation_inde
         return;
     }
     let ab = pairs[k];
-    let tol = tolerance[k];
+    let tol = pair_tolerances[k];
     let pa = bodies[ab.x];
     let pb = bodies[ab.y];
     // The pair's anchor: the body with the smaller world box (ties: a).

@@ -1,10 +1,10 @@
-// A robot check's pair list culled by world boxes (compute; pycinder/robot/cull.py): for each
-// configuration, a bit per checked pair, set where the two bodies' world boxes overlap. One
+// A robot check's pair list culled by world boxes (compute; pycinder/robot/k2_pair_cull.py): for
+// each configuration, a bit per checked pair, set where the two bodies' world boxes overlap. One
 // invocation per configuration and word of 32 pairs (no atomics: the bits are the same on
 // every run).
 //
 // A body that moves with the robot takes its world box from pass K1
-// (pycinder/robot/kinematics.py), grown by its `pad` (twice K1's error estimate: the box then
+// (pycinder/robot/k1_kinematics.py), grown by its `pad` (twice K1's error estimate: the box then
 // holds the body placed by float64 kinematics too); a fixed body (an environment's) has its own
 // box, rounded outwards on the host. Every box is grown by `grow` (a padded check's clearance),
 // so that a pair whose bodies overlap (or lie within `grow`) in float64 is never culled.

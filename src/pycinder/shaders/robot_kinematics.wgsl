@@ -1,4 +1,4 @@
-// A robot's forward kinematics (compute; pycinder/robot/kinematics.py): every collision body's
+// A robot's forward kinematics (compute; pycinder/robot/k1_kinematics.py): every collision body's
 // world-from-body pose in every configuration, from each moving joint's motion. One invocation
 // per configuration walks the joints in tree order (a parent's link before its children's), as
 // pycinder.robot.model.RobotModel.link_transforms does in float64.

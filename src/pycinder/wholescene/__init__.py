@@ -6,5 +6,5 @@ state from :mod:`pycinder.gpu.states`), :mod:`~pycinder.wholescene.selfint` (sec
 :mod:`~pycinder.wholescene.filter` and :mod:`~pycinder.wholescene.reduce` (the compact and mipmap
 readbacks' compute passes), :mod:`~pycinder.wholescene.frame` (one frame's encoding and
 submission) and :mod:`~pycinder.wholescene.readback` (the readback strategies);
-:mod:`~pycinder.wholescene.strategy` joins them.
+:mod:`~pycinder.wholescene.scene_strategy` joins them.
 """

@@ -65,7 +65,7 @@ class FilterPass:
     ----------
     gpu : Gpu
     output : {"full", "compact", "packed"}
-        Which entry point of ``filter.wgsl`` runs (what the readback mode reads).
+        Which entry point of ``wholescene_filter.wgsl`` runs (what the readback mode reads).
 
     Attributes
     ----------
@@ -75,6 +75,8 @@ class FilterPass:
         The filtered image ((H*W, 4) uint32) or the compact records ((K, 4) uint32).
     """
 
+    SHADER: ClassVar[str] = "wholescene_filter"
+    """Its shader, ``shaders/wholescene_filter.wgsl``."""
     INFO: ClassVar[PassInfo] = PassInfo(
         "8", "filter", "blank self-interference and unidentified pixels; count the survivors",
         when="every view")
@@ -88,7 +90,7 @@ class FilterPass:
         device = gpu.device
         consts = {**COUNTER_INDEX, "COUNTER_WORDS": COUNTERS.size // 4,
                   "WORKGROUP_SIDE": WORKGROUP}
-        self.stage = Stage(gpu, "filter", self.ENTRY[output], label=f"{self.INFO.title} "
+        self.stage = Stage(gpu, self.SHADER, self.ENTRY[output], label=f"{self.INFO.title} "
                            f"({output})", structs=(PARAMS,), consts=consts)
         self.pipeline = self.stage.pipeline
         usage = wgpu.BufferUsage

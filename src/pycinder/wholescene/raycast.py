@@ -3,8 +3,8 @@ and identification (the paper's Appendix A).
 
 One pipeline per pass, built from the state table in :mod:`pycinder.gpu.states` (the single
 source of each pass's depth, stencil and cull state) once per detector. The pipelines share one
-bind group, bound by the names ``raycast.wgsl`` declares. The draw commands of a scene are
-recorded into render bundles once per topology and replayed every frame; a frame only uploads
+bind group, bound by the names ``wholescene_raycast.wgsl`` declares. The draw commands of a scene
+are recorded into render bundles once per topology and replayed every frame; a frame only uploads
 transforms (and changed vertices) and its :data:`FRAME` block.
 """
 
@@ -55,6 +55,8 @@ class RaycastPasses:
         The render passes that passes 1-7 are grouped into.
     """
 
+    SHADER: ClassVar[str] = "wholescene_raycast"
+    """Its shader, ``shaders/wholescene_raycast.wgsl``."""
     INFOS: ClassVar[tuple[PassInfo, ...]] = tuple(pass_info(s) for s in PASSES.values())
     STRUCTS: ClassVar[tuple[Struct, ...]] = (FRAME,)
 
@@ -92,7 +94,7 @@ class RaycastPasses:
                 "stencil_read_mask": STENCIL_MASK, "stencil_write_mask": STENCIL_MASK},
             "targets": [{"format": RECORD_FORMAT, "write_mask": state.write_mask}],
         }
-        return Stage(self.gpu, "raycast", render=render, label=f"pass {state.number}: "
+        return Stage(self.gpu, self.SHADER, render=render, label=f"pass {state.number}: "
                      f"{state.purpose}", structs=self.STRUCTS, consts=PAYLOAD, layout="declared")
 
     def capture_pipeline(self) -> wgpu.GPURenderPipeline:

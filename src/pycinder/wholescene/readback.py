@@ -42,7 +42,7 @@ class ReadbackMode:
 
     name = ""
     filter_output = "compact"
-    """Which entry point of ``filter.wgsl`` writes what this mode reads."""
+    """Which entry point of ``wholescene_filter.wgsl`` writes what this mode reads."""
 
     def __init__(self, gpu: Gpu, width: int, height: int, request: CollisionRequest) -> None:
         self.gpu, self.width, self.height = gpu, width, height

@@ -58,6 +58,8 @@ class MipReduce:
         (levels + 1,) uint32; ``lost[k]`` counts the blocks of level k where pairs met.
     """
 
+    SHADER: ClassVar[str] = "wholescene_reduce"
+    """Its shader, ``shaders/wholescene_reduce.wgsl``."""
     INFO: ClassVar[PassInfo] = PassInfo(
         "9", "mip-map reduction", "keep one record per 2x2 block, level by level; count the "
         "blocks where two pairs met", when="every view (readback mipmap, adaptive)")
@@ -67,7 +69,7 @@ class MipReduce:
             raise ValueError("mipmap_levels must be at least 1")
         self.gpu, self.levels = gpu, levels
         device = gpu.device
-        self.stage = Stage(gpu, "reduce", "reduce", label=self.INFO.title, structs=(PARAMS,),
+        self.stage = Stage(gpu, self.SHADER, "reduce", label=self.INFO.title, structs=(PARAMS,),
                            consts={"WORKGROUP_SIDE": WORKGROUP})
         usage = wgpu.BufferUsage
         self.sizes = level_sizes(width, height, levels)

@@ -1,20 +1,21 @@
 """The broad phase on the GPU: world boxes, a bitonic sort and a sweep, in one submission.
 
 The GPU equivalent of :func:`pycinder.scene.bodies.world_boxes` followed by
-:func:`pycinder.focused.broad.prune.sweep_and_prune` (and the focused strategy's filter to pairs of
-bodies in different groups): :class:`GpuBroadPhase`. Its passes, one class each, all in one command
-buffer (:data:`PASSES`; the table is generated from them by :func:`pass_table`):
+:func:`pycinder.focused.broad.broad_numpy.sweep_and_prune` (and the focused strategy's filter to
+pairs of bodies in different groups): :class:`GpuBroadPhase`. Its passes, one class each, all in one
+command buffer (:data:`PASSES`; the table is generated from them by :func:`pass_table`):
 
-- B1-B3 (:mod:`~pycinder.focused.broad.boxes`): each body's world box; the grid across the sweep
+- B1-B3 (:mod:`~pycinder.focused.broad.b1_boxes`): each body's world box; the grid across the sweep
   axis, from which the widest boxes (at most 32) are kept out; each box's sort element (within
   key, column, start on the sweep axis, body);
-- B4, B5 (:mod:`~pycinder.focused.broad.sort`): the bitonic sort of the elements;
-- B6-B8 (:mod:`~pycinder.focused.broad.sweep`): the boxes in sorted order, then their pairs:
+- B4, B5 (:mod:`~pycinder.focused.broad.b4_sort`): the bitonic sort of the elements;
+- B6-B8 (:mod:`~pycinder.focused.broad.b6_sweep`): the boxes in sorted order, then their pairs:
   within columns, and against the wide boxes.
 
 What the passes share with their shaders (the ``Body`` they read, the frame's ``Params``, the
 grid's and the counts' words, the constants) is declared once in
-:mod:`~pycinder.focused.broad.common` and generated into the shaders (``shaders/broad_*.wgsl``).
+:mod:`~pycinder.focused.broad.broad_common` and generated into the shaders
+(``shaders/broad_*.wgsl``).
 
 Boxes that are not wide and overlap have centres at most the widest of them apart, so they lie in
 the same or neighbouring columns; of each such pair, the box that starts first finds the other, so
@@ -55,12 +56,12 @@ measured from the origin.
 from __future__ import annotations
 
 from ...gpu.table import pass_table
-from .boxes import Columns, GridSetup, WorldBoxes
-from .common import COORDINATE_LIMIT, PAD_SCALE, SORT_BLOCK, BroadPass
-from .host import in_range, reference_pairs
-from .phase import BroadPhaseStats, GpuBroadPhase
-from .sort import LocalSort, MergeStep, sort_steps
-from .sweep import Gather, Sweep, WideSweep
+from .b1_boxes import Columns, GridSetup, WorldBoxes
+from .broad_common import COORDINATE_LIMIT, PAD_SCALE, SORT_BLOCK, BroadPass
+from .broad_gpu_host import in_range, reference_pairs
+from .broad_gpu import BroadPhaseStats, GpuBroadPhase
+from .b4_sort import LocalSort, MergeStep, sort_steps
+from .b6_sweep import Gather, Sweep, WideSweep
 
 PASSES: tuple[type[BroadPass], ...] = (WorldBoxes, GridSetup, Columns, LocalSort, MergeStep,
                                        Gather, Sweep, WideSweep)

@@ -1,5 +1,5 @@
-"""Indirect arguments between the passes (``finalize.wgsl``): after a pass, one thread turns its
-counters into the next pass's indirect dispatch or draw arguments, clamped to what the buffers
+"""Indirect arguments between the passes (``frame_arguments.wgsl``): after a pass, one thread turns
+its counters into the next pass's indirect dispatch or draw arguments, clamped to what the buffers
 hold, and keeps the largest counts for the host to size the buffers."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from ...gpu.bindings import Stage, dispatch
 from ...gpu.device import Gpu
 from ...gpu.structs import Struct
 from ...gpu.table import PassInfo
-from .atlas import Encoding
+from .atlas_buffers import Encoding
 
 PARAMS = Struct("FinalizeParams", [
     ("face_cap", "u32", "face items the buffer holds"),
@@ -28,13 +28,15 @@ STEPS = ("after_cull", "after_clip_faces", "after_clip", "after_crossings", "aft
 class Arguments:
     """The indirect arguments of the next pass, written after each pass by one thread."""
 
+    SHADER: ClassVar[str] = "frame_arguments"
+    """Its shader, ``shaders/frame_arguments.wgsl``."""
     INFO: ClassVar[PassInfo] = PassInfo(
         "F*", "indirect arguments", "counters of the last pass into the next pass's indirect "
         "dispatch or draw (IndirectArgs)", when="after F1, F2 (twice), F3 and F5's list")
     PARAMS: ClassVar[Struct] = PARAMS
 
     def __init__(self, gpu: Gpu) -> None:
-        self.stages = {step: Stage(gpu, "finalize", step, structs=(PARAMS,)) for step in STEPS}
+        self.stages = {step: Stage(gpu, self.SHADER, step, structs=(PARAMS,)) for step in STEPS}
 
     def write_params(self, e: Encoding) -> None:
         p, caps = e.frame_params("finalize"), e.buffers.caps

@@ -18,8 +18,8 @@ from ...gpu.layout import (C_AGAIN, C_RECORDS, C_RETRY_CHOSEN, C_RETRY_ROWS, C_R
                            C_UNDECIDED, COUNTERS, RECORD, TILE)
 from ...request import RecordMode
 from ...scene.pack import ShapePack
-from ..plan.tiles import TilePlan
-from .atlas import LIST_CAPACITY, AtlasBuffers, FrameState
+from ..plan.plan_numpy import TilePlan
+from .atlas_buffers import LIST_CAPACITY, AtlasBuffers, FrameState
 
 SPECULATIVE_RECORDS = 4096
 """Fewest records copied into the frame's one readback; a frame copies a quarter more than the
@@ -93,7 +93,7 @@ class FrameInputs:
     capacity: int
     retry: int
     """Atlas rows of each of the frame's retry rounds (0: none; see
-    :func:`~pycinder.focused.frame.again.retry_on_gpu`)."""
+    :func:`~pycinder.focused.frame.rerun.retry_on_gpu`)."""
     gpu_tiles: wgpu.GPUBuffer | None = None
     """A GPU buffer holding the plan's tiles as the passes read them
     (:data:`~pycinder.gpu.layout.TILE`, written by the GPU planner's pass P3 in an earlier
@@ -105,7 +105,7 @@ class FrameInputs:
 
     def words(self) -> np.ndarray:
         """(T,) :data:`~pycinder.gpu.layout.TILE` records of the plan, composed on the host
-        (:meth:`~pycinder.focused.plan.tiles.TilePlan.tile_from_body` in float64, then
+        (:meth:`~pycinder.focused.plan.plan_numpy.TilePlan.tile_from_body` in float64, then
         :func:`tile_words`)."""
         return tile_words(self.plan, self.plan.tile_from_body(self.transforms))
 

@@ -12,7 +12,7 @@ Each pass is an object owning its pipelines, its parameters struct and its bindi
 (``passes/<pass>.py``); :data:`PASSES` lists them in the order they run, and the pass table of
 the docs is generated from it. The readback brings the counters, a hit flag per candidate pair,
 the first records and the timestamps; the per-tile counts only when a tile must run again.
-What makes a frame run again is decided in :mod:`pycinder.focused.frame.again`.
+What makes a frame run again is decided in :mod:`pycinder.focused.frame.rerun`.
 """
 
 from __future__ import annotations
@@ -28,20 +28,21 @@ from ...gpu import native
 from ...gpu.device import Gpu
 from ...gpu.layout import C_AGAIN, C_CUTS, C_EDGES, C_RECORDS, FLAG_OPEN, ROUND_COUNTERS, TILE
 from ...scene.pack import ShapePack
-from .again import grown_caps
+from .rerun import grown_caps
 from .arguments import Arguments
-from .atlas import LIST_CAPACITY, PIXEL_BYTES, SLOTS, AtlasBuffers, Encoding, FrameState, Round
+from .atlas_buffers import (LIST_CAPACITY, PIXEL_BYTES, SLOTS, AtlasBuffers, Encoding, FrameState,
+                            Round)
 from .blocks import ParamBlocks
-from .bounds import Bounds
-from .clip import Clip
-from .crossings import Crossings
-from .crossingtest import CrossingTest
-from .cull import Cull
-from .edgetest import EdgeTest
+from .f0_bounds import Bounds
+from .f2_clip import Clip
+from .f3_crossings import Crossings
+from .f6_crossing_test import CrossingTest
+from .f1_cull import Cull
+from .f5_edge_test import EdgeTest
 from .frameio import FocusedOutput, FrameInputs, FrameReadback, Submitted
-from .retry import CountAgain, RetryChoice
+from .f7_f8_retry import CountAgain, RetryChoice
 from .scope import ComputeScope
-from .surfacetest import SurfaceTest
+from .f4_surface_test import SurfaceTest
 
 PASSES = (Bounds, Cull, Clip, Crossings, SurfaceTest, EdgeTest, CrossingTest, RetryChoice,
           CountAgain, Arguments)
@@ -173,7 +174,7 @@ class FocusedFrames:
 
     def finish(self, sub: Submitted) -> FocusedOutput:
         """Wait for a submitted frame and read what it found; run it again while a buffer had to
-        grow (:func:`pycinder.focused.frame.again.grown_caps`), so nothing is dropped.
+        grow (:func:`pycinder.focused.frame.rerun.grown_caps`), so nothing is dropped.
 
         Raises
         ------

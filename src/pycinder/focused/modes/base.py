@@ -13,20 +13,13 @@ import numpy as np
 
 if TYPE_CHECKING:
     from ...gpu.device import Gpu
-    from ..broad.prune import PairList
+    from ..broad.broad_numpy import PairList
     from ...request import CollisionRequest
-    from ...result import CollisionResult, Stats
+    from ...result import Stats
     from ...scene import Scene
     from ...scene.pack import ShapePack
+    from ...strategy import Pending
     from ..frame.frames import FocusedFrames
-
-
-class PendingResult(Protocol):
-    """A query on the GPU."""
-
-    def result(self) -> CollisionResult:
-        """Waits for the query and returns its result."""
-        ...
 
 
 class ModeHost(Protocol):
@@ -45,7 +38,7 @@ class ModeHost(Protocol):
     def submit_interference(self, scene: Scene, stats: Stats,
                             groups: np.ndarray | None = None, records: str | None = None,
                             within: np.ndarray | PairList | None = None,
-                            tolerance: np.ndarray | None = None, stop_at_first: bool = False
-                            ) -> PendingResult:
+                            body_tolerances: np.ndarray | None = None,
+                            stop_at_first: bool = False) -> Pending:
         """The interference test of ``scene``, submitted."""
         ...

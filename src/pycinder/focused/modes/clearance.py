@@ -10,11 +10,11 @@ Navisworks' and IfcClash's clearance test, a robot link's padding. Its contract:
    surfaces, 0 for pairs that overlap, within ``result.distance_errors`` of the truth.
 
 How. The candidates are the pairs whose world boxes are within ``c``. For each, pass C1
-(:mod:`pycinder.focused.modes.distance`) measures the distance between the two surfaces exactly, in
-single precision, over the pairs of face clusters whose world boxes are within ``c``: two
-triangles are closest at an edge and an edge or at a vertex and a face, or are 0 apart where an
+(:mod:`pycinder.focused.measure.c1_distance`) measures the distance between the two surfaces
+exactly, in single precision, over the pairs of face clusters whose world boxes are within ``c``:
+two triangles are closest at an edge and an edge or at a vertex and a face, or are 0 apart where an
 edge of one passes through the other. Only the cluster pairs that can be nearer than the least
-distance found are measured (:meth:`~pycinder.focused.modes.distance.Distance.nearest`): first
+distance found are measured (:meth:`~pycinder.focused.measure.c1_distance.Distance.nearest`): first
 each pair's cluster pairs with the nearest points, then those of the others whose boxes are
 nearer than the least distance found so far plus :data:`NEAREST_MARGIN` times its error bound
 (none once it is 0); a cluster pair left out could not have been nearer, so the figure is that
@@ -30,11 +30,11 @@ the farthest the measured vertices lie from that centre (``result.distance_error
 reported when its measured distance is below ``c`` plus that bound (promise 1), which keeps
 promise 2 while the bound is at most ``c / 16``. A pair whose whole bodies would break that, and
 whose whole-pair distance within its bound is neither below ``c`` nor above ``c + c / 8``, is
-measured in regions (:mod:`~pycinder.focused.modes.regions`): boxes where its world boxes meet,
+measured in regions (:mod:`~pycinder.focused.measure.regions`): boxes where its world boxes meet,
 grown by ``c`` and small enough for a bound of ``c / 32``, with the faces clipped to each in
 float64; two points closer than ``c`` lie in one region, so the least distance over the regions
 is the pair's. A pair that would need more than
-:data:`~pycinder.focused.modes.regions.MAX_REGIONS` regions raises a ``ValueError`` naming it.
+:data:`~pycinder.focused.measure.regions.MAX_REGIONS` regions raises a ``ValueError`` naming it.
 
 Cost. The distance pass runs over cluster pairs (64 x 64 triangle pairs each) near the pair's
 closest approach: surfaces that cross cost the few cluster pairs measured first, surfaces apart
@@ -58,10 +58,10 @@ from ...records import empty_records
 from ...result import CollisionResult, Stats
 from ...scene import Scene
 from ...scene.pack import ShapePack
-from ..broad.prune import PairList, sweep_and_prune
-from .distance import ITEM, Distance
-from .pairwork import pair_frames, spread
-from .regions import (
+from ..broad.broad_numpy import PairList, sweep_and_prune
+from ..measure.c1_distance import ITEM, Distance
+from ..measure.pair_work import pair_frames, spread
+from ..measure.regions import (
     RegionBuffers,
     body_vertices,
     contains,
@@ -147,8 +147,8 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, c: float,
 
     Returns
     -------
-    items : (I,) structured array of :data:`~pycinder.focused.modes.pairwork.ITEM`
-    frames : (K,) structured array of :data:`~pycinder.focused.modes.pairwork.FRAME`
+    items : (I,) structured array of :data:`~pycinder.focused.measure.pair_work.ITEM`
+    frames : (K,) structured array of :data:`~pycinder.focused.measure.pair_work.FRAME`
     reach : (K,) float64
         How far each pair's bodies reach from its frame's centre (``L`` of the error bound).
     gap : (I,) float64

@@ -7,10 +7,10 @@ a pair is:
 * both bodies convex, or one open: its penetration depth, the length of the shortest
   translation that separates it (FCL's and coal's definition); a body inside another is as deep
   as the translation that takes it out;
-* a closed body non-convex: its local depth (:mod:`~pycinder.focused.modes.local`), its deepest
-  overlapping part's directional depth (below), with both bodies cut to that part's box grown by
-  ``d``: how deep they overlap where they overlap, not how far one must travel to leave a ring
-  or an opening.
+* a closed body non-convex: its local depth (:mod:`~pycinder.focused.measure.local_depth`), its
+  deepest overlapping part's directional depth (below), with both bodies cut to that part's box
+  grown by ``d``: how deep they overlap where they overlap, not how far one must travel to leave a
+  ring or an opening.
 
 Its contract:
 
@@ -30,18 +30,18 @@ Its contract:
 How. Along a direction ``n``, moving body a by ``s n`` leaves all of body b behind it on every ray
 parallel to ``n`` once ``s`` exceeds the largest ``(farthest point of b) - (nearest point of a)``
 over those rays: that ``U(n)`` is a translation that separates the pair, so it is never less than
-the penetration depth. Pass H1 (:mod:`pycinder.focused.modes.depth`) finds it exactly over every
-face of a and face of b, both ways along 19 lines: the 13 through a cube's centre and its faces,
-edges and corners, and each body's own three axes. The pair's directional depth is the least of
-them (0 where a direction clears the pair: touching bodies). For convex bodies ``U(n)`` is exactly
-the shortest separating translation along ``n``, at most the penetration depth over the cosine of
-the angle between ``n`` and the best direction; every direction is within :data:`DIRECTION_COS` of
-one of the 26, so the figure is at most ``1 / 0.886`` times the penetration depth, which keeps
-promise 2. A pair whose shortest separating translation lies along one of the 19 lines (boxes and
-beams meeting face to face, whichever way they are turned) is measured exactly; where it lies
-elsewhere (two turned boxes meeting edge to edge) the figure is up to that factor high, within
-``result.depth_errors``. Open bodies have no inside: their surfaces' points are the rays' extremes,
-so two surfaces crossing deeper than ``d`` are a clash.
+the penetration depth. Pass H1 (:mod:`pycinder.focused.measure.h1_depth`) finds it exactly over
+every face of a and face of b, both ways along 19 lines: the 13 through a cube's centre and its
+faces, edges and corners, and each body's own three axes. The pair's directional depth is the least
+of them (0 where a direction clears the pair: touching bodies). For convex bodies ``U(n)`` is
+exactly the shortest separating translation along ``n``, at most the penetration depth over the
+cosine of the angle between ``n`` and the best direction; every direction is within
+:data:`DIRECTION_COS` of one of the 26, so the figure is at most ``1 / 0.886`` times the penetration
+depth, which keeps promise 2. A pair whose shortest separating translation lies along one of the 19
+lines (boxes and beams meeting face to face, whichever way they are turned) is measured exactly;
+where it lies elsewhere (two turned boxes meeting edge to edge) the figure is up to that factor
+high, within ``result.depth_errors``. Open bodies have no inside: their surfaces' points are the
+rays' extremes, so two surfaces crossing deeper than ``d`` are a clash.
 
 Precision. A pair is measured in a frame of its own, centred where its world boxes meet;
 single precision bounds a figure's rounding by :data:`ERROR_SCALE` times ``L``, the farthest the
@@ -50,7 +50,7 @@ vertices it is computed from lie from that centre. A pair is reported when its f
 whole bodies would break that (an 84 m slab, a model in map coordinates) keeps its whole figure
 where that decides it all the same (more than its bound over ``d``: deeper than ``d``; at most
 ``d / 2`` less its bound: never reported) and is measured otherwise in
-regions (:mod:`~pycinder.focused.modes.regions`): boxes covering where its world boxes meet,
+regions (:mod:`~pycinder.focused.measure.regions`): boxes covering where its world boxes meet,
 grown by :data:`PRECISION_GROW` ``d``, small enough that their rounding is at most ``d / 32``,
 with both bodies cut to each in float64 (solids closed by the box's walls) before they are
 rounded. A translation that separates the bodies separates their parts in a region, so a
@@ -59,11 +59,11 @@ is reported is decided by its deepest region's figure. Its reported depth is sti
 pair's figure, the upper bound of promise 3, and its ``depth_errors`` include the whole pair's
 rounding (a region's parts can be separated by less than the whole bodies, as a pipe inside a
 wall that a region cuts can leave it through the region's wall). A pair that would need more than
-:data:`~pycinder.focused.modes.regions.MAX_REGIONS` regions raises a ``ValueError`` naming it.
+:data:`~pycinder.focused.measure.regions.MAX_REGIONS` regions raises a ``ValueError`` naming it.
 A pair measured locally (a non-convex body, figure over ``d`` less its bound, or too large for a
 frame of its own) is measured in the same way, in regions covering its overlapping parts' boxes
-instead, grown by :data:`~pycinder.focused.modes.local.LOCAL_GROW` ``d``, and reports its deepest
-region's figure as its depth, with that region's rounding.
+instead, grown by :data:`~pycinder.focused.measure.local_depth.LOCAL_GROW` ``d``, and reports its
+deepest region's figure as its depth, with that region's rounding.
 
 Cost. No pixels, tolerance or records. A pair whose world boxes a translation of at most ``d / 2``
 along a world axis clears (a wall standing on its slab, a beam on its column: a third to a half of
@@ -73,13 +73,13 @@ stops at the first line that clears the pair: touching and apart pairs, most of 
 candidates, cost a line or a few. A pair of larger bodies is measured cluster pair by cluster pair,
 and a face pair adds to a line's figures only where the faces' projections along it meet: each pair
 of face clusters is measured only along the lines where their projections meet
-(:mod:`~pycinder.focused.modes.cull`, on the host), and within it only the face pairs whose screen
-boxes meet are tested exactly (on the GPU), so the cost follows the faces that meet along each line
-rather than the product of the two face counts. Where both bodies are solids wound outward, a
-cluster pair whose clusters face the same way along a line is left out along it too: on a ray, body
-a's nearest point is where it enters and b's farthest where it leaves (and the other way round), so
-such a pair adds nothing. Such a pair measures its bodies' axes first and stops there when one
-clears it. A pair measured locally whatever its whole figure, with more than
+(:mod:`~pycinder.focused.measure.h1_items`, on the host), and within it only the face pairs whose
+screen boxes meet are tested exactly (on the GPU), so the cost follows the faces that meet along
+each line rather than the product of the two face counts. Where both bodies are solids wound
+outward, a cluster pair whose clusters face the same way along a line is left out along it too: on a
+ray, body a's nearest point is where it enters and b's farthest where it leaves (and the other way
+round), so such a pair adds nothing. Such a pair measures its bodies' axes first and stops there
+when one clears it. A pair measured locally whatever its whole figure, with more than
 :data:`LOCAL_FIRST_WORK` face pairs, skips the whole-pair pass (:func:`local_first`); the others
 measured locally whenever their figure may be over ``d`` need that figure only up to ``d``, their
 frame's cap: a line stops as soon as both its figures reach it (a pair overlapping in volume stops
@@ -101,10 +101,10 @@ from ...records import empty_records
 from ...result import CollisionResult, Stats
 from ...scene import Scene
 from ...scene.pack import ShapePack
-from ..broad.prune import PairList, sweep_and_prune
+from ..broad.broad_numpy import PairList, sweep_and_prune
 from .clearance import ERROR_SCALE
-from .cull import depth_items, skip_lines
-from .depth import (
+from ..measure.h1_items import depth_items, skip_lines
+from ..measure.h1_depth import (
     ITEM_FLIPPED,
     ITEM_WHOLE,
     LINES,
@@ -115,9 +115,9 @@ from .depth import (
     hull_lower_bound,
     lines,
 )
-from .local import LOCAL_GROW, convex_pairs, overlap_parts, pair_kinds
-from .pairwork import ITEM, pair_frames
-from .regions import RegionBuffers, meeting_regions, tile_side
+from ..measure.local_depth import LOCAL_GROW, convex_pairs, overlap_parts, pair_kinds
+from ..measure.pair_work import ITEM, pair_frames
+from ..measure.regions import RegionBuffers, meeting_regions, tile_side
 
 if TYPE_CHECKING:
     from .base import ModeHost
@@ -138,7 +138,7 @@ skips the whole-pair pass (:func:`local_first`): about two 2,000-face bodies."""
 
 LEAST_LINE = float(np.finfo(np.float32).max)
 """Pass H1's cap for a pair whose figure is its least line's alone: a line stops once both its
-figures reach the least figure of the lines measured before it (see ``depth.wgsl``)."""
+figures reach the least figure of the lines measured before it (see ``measure_depth.wgsl``)."""
 
 DIRECTION_COS = 0.886
 """Every direction is within this cosine of one of the 26 directions through a cube's centre and
@@ -169,11 +169,11 @@ class Figures(NamedTuple):
 def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, cull: bool = True
          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The work of pass H1: each pair's frame and its items: its two bodies whole, when one has at
-    most :data:`~pycinder.focused.modes.depth.WHOLE_FACES` faces and they make at most
-    :data:`~pycinder.focused.modes.depth.WHOLE_WORK` face pairs, else the pairs of their face
+    most :data:`~pycinder.focused.measure.h1_depth.WHOLE_FACES` faces and they make at most
+    :data:`~pycinder.focused.measure.h1_depth.WHOLE_WORK` face pairs, else the pairs of their face
     clusters that meet along some line, each along those lines alone
-    (:func:`~pycinder.focused.modes.cull.depth_items`; with ``cull`` False, every pair of their
-    clusters along every line: the same figures, at the cost of the product of their counts).
+    (:func:`~pycinder.focused.measure.h1_items.depth_items`; with ``cull`` False, every pair of
+    their clusters along every line: the same figures, at the cost of the product of their counts).
 
     Parameters
     ----------
@@ -184,8 +184,8 @@ def plan(scene: Scene, pack: ShapePack, pairs: np.ndarray, cull: bool = True
 
     Returns
     -------
-    items : (I,) structured array of :data:`~pycinder.focused.modes.pairwork.ITEM`
-    frames : (K,) structured array of :data:`~pycinder.focused.modes.pairwork.FRAME`
+    items : (I,) structured array of :data:`~pycinder.focused.measure.pair_work.ITEM`
+    frames : (K,) structured array of :data:`~pycinder.focused.measure.pair_work.FRAME`
     reach : (K,) float64
         How far each pair's bodies reach from its frame's centre (``L`` of the rounding bound).
     """
@@ -255,8 +255,8 @@ def box_figures(scene: Scene, pairs: np.ndarray, figures: np.ndarray, most: floa
 def local_first(scene: Scene, pack: ShapePack, pairs: np.ndarray,
                 kinds: np.ndarray | None = None) -> np.ndarray:
     """Which pairs go straight to their local depth, without the whole-pair pass: those measured
-    locally whatever their whole figure (:func:`~pycinder.focused.modes.local.pair_kinds`) whose
-    bodies make more than :data:`LOCAL_FIRST_WORK` face pairs. The local depth is at most the
+    locally whatever their whole figure (:func:`~pycinder.focused.measure.local_depth.pair_kinds`)
+    whose bodies make more than :data:`LOCAL_FIRST_WORK` face pairs. The local depth is at most the
     whole figure, so a pair the whole figure would clear is cleared locally too; for a dense
     pair, cutting it with manifold3d costs less than the whole-pair pass over its cluster pairs,
     while for the many small pairs of a building it would cost more.
@@ -267,7 +267,7 @@ def local_first(scene: Scene, pack: ShapePack, pairs: np.ndarray,
     pack : ShapePack
     pairs : (K, 2) int
     kinds : (K,) bool, optional
-        :func:`~pycinder.focused.modes.local.pair_kinds` of the pairs, where known.
+        :func:`~pycinder.focused.measure.local_depth.pair_kinds` of the pairs, where known.
 
     Returns
     -------
@@ -327,7 +327,7 @@ class HardClash:
                         d: float | None = None) -> Figures:
         """Each pair's depth, the direction it is measured along, and its bounds (pass H1 on
         the shapes as the strategy uploads them; with ``d``, pairs with a non-convex body that
-        may be deeper than ``d`` measured locally, :mod:`~pycinder.focused.modes.local`, and
+        may be deeper than ``d`` measured locally, :mod:`~pycinder.focused.measure.local_depth`, and
         pairs too large for one frame in regions).
 
         Parameters
@@ -411,7 +411,7 @@ class HardClash:
 
     def _local_depth(self, scene: Scene, stats: Stats, pairs: np.ndarray, d: float
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Each pair's local depth (:mod:`~pycinder.focused.modes.local`): its deepest
+        """Each pair's local depth (:mod:`~pycinder.focused.measure.local_depth`): its deepest
         overlapping part's figure, the word it is measured along and its rounding bound (0, word
         0 and 0 for a pair that does not overlap in volume)."""
         t0 = time.perf_counter()
