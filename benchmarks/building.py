@@ -256,7 +256,7 @@ def cli_check(folder: Path, building: Building, api: Sequence[Any], placement: s
     Parameters
     ----------
     folder : Path
-        Holds the three files of :func:`~.buildingmodel.write_federated`.
+        Holds the three files of :func:`~pycinder.testing.buildings.write_federated`.
     building : Building
     api : sequence of Clash
         :func:`~pycinder.bim.ifc.find_clashes` of the same files at ``min_depth``.
@@ -350,7 +350,7 @@ def run_building(sizes: Sequence[int] = (3000, 20000), *,
     Parameters
     ----------
     sizes : sequence of int
-        Elements wanted (:func:`~.buildingmodel.generate`).
+        Elements wanted (:func:`~pycinder.testing.buildings.generate`).
     progress : callable, optional
         Called with a line of text before each step.
     peers : bool

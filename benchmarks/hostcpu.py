@@ -197,17 +197,26 @@ STAGES: tuple[tuple[str, str, str], ...] = (
     ("pycinder.scene.prepared", "PreparedBodies.copies", "validate"),
     ("pycinder.robot.model", "RobotModel.poses", "forward kinematics"),
     ("pycinder.robot.k2_pair_cull", "GpuPairCull.run", "kinematics and cull (K1, K2)"),
+    ("pycinder.robot.cull", "GpuPairCull.run", "kinematics and cull (K1, K2)"),
     ("pycinder.scene.bodies", "ShapeCache.get_many", "shapes (check, hash, measure)"),
     ("pycinder.scene.topology", "TopologyCache.get", "topology lookup"),
     ("pycinder.scene.bodies", "Scene.world_boxes", "broad phase"),
     ("pycinder.focused.focused_strategy", "FocusedStrategy._candidates", "broad phase"),
-    ("pycinder.focused.focused_strategy", "FocusedStrategy.tolerances", "pair tolerances"),
+    ("pycinder.focused.focused_strategy", "pair_tolerances", "pair tolerances"),
     ("pycinder.focused.focused_strategy", "plan_tiles", "tiles (plan)"),
     ("pycinder.focused.plan.plan_gpu", "GpuPlanner.plan", "tiles (plan)"),
     ("pycinder.focused.focused_strategy", "FocusedStrategy.pack", "pack and upload vertices"),
     ("pycinder.focused.frame.frames", "FocusedFrames.submit", "encode and submit"),
     ("pycinder.focused.frame.frames", "FocusedFrames.finish", "wait and read back"),
     ("pycinder.focused.focused_strategy", "FocusedStrategy._result", "decode"),
+    # The same stages under the names of trees from before the modules were renamed, so that
+    # ``--against`` an older tree charges them too.
+    ("pycinder.focused.strategy", "FocusedStrategy._candidates", "broad phase"),
+    ("pycinder.focused.strategy", "FocusedStrategy.tolerances", "pair tolerances"),
+    ("pycinder.focused.strategy", "plan_tiles", "tiles (plan)"),
+    ("pycinder.focused.plan.gpu", "GpuPlanner.plan", "tiles (plan)"),
+    ("pycinder.focused.strategy", "FocusedStrategy.pack", "pack and upload vertices"),
+    ("pycinder.focused.strategy", "FocusedStrategy._result", "decode"),
 )
 """(module, attribute, stage): the functions whose calls are charged to a stage. A name a
 checkout lacks is skipped."""

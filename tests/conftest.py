@@ -159,3 +159,32 @@ class Geometry:
     def verdicts(self, pairs: np.ndarray) -> list[str]:
         """:meth:`verdict` of each pair of ``pairs`` (K, 2)."""
         return [self.verdict(i, j) for i, j in np.asarray(pairs, np.int64).tolist()]
+
+
+class CommandCount:
+    """Counts pycinder's own queue submissions and buffer maps from here on (``submits``,
+    ``maps``), through ``monkeypatch``."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        import sys
+
+        from pycinder.gpu.buffers import Readback
+
+        self.submits = self.maps = 0
+        queue_type = type(pycinder.Detector().gpu.device.queue)
+        submit = queue_type.submit
+        start = Readback.start  # every map of pycinder's is asked for here
+
+        def counted_submit(queue, *args, **kwargs):
+            # wgpu-py itself submits an empty command buffer before a buffer's first map for
+            # reading (a driver workaround); count pycinder's own submissions.
+            if "pycinder" in sys._getframe(1).f_code.co_filename:
+                self.submits += 1
+            return submit(queue, *args, **kwargs)
+
+        def counted_map(readback, *args, **kwargs):
+            self.maps += 1
+            return start(readback, *args, **kwargs)
+
+        monkeypatch.setattr(queue_type, "submit", counted_submit)
+        monkeypatch.setattr(Readback, "start", counted_map)

@@ -265,7 +265,8 @@ def _scene_pixel(meshes, transforms, resolution: int) -> float:
 
 REFERENCE = {"planner": "numpy"}
 """The answers are the NumPy planner's, the reference (``planner="auto"`` plans large queries on
-the GPU; ``tests/focused/plan/test_gpu_planner.py`` compares the two planners and exact geometry)."""
+the GPU; ``tests/focused/plan/test_plan_gpu.py`` compares the two planners and exact
+geometry)."""
 
 
 def _frames(scene, frames: int, **options) -> Source:

@@ -102,13 +102,21 @@ def test_the_checks_fail_when_a_circle_is_added(circled: Path) -> None:
 
 
 def test_one_base_name_per_module() -> None:
-    """No two modules of the package share a base name (``cull.py`` was three different things):
-    a search for a file name finds the one thing it names."""
+    """No two modules of the package share a base name (``cull.py`` was three different things),
+    and no module is named as another package (``batching.py`` beside ``batch/``,
+    ``wholescene/frame.py`` beside ``focused/frame/``): a search for a name finds the one thing
+    it names. A module may carry the name of the package that holds it (``robot/robot.py``)."""
     seen: dict[str, list[str]] = {}
     for path in PACKAGE.rglob("*.py"):
         if path.name not in ("__init__.py", "__main__.py"):
-            seen.setdefault(path.name, []).append(str(path.relative_to(PACKAGE)))
+            seen.setdefault(path.stem, []).append(str(path.relative_to(PACKAGE)))
     assert not {n: p for n, p in seen.items() if len(p) > 1}
+    packages = {p.parent.relative_to(PACKAGE) for p in PACKAGE.rglob("__init__.py")
+                if p.parent != PACKAGE}
+    for package in packages:
+        named = [m for m in seen.get(package.name, []) if Path(m).parent != package]
+        assert not named, f"{named} share a name with the package {package}"
+    assert len({p.name for p in packages}) == len(packages), sorted(packages)
 
 
 def test_every_shader_is_prefixed_by_its_owner() -> None:
@@ -141,8 +149,17 @@ def test_every_pass_names_its_file_and_shader() -> None:
     assert len(rows) >= 29
     for code, path, shader, _ in rows:
         assert (PACKAGE / path).is_file() and (PACKAGE / shader).is_file(), (code, path, shader)
-        if code[0] in "BCFHKP" and code[1:2].isdigit():
-            assert Path(path).stem.startswith(code[0].lower()), (code, path)
+        first = re.match(r"([BCFHKP])(\d+)", code)
+        if first:
+            # f7_f8_retry.py holds F7 and F8; b1_boxes.py holds B1 and the passes up to the next
+            # file's first (B2, B3).
+            letter, number = first.group(1).lower(), int(first.group(2))
+            named = re.match(rf"{letter}(\d+)(?:_{letter}(\d+))?_", Path(path).stem)
+            assert named, f"{path} does not carry the code of pass {code}"
+            low, high = int(named.group(1)), int(named.group(2) or named.group(1))
+            assert low <= number and (named.group(2) is None or number <= high), (code, path)
+    page = (ROOT / "docs" / "guide" / "how-it-works.md").read_text(encoding="utf-8")
+    assert "```{pass-files}" in page, "the code layout's table of passes left the docs"
 
 
 def test_the_cli_is_one_small_module_per_command() -> None:

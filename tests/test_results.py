@@ -42,11 +42,11 @@ def test_records_are_decoded_when_first_read(detector, monkeypatch):
     tolerance), on the penetrating body's surface."""
     import threading
 
-    from pycinder.focused import focused_strategy as focused
+    from pycinder.focused import focused_strategy
 
     calls = []
-    decode = focused.decode_records
-    monkeypatch.setattr(focused, "decode_records",
+    decode = focused_strategy.decode_records
+    monkeypatch.setattr(focused_strategy, "decode_records",
                         lambda *a: calls.append(1) or decode(*a))
     box, ball = box_and_ball()
     result = detector.find_collisions([box, ball], records="all")

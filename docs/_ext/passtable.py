@@ -18,9 +18,9 @@ from sphinx.util.docutils import SphinxDirective
 SOURCES = {
     "focused": ("pycinder.focused.frame.frames", "PASSES"),
     "broad": ("pycinder.focused.broad", "PASSES"),
-    "scene": ("pycinder.wholescene.frame", "PASS_INFOS"),
-    "clearance": ("pycinder.clearance", "PASSES"),
-    "hardclash": ("pycinder.hardclash", "PASSES"),
+    "scene": ("pycinder.wholescene.scene_frame", "PASS_INFOS"),
+    "clearance": ("pycinder.focused.modes.clearance", "PASSES"),
+    "hardclash": ("pycinder.focused.modes.hardclash", "PASSES"),
     "planner": ("pycinder.focused.plan.plan_gpu", "PASSES"),
     "robot": ("pycinder.robot.k2_pair_cull", "PASSES"),
 }

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import wgpu
 
-from .batching import join_scenes, split
+from .joined_scenes import join_scenes, split
 from .errors import GpuError, GpuTimeoutError, with_message
 from .focused.broad.broad_numpy import PairList
 from .focused.focused_strategy import FocusedStrategy

@@ -427,7 +427,7 @@ class CollisionResult:
         return np.where(keys[at] == wanted, counts[at], 0).astype(np.int64)
 
     def report(self, names: Sequence[str] | None = None, *, mode: str = "default",
-               tolerance: Sequence[float] | None = None,
+               tolerance_range: Sequence[float] | None = None,
                warnings: Sequence[dict[str, Any]] = ()) -> dict[str, Any]:
         """This result as the object ``pycinder check --json`` prints (``json.dumps`` of it).
 
@@ -438,7 +438,7 @@ class CollisionResult:
             indices as text where it was given none).
         mode : {"default", "min_depth", "clearance"}
             The query's mode; any other than ``"default"`` is the report's ``mode``.
-        tolerance : (2,) sequence of float, optional
+        tolerance_range : (2,) sequence of float, optional
             Focused strategy: the report's ``tolerance``, [smallest, largest] in world units
             (see :func:`pycinder.files.tolerance_range`); None makes it null (a hard-clash
             query measures with no pixels). Ignored for the scene strategy.
@@ -475,7 +475,8 @@ class CollisionResult:
                 for pair, d, e in zip(report["pairs"], figures.tolist(), bounds.tolist()):
                     pair[name], pair[f"{name}_error"] = d, e
         if st.strategy == "focused":
-            report["tolerance"] = None if tolerance is None else [float(t) for t in tolerance]
+            report["tolerance"] = (None if tolerance_range is None
+                                   else [float(t) for t in tolerance_range])
             report["candidates"] = st.candidates
         else:
             report["resolution"] = st.resolution[0]

@@ -8,8 +8,11 @@ back a :class:`Pending` query whose :meth:`~Pending.result` finishes it::
     pending = strategy.submit(scene, stats, Query(groups=groups, records="found"))
     result = pending.result()
 
-What a strategy cannot do it says in one place, :attr:`Strategy.REFUSED` (an option and the error
-it raises), so that the detector asks what a strategy does, never which strategy it holds.
+What a query of a strategy cannot ask for (a view, a list of pairs, a batch of scenes) the strategy
+says in :attr:`Strategy.REFUSED` (the option and the error it raises), so that the detector asks
+what a strategy does, never which strategy it holds. Per-call records and contacts are the
+request's to check (:meth:`~pycinder.CollisionRequest.call_records`); a strategy that keeps its own
+records (the scene strategy's) takes none, and one that cannot stop at its first pair runs whole.
 """
 
 from __future__ import annotations

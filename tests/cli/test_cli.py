@@ -379,7 +379,7 @@ def test_result_report_is_check_json():
     stats.candidates = 3
     result = CollisionResult(np.array([[0, 1], [0, 2]]), rec, stats)
     assert result.pair_samples().tolist() == [0, 3]
-    report = result.report(["a", "b", "c", "d"], tolerance=[0.5, 1.0])
+    report = result.report(["a", "b", "c", "d"], tolerance_range=[0.5, 1.0])
     assert report == {
         "collision": True,
         "pairs": [{"a": "a", "b": "b", "samples": 0}, {"a": "a", "b": "c", "samples": 3}],

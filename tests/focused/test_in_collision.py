@@ -119,10 +119,10 @@ def test_the_likeliest_pairs_first_then_the_rest(monkeypatch):
     """The pairs whose boxes overlap most run first; when they do not collide, the rest still
     runs. Two rods through rings (boxes overlapping broadly, surfaces apart) and two cubes
     overlapping by 2.5 tolerances at a corner of their boxes."""
-    from pycinder.focused import focused_strategy as focused
+    from pycinder.focused import focused_strategy
 
-    monkeypatch.setattr(focused, "LEAD_PAIRS", 1)
-    monkeypatch.setattr(focused, "LEAD_FROM", 3)
+    monkeypatch.setattr(focused_strategy, "LEAD_PAIRS", 1)
+    monkeypatch.setattr(focused_strategy, "LEAD_FROM", 3)
     meshes, transforms = [], []
     for x in (10.0, 20.0):
         ring = np.eye(4)

@@ -114,7 +114,7 @@ def test_pass_table_comes_from_the_classes_in_the_order_passes_run():
     from pycinder.gpu.states import PASSES
     from pycinder.gpu.table import pass_table
 
-    from pycinder.wholescene.frame import PASS_INFOS
+    from pycinder.wholescene.scene_frame import PASS_INFOS
 
     infos = [*RaycastPasses.INFOS, FilterPass.INFO, MipReduce.INFO]
     assert list(PASS_INFOS) == infos

@@ -1,6 +1,6 @@
 """Many small scenes in one query (:func:`find_collisions_batch`): the scenes are joined into
 one, the broad phase pairs only bodies of one scene, and the result is split back per scene
-(:mod:`pycinder.batching`).
+(:mod:`pycinder.joined_scenes`).
 """
 
 from __future__ import annotations

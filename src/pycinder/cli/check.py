@@ -153,10 +153,10 @@ def cmd_check(args: argparse.Namespace) -> int:
     pairs = [(names[i], names[j]) for i, j in result.pairs.tolist()]
     if args.json:
         # A hard-clash query has no tolerance: it measures depths with no pixels.
-        tolerance = None if result.stats.strategy != "focused" or \
+        pixels = None if result.stats.strategy != "focused" or \
             request.min_depth is not None else \
             tolerance_range(bodies, result.stats, request.tolerance)
-        report = result.report(names, mode=request_mode(args), tolerance=tolerance,
+        report = result.report(names, mode=request_mode(args), tolerance_range=pixels,
                                warnings=notes)
         print(json.dumps(report, indent=2))
     else:

@@ -12,6 +12,6 @@ The stages, in the order a query flows through them, one subpackage each:
 - :mod:`~pycinder.focused.modes`: the query modes that measure pairs exactly (hard clashes,
   clearance), plug-ins the strategy calls and that never import it.
 
-:mod:`~pycinder.focused.focused_strategy` joins them; :mod:`~pycinder.focused.frame.rerun` runs
-the pairs a frame left undecided again.
+:mod:`~pycinder.focused.focused_strategy` joins them;
+:mod:`~pycinder.focused.frame.rerun_policy` runs the pairs a frame left undecided again.
 """

@@ -39,7 +39,7 @@ from ..tolerance import pair_tolerances
 from ..util.text import plural
 from .broad import GpuBroadPhase, in_range
 from .broad.broad_numpy import PairList, sweep_and_prune
-from .frame.rerun import (LARGER_LISTS, RETRIES, RoundTooLarge, retry_on_gpu, retry_rounds,
+from .frame.rerun_policy import (LARGER_LISTS, RETRIES, RoundTooLarge, retry_on_gpu, retry_rounds,
                           smaller_rounds, undecided_tiles)
 from .frame.atlas_buffers import ENTRY_BYTES, LIST_CAPACITY, PIXEL_BYTES, RETRY_LISTS
 from .frame.frameio import sort_records
@@ -93,7 +93,7 @@ class FocusedStrategy:
         """Whether the last query ran tiles again (their samples were left undecided)."""
         self.retry_rows_needed = 0
         """Rows of the retry rounds' layout the last query's tiles to run again needed (see
-        :func:`~pycinder.focused.frame.rerun.retry_rounds`)."""
+        :func:`~pycinder.focused.frame.rerun_policy.retry_rounds`)."""
 
     def _budget(self, capacity: int) -> int:
         """Atlas pixels per round with lists of ``capacity`` crossings."""
@@ -242,8 +242,8 @@ class FocusedStrategy:
         return pairs[meet], "gpu"
 
     def _complete(self, q: _Query) -> CollisionResult:
-        """The rest of :meth:`run` once the first frame is submitted: its readback, the runs
-        again of undecided tiles (as :mod:`pycinder.focused.frame.rerun` decides), and the
+        """The rest of :meth:`submit` once the first frame is submitted: its readback, the runs
+        again of undecided tiles (as :mod:`pycinder.focused.frame.rerun_policy` decides), and the
         decoding."""
         scene, stats, records, pairs = q.scene, q.stats, q.records, q.pairs
         found = np.zeros(len(pairs), dtype=bool)
@@ -362,7 +362,7 @@ class FocusedStrategy:
         when a round is too large for the device's buffers, run the frame again without its
         retry rounds where it had any (their tiles come from every round: they may be what was
         too large), else plan the same tiles in smaller rounds and run them again
-        (:func:`pycinder.focused.frame.rerun.smaller_rounds`). Returns the plan run."""
+        (:func:`pycinder.focused.frame.rerun_policy.smaller_rounds`). Returns the plan run."""
         budget, width = self._budget(capacity), plan.atlas_width
         while True:
             try:

@@ -358,15 +358,15 @@ class Robot(RobotModel):
         given = self.tolerance if self.tolerance is not None else \
             self.detector.request.tolerance
         if given is not None:
-            tolerance = np.full(len(a), float(given))
+            pair_tolerances = np.full(len(a), float(given))
         elif clearance is not None:
-            tolerance = np.full(len(a), np.inf)
+            pair_tolerances = np.full(len(a), np.inf)
         else:  # the default: of the smaller body's size, placed by its origin
             size = body_sizes(bounds[:, 0], bounds[:, 1], origins)
-            tolerance = DEFAULT_RELATIVE_TOLERANCE * np.minimum(size[a], size[b])
+            pair_tolerances = DEFAULT_RELATIVE_TOLERANCE * np.minimum(size[a], size[b])
         if clearance is not None:  # a padded check tests within a quarter of its clearance
-            tolerance = np.minimum(tolerance, clearance / 4)
-        if not (error[a] + error[b] <= POSE_MARGIN * tolerance).all():
+            pair_tolerances = np.minimum(pair_tolerances, clearance / 4)
+        if not (error[a] + error[b] <= POSE_MARGIN * pair_tolerances).all():
             return None
         fixed = np.where((sources < 0)[:, None, None], origins, np.eye(4))
         if plan.front is None or plan.front.kinematics is not kinematics:
@@ -589,14 +589,15 @@ class Robot(RobotModel):
         else:  # pass K1's: finite and proper, with their world boxes
             scene = plan.prepared._copies(body, transforms, names,
                                           poses.take_boxes(config, used[body]))
-        tolerance = np.full(len(copy), self._tolerance_value)
+        body_tolerances = np.full(len(copy), self._tolerance_value)
         if pads is None:
-            result = self.detector._find_within(scene, candidates, tolerance)
+            result = self.detector._find_within(scene, candidates, body_tolerances)
         else:
             # At K1's poses each body may lie its error estimate (``slack``) off float64's:
             # pairs that close to their padding are measured and kept.
             reach = clearance if slack is None else clearance + 2.0 * float(slack.max())
-            result = self._padded_detector(reach)._find_within(scene, candidates, tolerance)
+            result = self._padded_detector(reach)._find_within(scene, candidates,
+                                                               body_tolerances)
         found = result.pairs
         config, a, b = config[found[:, 0]], used[body[found[:, 0]]], used[body[found[:, 1]]]
         if pads is None:
@@ -611,7 +612,7 @@ class Robot(RobotModel):
     @property
     def _tolerance_value(self) -> float:
         """The checks' tolerance in world units; NaN for the detector's own (per pair)."""
-        from ..batching import scene_tolerances
+        from ..joined_scenes import scene_tolerances
 
         return float(scene_tolerances(self.tolerance, 1, [self.name])[0])
 

@@ -1,4 +1,4 @@
-// Broad phase, passes B1-B3 (pycinder/passes/broad/boxes.py): world boxes, the grid across the
+// Broad phase, passes B1-B3 (pycinder/focused/broad/b1_boxes.py): world boxes, the grid across the
 // sweep axis, and each box's sort element.
 //!include broad_common
 
@@ -6,7 +6,7 @@
 @group(0) @binding(2) var<storage, read_write> boxes_lo: array<vec4f>;  // w: within key bits
 @group(0) @binding(3) var<storage, read_write> boxes_hi: array<vec4f>;  // w: group bits
 @group(0) @binding(4) var<storage, read_write> elements: array<vec4u>;
-// The Grid struct (common.py) as atomic words, at the GRID_* word indices.
+// The Grid struct (broad_common.py) as atomic words, at the GRID_* word indices.
 @group(0) @binding(5) var<storage, read_write> grid: array<atomic<u32>, GRID_WORDS>;
 
 const HIST_SHIFT: u32 = 21u;        // float bits >> 21: quarter octaves

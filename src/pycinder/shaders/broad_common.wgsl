@@ -1,7 +1,7 @@
-// What the broad phase's shaders share (pycinder/passes/broad): the frame's parameters and the
+// What the broad phase's shaders share (pycinder/focused/broad): the frame's parameters and the
 // helpers of more than one pass. The structs (Params, Body, SortStep) and the constants shared
 // with the host (SORT_BLOCK, PAD_SCALE, the GRID_* and COUNT_* word indices, ...) are generated
-// in front of the source from pycinder/passes/broad/common.py.
+// in front of the source from pycinder/focused/broad/broad_common.py.
 //!include layout
 
 @group(0) @binding(0) var<uniform> params: Params;

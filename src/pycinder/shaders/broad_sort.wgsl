@@ -1,4 +1,4 @@
-// Broad phase, passes B4 and B5 (pycinder/passes/broad/sort.py): the bitonic sort of the sort
+// Broad phase, passes B4 and B5 (pycinder/focused/broad/b4_sort.py): the bitonic sort of the sort
 // elements, in (within key, column, start, body) order.
 //!include broad_common
 

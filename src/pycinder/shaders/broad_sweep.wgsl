@@ -1,4 +1,4 @@
-// Broad phase, passes B6-B8 (pycinder/passes/broad/sweep.py): the boxes in sorted order, then
+// Broad phase, passes B6-B8 (pycinder/focused/broad/b6_sweep.py): the boxes in sorted order, then
 // the pairs of boxes that overlap, appended through an atomic count.
 //!include broad_common
 
@@ -8,10 +8,10 @@
 @group(0) @binding(4) var<storage, read_write> sorted_lo: array<vec4f>;
 @group(0) @binding(5) var<storage, read_write> sorted_hi: array<vec4f>;
 @group(0) @binding(6) var<storage, read_write> sorted_body: array<u32>;
-// The Counts struct (common.py) as atomic words, at the COUNT_* word indices.
+// The Counts struct (broad_common.py) as atomic words, at the COUNT_* word indices.
 @group(0) @binding(7) var<storage, read_write> counts: array<atomic<u32>, COUNT_WORDS>;
 @group(0) @binding(8) var<storage, read_write> pairs: array<vec2u>;
-// The Grid struct (common.py) as atomic words, at the GRID_* word indices.
+// The Grid struct (broad_common.py) as atomic words, at the GRID_* word indices.
 @group(0) @binding(9) var<storage, read_write> grid: array<atomic<u32>, GRID_WORDS>;
 // Sorted positions of the boxes whose sweep ran out of its budget (counts[COUNT_UNFINISHED]).
 @group(0) @binding(10) var<storage, read_write> unfinished: array<u32>;

@@ -2,7 +2,7 @@
 //
 // Each clipped face of both bodies is rasterised once (fragments outside the face's tile are
 // dropped: faces near a window are passed on uncut) (no culling, no depth or stencil test; see
-// passes/states.py). At every pixel centre it covers, the face crosses the pixel's ray. Crossings
+// gpu/states.py). At every pixel centre it covers, the face crosses the pixel's ray. Crossings
 // on the counting side of the box only change how many times the ray has entered each body
 // before it reaches the box: they are summed per body (front faces +1, back faces -1, as passes 2
 // and 3 of the paper do in the stencil buffer). Crossings within the box's depth range are kept

@@ -45,7 +45,7 @@
 @group(0) @binding(5) var<storage, read_write> args: IndirectArgs;
 
 // CLASSES (5), GROUP_WORDS (per workgroup: [c] chosen | widest << 16, [8 + c] first rank) and
-// CLASS_WORDS (per class: first row, slots per shelf, slot width) come from retry.py.
+// CLASS_WORDS (per class: first row, slots per shelf, slot width) come from f7_f8_retry.py.
 
 var<workgroup> chosen_class: array<u32, WORKGROUP>;  // 0: not chosen; else class + 1
 var<workgroup> class_count: array<atomic<u32>, CLASSES>;

@@ -1,6 +1,6 @@
 // Shared by passes C1 (measure_distance.wgsl) and H1 (measure_depth.wgsl), included after the
-// layout: the bindings of a pass over items of a candidate pair's faces (see passes/pairwork.py),
-// and the packed shapes' vertices in the pair's own frame.
+// layout: the bindings of a pass over items of a candidate pair's faces (see
+// focused/measure/pair_work.py), and the packed shapes' vertices in the pair's own frame.
 
 @group(0) @binding(0) var<storage, read> positions: array<f32>;
 @group(0) @binding(1) var<storage, read> faces: array<u32>;

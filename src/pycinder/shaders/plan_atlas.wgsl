@@ -1,8 +1,8 @@
 // Pass P2 of the GPU tile planner, atlas (compute): the integer part of
 // pycinder.focused.plan.plan_numpy.plan_tiles (lead=None): every kept window cut into tiles, in
 // phases, the tiles packed into the atlas's bands and the bands into rounds, with the same tiles in
-// the same order as _phases_of, _layout, _place and concat_plans make them (see passes/atlasplan.py
-// for the whole argument).
+// the same order as _phases_of, _layout, _place and concat_plans make them (see
+// focused/plan/p2_atlas.py for the whole argument).
 //
 // Four entry points, dispatched in order in one compute pass:
 //   count  (one workgroup of GROUP): totals over the pairs, which windows are probed, and per

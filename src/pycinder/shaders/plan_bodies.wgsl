@@ -6,7 +6,7 @@
 // the host uploads the centres less the anchor, computed in float64, so nothing here rounds at
 // the body's distance from the world's origin.
 //
-// The structs BodyPose, BodyExtent, PlanBody and PlanParams are generated from bodies.py; so
+// The structs BodyPose, BodyExtent, PlanBody and PlanParams are generated from p0_bodies.py; so
 // are the constants WORKGROUP, ROW, FLAG_MIRROR_A, FLAG_MIRROR_B, FLAG_OPEN_A, FLAG_OPEN_B,
 // EXTENT_OPEN, EXTENT_MIRRORED and MIN_NORMAL.
 

@@ -1,6 +1,6 @@
-// Tile planner, pass P3 (compute; pycinder/passes/tilewords.py): each tile of the plan as the
-// frame's passes read it (Tile), from pass P2's tile record, pass P1's window of its pair and the
-// pair's bodies. One invocation per tile record of P2's capacity; those past the plan's tiles
+// Tile planner, pass P3 (compute; pycinder/focused/plan/p3_tile_words.py): each tile of the plan as
+// the frame's passes read it (Tile), from pass P2's tile record, pass P1's window of its pair and
+// the pair's bodies. One invocation per tile record of P2's capacity; those past the plan's tiles
 // (AtlasSummary.tiles) return at once.
 //
 // Nothing is measured from the world's origin: a body's translation comes as its offset from its
@@ -10,7 +10,8 @@
 // place in its window (u, v pixels from the window's corner) is subtracted in pixels.
 //
 // The structs BodyPose, PlanWindow, AtlasTile, AtlasSummary and Tile are generated from
-// tilewords.py, windows.py, atlasplan.py and layout.py; so are the constants WORKGROUP and ROW.
+// p3_tile_words.py, p1_windows.py, p2_atlas.py and layout.py; so are the constants WORKGROUP and
+// ROW.
 
 @group(0) @binding(0) var<storage, read> bodies: array<BodyPose>;
 @group(0) @binding(1) var<storage, read> windows: array<PlanWindow>;

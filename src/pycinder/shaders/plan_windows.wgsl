@@ -1,6 +1,6 @@
-// Tile planner, pass P1 (compute; pycinder/passes/windows.py): the window of each candidate
-// pair, as pycinder.focused.plan.plan_numpy_windows._plan_chunk plans it, in single precision. One
-// invocation per pair.
+// Tile planner, pass P1 (compute; pycinder/focused/plan/p1_windows.py): the window of each
+// candidate pair, as pycinder.focused.plan.plan_numpy_windows._plan_chunk plans it, in single
+// precision. One invocation per pair.
 //
 // Each body comes measured from its own anchor (a point at its oriented box's centre, given
 // exactly as hi + lo in two f32 vectors). A pair is planned in the frame of its anchor body
@@ -9,9 +9,9 @@
 // every rounding is relative to the pair's own extent and offset, not to the distance from the
 // world's origin, and the window's origin is written relative to the anchor.
 //
-// The structs PlanBody, PlanWindow and PlanParams are generated from windows.py, AtlasWindow (what
-// pass P2 reads of each pair) from atlasplan.py; so are the constants WORKGROUP, ROW, MARGIN_PX,
-// FLAG_COUNT_BACK, COS_TILT, SIN_TILT and PROBE_FACES.
+// The structs PlanBody, PlanWindow and PlanParams are generated from p1_windows.py, AtlasWindow
+// (what pass P2 reads of each pair) from p2_atlas.py; so are the constants WORKGROUP, ROW,
+// MARGIN_PX, FLAG_COUNT_BACK, COS_TILT, SIN_TILT and PROBE_FACES.
 
 @group(0) @binding(0) var<storage, read> bodies: array<PlanBody>;
 @group(0) @binding(1) var<storage, read> pairs: array<vec2u>;
@@ -77,7 +77,8 @@ fn in_frame(me: Bounds, other: Bounds) -> Box {
     return Box(max(me.own_lo, max(c1 - h1, c2 - h2)), min(me.own_hi, min(c1 + h1, c2 + h2)));
 }
 
-// The estimated window area of a box of extents e in its best view (tiles.py's win_x * win_y).
+// The estimated window area of a box of extents e in its best view (plan_numpy_windows.py's win_x *
+// win_y).
 fn window_area(e: vec3f, tol: f32) -> f32 {
     let top = max(e.x, e.y);
     let bottom = min(e.x, e.y);

@@ -9,7 +9,7 @@
 // box, rounded outwards on the host. Every box is grown by `grow` (a padded check's clearance),
 // so that a pair whose bodies overlap (or lie within `grow`) in float64 is never culled.
 //
-// The structs CullBody and CullParams are generated from cull.py; so are the constants
+// The structs CullBody and CullParams are generated from k2_pair_cull.py; so are the constants
 // WORKGROUP, ROW and FIXED.
 
 @group(0) @binding(0) var<storage, read> boxes: array<vec4f>;

@@ -12,7 +12,7 @@
 // its own arithmetic (ROUNDING of the sum of its terms' magnitudes): it holds the body's
 // vertices (as stored in float32) placed by the pose as written.
 //
-// The structs KinJoint, KinBody and KinParams are generated from kinematics.py; so are the
+// The structs KinJoint, KinBody and KinParams are generated from k1_kinematics.py; so are the
 // constants WORKGROUP, ROW, JOINT_REVOLUTE, JOINT_PRISMATIC and ROUNDING.
 
 @group(0) @binding(0) var<storage, read> joints: array<KinJoint>;

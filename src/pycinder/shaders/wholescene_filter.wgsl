@@ -5,9 +5,9 @@
 //   r != 0, g == 0   the count was non-zero but no single body claimed it (unidentified)
 //   r == g           the body's edge was counted inside itself: self-interference
 //
-// counters: the FilterCounters of passes/filter.py (survivors, self-interference pixels blanked,
-// unidentified pixels blanked, survivors that did not fit the compact buffer), indexed by the
-// COUNT_* constants generated from that declaration, as is the FilterParams struct.
+// counters: the FilterCounters of wholescene/filter.py (survivors, self-interference pixels
+// blanked, unidentified pixels blanked, survivors that did not fit the compact buffer), indexed by
+// the COUNT_* constants generated from that declaration, as is the FilterParams struct.
 //
 // Three outputs, one per entry point:
 //   filter_full     writes the filtered image, one vec4u per pixel (readback "full")

@@ -3,7 +3,7 @@
 // Every pass draws the packed scene: all bodies' vertices live in one storage buffer, and the
 // vertex shaders pull them ("vertex pulling"), so that a pass over all bodies is a single draw and
 // a per-body pass (5-7) is a draw over that body's index range. Which fragments survive, and what
-// the stencil and depth buffers do with them, is set by the pipeline state in passes/states.py;
+// the stencil and depth buffers do with them, is set by the pipeline state in gpu/states.py;
 // these shaders only place geometry and say what colour a fragment would write.
 //
 // Record layout of the rgba32uint target (documented in result.py):
@@ -13,7 +13,7 @@
 //   a = payload of the edge: global edge index + 1, or a packed normal   written by pass 4
 
 // The Frame struct (edge offset, payload mode) and the PAYLOAD_* constants are declared in Python
-// (passes/raycast.py) and generated in front of this source.
+// (wholescene/raycast.py) and generated in front of this source.
 @group(0) @binding(0) var<uniform> frame: Frame;
 // Body-space vertex positions, 3 floats per vertex, all bodies packed one after another.
 @group(0) @binding(1) var<storage, read> positions: array<f32>;

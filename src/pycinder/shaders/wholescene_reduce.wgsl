@@ -11,7 +11,7 @@
 // that survives keeps the pixel it came from.
 
 // ReduceParams (one level: source and destination sizes, the level) is declared in Python
-// (passes/reduce.py) and generated in front of this source.
+// (wholescene/reduce.py) and generated in front of this source.
 @group(0) @binding(0) var<storage, read> src: array<vec4u>;
 @group(0) @binding(1) var<storage, read_write> dst: array<vec4u>;
 @group(0) @binding(2) var<storage, read_write> lost: array<atomic<u32>>;

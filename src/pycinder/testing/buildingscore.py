@@ -23,8 +23,8 @@ circle as a polygon inscribed in it, so every tessellated solid lies inside its 
 a pair's tessellated depth is at most its exact depth and its tessellated distance at least its
 exact distance (a translation that separates the exact solids separates the parts inside
 them). A pair at most ``d / 2`` deep, or farther than ``9 c / 8``, stays so once tessellated.
-Comparisons with ``d``, ``d / 2`` and ``c`` allow :data:`~.buildingmodel.EXACT` (1 nm) for the
-rounding of the placements' sums, so a pair built exactly ``d`` deep is exactly ``d`` deep
+Comparisons with ``d``, ``d / 2`` and ``c`` allow :data:`~pycinder.testing.buildings.EXACT` (1 nm)
+for the rounding of the placements' sums, so a pair built exactly ``d`` deep is exactly ``d`` deep
 whichever way its figure rounds.
 """
 
@@ -66,7 +66,7 @@ def must_report(r: Relation, mode: str, depth: float = DEPTH,
 def must_not_report(r: Relation | None, mode: str, depth: float = DEPTH,
                     clearance: float = CLEARANCE) -> bool:
     """Whether a pair must never be reported by ``mode`` (None: a pair outside the truth, at
-    least :data:`~.buildingmodel.MARGIN` apart; see the module's rules)."""
+    least :data:`~pycinder.testing.buildings.MARGIN` apart; see the module's rules)."""
     if r is None:
         return True
     if mode == "clearance":
@@ -170,8 +170,8 @@ def check_depths(building: Building, clashes: Sequence[Any]) -> dict[str, Any]:
         ``depths_checked`` (clashes whose pair is in the truth), ``depths_outside`` (of those,
         clashes whose depth is farther from the true depth than the two bounds together: the
         clash's :attr:`~pycinder.bim.ifc.Clash.depth_error` and the tessellation's
-        :attr:`~.buildingmodel.Relation.error`) and ``depth_worst`` (the largest difference from
-        the true depth, in metres; 0 with nothing checked).
+        :attr:`~pycinder.testing.buildings.Relation.error`) and ``depth_worst`` (the largest
+        difference from the true depth, in metres; 0 with nothing checked).
     """
     return _check(building, clashes, "depth", "depths")
 

@@ -168,12 +168,12 @@ def _separated_by(a: Any, b: Any, shift: float, part: Any) -> bool:
 
 def truth_pairs(model: Any, margin: float) -> np.ndarray:
     """(K, 2) int64: the pairs of the model's bodies whose world boxes lie within ``margin`` of
-    each other, or within the pair's default tolerance (:func:`tolerances`) where that is
+    each other, or within the pair's default tolerance (:func:`body_tolerances`) where that is
     more: a pair left out is farther apart than every threshold its verdicts use."""
     from ..focused.broad.broad_numpy import sweep_and_prune
 
     bounds = np.array([b.mesh.bounds for b in model.bodies], np.float64).reshape(-1, 2, 3)
-    size = tolerances(model)
+    size = body_tolerances(model)
     widest = max(margin, float(size.max(initial=0.0)))
     pairs = sweep_and_prune(bounds[:, 0] - widest / 2, bounds[:, 1] + widest / 2)
     a, b = pairs[:, 0], pairs[:, 1]
@@ -182,7 +182,7 @@ def truth_pairs(model: Any, margin: float) -> np.ndarray:
     return pairs[keep]
 
 
-def tolerances(model: Any) -> np.ndarray:
+def body_tolerances(model: Any) -> np.ndarray:
     """(N,) float64: each element's default tolerance alone, 1% of its box diagonal (a pair's is
     the smaller of its two)."""
     return np.array([0.01 * float(np.linalg.norm(b.mesh.extents)) for b in model.bodies])
@@ -214,7 +214,7 @@ def exact_truth(model: Any, margin: float, depths: Sequence[float] = (),
     """
     fcl = require("fcl", "the real-model truth", "bench", package="python-fcl")
     bodies = model.bodies
-    size = tolerances(model)
+    size = body_tolerances(model)
     objects: dict[int, Any] = {}
     out: dict[tuple[int, int], PairTruth] = {}
     pairs = truth_pairs(model, margin)
@@ -288,4 +288,4 @@ def score(truth: dict[tuple[int, int], PairTruth], reported: set[tuple[int, int]
 
 
 __all__ = ["BALL_RADIUS", "EXACT", "VOLUME", "PairTruth", "exact_truth", "inscribed_radius",
-           "score", "tolerances", "truth_pairs", "verdict"]
+           "score", "body_tolerances", "truth_pairs", "verdict"]

@@ -1,5 +1,5 @@
 """What every pass of a whole-scene frame encodes onto (:class:`SceneFrame`), apart from the
-frame that makes it (:mod:`~pycinder.wholescene.frame`), so that the passes need not know the
+frame that makes it (:mod:`~pycinder.wholescene.scene_frame`), so that the passes need not know the
 frame."""
 
 from __future__ import annotations

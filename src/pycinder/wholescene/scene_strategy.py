@@ -29,7 +29,7 @@ from ..scene.pack import PackedScene, repack
 from ..strategy import Done, Query
 from ..view import View, world_corners
 from .filter import FilterPass
-from .frame import Hook, WholeSceneFrame
+from .scene_frame import Hook, WholeSceneFrame
 from .raycast import RaycastPasses
 from .readback import READBACK_MODES
 from .selfint import SELF_INTERFERENCE

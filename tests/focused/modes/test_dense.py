@@ -21,7 +21,7 @@ import trimesh
 
 import pycinder
 from pycinder.focused.modes import clearance as clearance_mode
-from pycinder.focused.measure import c1_distance as distance_mode
+from pycinder.focused.measure import c1_distance
 from pycinder.focused.modes import hardclash
 from pycinder.focused.measure.h1_depth import ITEM_SKIP_SHIFT, LINES, decode
 from pycinder.result import Stats
@@ -265,7 +265,7 @@ def test_dense_clearance_is_every_cluster_pairs_and_exact(scale, first, monkeypa
     measured in the rounds before the last, the others only where they can be nearer)."""
     pytest.importorskip("fcl", reason="exact distances come from python-fcl")
     if first is not None:
-        monkeypatch.setattr(distance_mode, "ROUNDS", first)
+        monkeypatch.setattr(c1_distance, "ROUNDS", first)
     rng = np.random.default_rng(int(scale * 1000) % 89 + 1)
     c = 0.1 * scale
     kinds = list(SHAPES)

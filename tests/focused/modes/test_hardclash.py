@@ -919,22 +919,22 @@ def test_pairs_whose_threads_did_not_all_finish_are_measured_again(monkeypatch):
     """A dispatch whose word DONE says some threads of a pair's items did not finish: the pair is
     measured again, every line, in items of a cluster of each body, with the same answer; if
     that fails too, a RuntimeError (never figures that miss a clash)."""
-    from pycinder.focused.measure import h1_depth as depth_pass
+    from pycinder.focused.measure import h1_depth
 
     meshes = [trimesh.creation.icosphere(subdivisions=3), BOX]
     transforms = [np.eye(4), move(1.2)]
     expected = pycinder.Detector(min_depth=0.01).find_collisions(meshes, transforms)
-    real = depth_pass.Depth.words
+    real = h1_depth.Depth.words
     calls = []
 
     def short(self, positions, faces, items, frames):
         words = real(self, positions, faces, items, frames)
         calls.append(len(items))
         if len(calls) == 1:
-            words[:, depth_pass.DONE] = 8  # as a CPU adapter cut the workgroups short
+            words[:, h1_depth.DONE] = 8  # as a CPU adapter cut the workgroups short
         return words
 
-    monkeypatch.setattr(depth_pass.Depth, "words", short)
+    monkeypatch.setattr(h1_depth.Depth, "words", short)
     again = pycinder.Detector(min_depth=0.01).find_collisions(meshes, transforms)
     assert len(calls) == 2 and calls[1] > calls[0]  # measured again in more, smaller items
     assert again.pairs.tolist() == expected.pairs.tolist() == [[0, 1]]
@@ -942,10 +942,10 @@ def test_pairs_whose_threads_did_not_all_finish_are_measured_again(monkeypatch):
 
     def never(self, positions, faces, items, frames):
         words = real(self, positions, faces, items, frames)
-        words[:, depth_pass.DONE] = 0
+        words[:, h1_depth.DONE] = 0
         return words
 
-    monkeypatch.setattr(depth_pass.Depth, "words", never)
+    monkeypatch.setattr(h1_depth.Depth, "words", never)
     with pytest.raises(RuntimeError, match="before all their threads finished"):
         pycinder.Detector(min_depth=0.01).find_collisions(meshes, transforms)
 
@@ -975,7 +975,7 @@ def test_pairs_their_boxes_clear_by_half_d_take_no_pass(monkeypatch, pressed, re
     from the slab, so that is how deep it is. Pressed 0.4 mm (at most d / 2), their world
     boxes show it: neither pair is reported, and pass H1 measures neither. Pressed 3 mm, both
     are measured and reported, 3 mm deep within their bounds."""
-    from pycinder.focused.measure import h1_depth as depth_pass
+    from pycinder.focused.measure import h1_depth
 
     slab = trimesh.creation.box((4.0, 4.0, 0.2))
     column, box = l_shape(), trimesh.creation.box((0.5, 0.5, 0.5))
@@ -983,13 +983,13 @@ def test_pairs_their_boxes_clear_by_half_d_take_no_pass(monkeypatch, pressed, re
     up = 0.25 - pressed  # the column's and the box's centres: their bottoms at z = -pressed
     transforms = [move(z=-0.1), move(-1.0, 0.0, up), move(1.0, 0.0, up, turn)]
     measured = []
-    real = depth_pass.Depth.run
+    real = h1_depth.Depth.run
 
     def counted(self, positions, faces, items, frames):
         measured.append(len(frames))
         return real(self, positions, faces, items, frames)
 
-    monkeypatch.setattr(depth_pass.Depth, "run", counted)
+    monkeypatch.setattr(h1_depth.Depth, "run", counted)
     result = pycinder.Detector(min_depth=0.002).find_collisions([slab, column, box], transforms)
     if not reported:
         assert result.pairs.tolist() == [] and sum(measured) == 0

@@ -93,7 +93,7 @@ class FrameInputs:
     capacity: int
     retry: int
     """Atlas rows of each of the frame's retry rounds (0: none; see
-    :func:`~pycinder.focused.frame.rerun.retry_on_gpu`)."""
+    :func:`~pycinder.focused.frame.rerun_policy.retry_on_gpu`)."""
     gpu_tiles: wgpu.GPUBuffer | None = None
     """A GPU buffer holding the plan's tiles as the passes read them
     (:data:`~pycinder.gpu.layout.TILE`, written by the GPU planner's pass P3 in an earlier

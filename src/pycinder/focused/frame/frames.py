@@ -12,7 +12,7 @@ Each pass is an object owning its pipelines, its parameters struct and its bindi
 (``passes/<pass>.py``); :data:`PASSES` lists them in the order they run, and the pass table of
 the docs is generated from it. The readback brings the counters, a hit flag per candidate pair,
 the first records and the timestamps; the per-tile counts only when a tile must run again.
-What makes a frame run again is decided in :mod:`pycinder.focused.frame.rerun`.
+What makes a frame run again is decided in :mod:`pycinder.focused.frame.rerun_policy`.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from ...gpu import native
 from ...gpu.device import Gpu
 from ...gpu.layout import C_AGAIN, C_CUTS, C_EDGES, C_RECORDS, FLAG_OPEN, ROUND_COUNTERS, TILE
 from ...scene.pack import ShapePack
-from .rerun import grown_caps
+from .rerun_policy import grown_caps
 from .arguments import Arguments
 from .atlas_buffers import (LIST_CAPACITY, PIXEL_BYTES, SLOTS, AtlasBuffers, Encoding, FrameState,
                             Round)
@@ -174,7 +174,7 @@ class FocusedFrames:
 
     def finish(self, sub: Submitted) -> FocusedOutput:
         """Wait for a submitted frame and read what it found; run it again while a buffer had to
-        grow (:func:`pycinder.focused.frame.rerun.grown_caps`), so nothing is dropped.
+        grow (:func:`pycinder.focused.frame.rerun_policy.grown_caps`), so nothing is dropped.
 
         Raises
         ------

@@ -45,7 +45,7 @@ body by the offset between the two anchors (:mod:`pycinder.focused.plan.p1_windo
 Error bound, against :func:`plan_bodies` (float64, then rounded to float32): the frame's axes
 and the half axes within a few ``2**-24`` of their size (``R`` rounded once, then a few products
 and sums per element, and the reflections' square roots); the intervals within a few ``2**-24``
-of the body's own extent from its anchor. Measured in ``tests/focused/plan/test_gpu_bodies.py``.
+of the body's own extent from its anchor. Measured in ``tests/focused/plan/test_p0_bodies.py``.
 """
 
 from __future__ import annotations

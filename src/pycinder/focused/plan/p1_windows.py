@@ -36,7 +36,7 @@ inherit that, plus a few roundings of the window's own extent; the view axes are
 pair 1e13 from it, or a tiny body inside a huge one, keeps the precision of its own size (but
 where a huge body's face cuts a tiny body's box, that face is only as precise as ``2**-24`` of
 the huge body's extent). The float64 planner itself rounds at ``2**-53`` of the distance from the
-origin (1e-3 at 1e13). Measured against it (``tests/focused/plan/test_gpu_windows.py``), the origin
+origin (1e-3 at 1e13). Measured against it (``tests/focused/plan/test_p1_windows.py``), the origin
 and slab are within 1e-4 pixel and the axes within 1e-7 where its choices are clear. Where the
 float64 and the float32 planner round a close decision differently (a frame's area, the order of
 equal extents, a pair whose boxes just touch, an extent of almost a whole number of pixels, the
@@ -214,8 +214,8 @@ class GpuWindows:
             Pairs to plan.
         pairs : GrowableBuffer or wgpu.GPUBuffer, optional
             ``count`` pairs as ``vec2u`` (default: this pass's, from :meth:`upload_pairs`).
-        tolerance : GrowableBuffer or wgpu.GPUBuffer, optional
-            ``count`` tolerances as ``f32`` (default: this pass's).
+        pair_tolerances : GrowableBuffer or wgpu.GPUBuffer, optional
+            ``count`` pair tolerances as ``f32`` (default: this pass's).
         """
         count = int(count)
         self.windows.ensure(max(count, 1) * WINDOW.size)

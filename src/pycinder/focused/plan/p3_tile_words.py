@@ -57,7 +57,7 @@ error is 1e-5 to 2e-4 pixel. The float64 host composition rounds at ``2**-53`` o
 from the origin instead (``TilePlan.origin`` is absolute): 1e-3 world units at 1e13, 2e-2 pixel
 for pixels of 0.1 there.
 
-Measured on lavapipe (``tests/focused/plan/test_gpu_tilewords.py``: rotated, scaled, sheared and
+Measured on lavapipe (``tests/focused/plan/test_p3_tile_words.py``: rotated, scaled, sheared and
 mirrored bodies at 1e-3, 1 and 1e3 across, near the origin, at 1e7 and at 1e13): rotation rows
 within 2.2e-7 of their size; the last column and the error at each tile's window's corners within
 2e-5 pixel for windows of about a hundred pixels and 1.8e-4 pixel for windows of thousands, against

@@ -244,11 +244,11 @@ def test_tile_views_are_gathered_only_when_read(monkeypatch):
     """A GPU plan gathers its tiles' views on the host only when they are read: a query of
     pairs only never does, one whose records are decoded does, and the views are those gathered
     at once (the plan compares with the NumPy planner's packing above either way)."""
-    from pycinder.focused.plan import plan_gpu as gpu_plan
+    from pycinder.focused.plan import plan_gpu
 
     gathered = []
-    real = gpu_plan._Views.gather
-    monkeypatch.setattr(gpu_plan._Views, "gather",
+    real = plan_gpu._Views.gather
+    monkeypatch.setattr(plan_gpu._Views, "gather",
                         lambda self: gathered.append(1) or real(self))
     scene = ManyBodies(120, 1, seed=4)
     verts, transforms = scene.frame(0)

@@ -5,7 +5,7 @@ import pytest
 import trimesh
 
 import pycinder
-from pycinder.focused.broad import broad_numpy as broadphase
+from pycinder.focused.broad import broad_numpy
 from pycinder.focused.broad.broad_numpy import sweep_and_prune
 from pycinder.scene import prepare_scene
 from pycinder.testing import random_rotation, random_scene
@@ -46,29 +46,29 @@ def test_a_pair_list_keeps_its_pairs_whose_boxes_meet_in_its_order():
     listed = np.stack([i, j], axis=1)[rng.random(len(i)) < 0.3]
     listed = np.concatenate([listed, np.stack([np.arange(20), np.arange(20, 40)], axis=1)])
     listed = np.unique(listed, axis=0)  # sorted, each once
-    got = sweep_and_prune(lo, hi, broadphase.PairList(listed))
+    got = sweep_and_prune(lo, hi, broad_numpy.PairList(listed))
     meet = set(every)
     assert [tuple(p) for p in got.tolist()] == \
         [tuple(p) for p in listed.tolist() if tuple(p) in meet]
     assert {(a, b) for a, b in zip(range(20), range(20, 40))} <= {tuple(p) for p in got.tolist()}
-    assert len(sweep_and_prune(lo[:2], hi[:2], broadphase.PairList(np.zeros((0, 2))))) == 0
+    assert len(sweep_and_prune(lo[:2], hi[:2], broad_numpy.PairList(np.zeros((0, 2))))) == 0
     with pytest.raises(ValueError, match="groups"):
-        sweep_and_prune(lo, hi, broadphase.PairList(listed), groups=np.zeros(400))
+        sweep_and_prune(lo, hi, broad_numpy.PairList(listed), groups=np.zeros(400))
     with pytest.raises(ValueError, match="shape"):
-        broadphase.PairList(np.zeros(4))
+        broad_numpy.PairList(np.zeros(4))
     for bad in ([[3, 3]], [[4, 2]], [[-1, 2]]):
         with pytest.raises(ValueError, match="0 <= i < j"):
-            broadphase.PairList(np.array(bad))
+            broad_numpy.PairList(np.array(bad))
     with pytest.raises(ValueError, match="names box 400"):
-        sweep_and_prune(lo, hi, broadphase.PairList(np.array([[0, 400]])))
+        sweep_and_prune(lo, hi, broad_numpy.PairList(np.array([[0, 400]])))
     with pytest.raises(ValueError, match="sorted, each once"):
-        sweep_and_prune(lo, hi, broadphase.PairList(listed[::-1]))
+        sweep_and_prune(lo, hi, broad_numpy.PairList(listed[::-1]))
     with pytest.raises(ValueError, match="sorted, each once"):
-        sweep_and_prune(lo, hi, broadphase.PairList(np.array([[0, 1], [0, 1]])))
+        sweep_and_prune(lo, hi, broad_numpy.PairList(np.array([[0, 1], [0, 1]])))
 
 
-@pytest.mark.parametrize("n", [2, 3, 17, broadphase.ALL_PAIRS_BELOW - 1,
-                               broadphase.ALL_PAIRS_BELOW])
+@pytest.mark.parametrize("n", [2, 3, 17, broad_numpy.ALL_PAIRS_BELOW - 1,
+                               broad_numpy.ALL_PAIRS_BELOW])
 def test_few_boxes_are_tested_pair_by_pair_exactly(n):
     """Below ALL_PAIRS_BELOW boxes every pair is tested; the answer is the brute force's, with
     touching boxes, keys (``within``) and groups, as the sweep's."""
@@ -100,8 +100,8 @@ def test_banded_sweep_matches_brute_force_on_band_edges_and_wide_boxes(seed, mon
     lo = rng.uniform(0, 1, (n, 3)) * [12, 6, 3]  # swept along x, in bands across y
     hi = lo + rng.uniform(0.1, 0.8, (n, 3))
     y = 1
-    box, band, _, width = broadphase._bands(lo[:, y], hi[:, y])
-    assert width > 0 and band.max() > 3 and len(box) < broadphase.MAX_COPIES * n
+    box, band, _, width = broad_numpy._bands(lo[:, y], hi[:, y])
+    assert width > 0 and band.max() > 3 and len(box) < broad_numpy.MAX_COPIES * n
     edges = lo[:, y].min() + width * rng.integers(1, int(band.max()), 60)
     lo[:30, y] = edges[:30]                      # starting on an edge
     hi[:30, y] = edges[:30] + 0.3
@@ -112,14 +112,14 @@ def test_banded_sweep_matches_brute_force_on_band_edges_and_wide_boxes(seed, mon
     hi[90:100, y] = lo[90:100, y]                # flat across
     lo[100:104, y], hi[100:104, y] = -1.0, 8.0   # wide: in every band
     bands = []
-    real = broadphase._bands
-    monkeypatch.setattr(broadphase, "_bands",
+    real = broad_numpy._bands
+    monkeypatch.setattr(broad_numpy, "_bands",
                         lambda a, b: bands.append(real(a, b)) or bands[-1])
     truth = brute(lo, hi)
     within = rng.integers(0, 3, n)
     groups = rng.integers(0, 2, n)
-    for max_copies in (broadphase.MAX_COPIES, 1):
-        monkeypatch.setattr(broadphase, "MAX_COPIES", max_copies)
+    for max_copies in (broad_numpy.MAX_COPIES, 1):
+        monkeypatch.setattr(broad_numpy, "MAX_COPIES", max_copies)
         bands.clear()
         assert [tuple(p) for p in sweep_and_prune(lo, hi).tolist()] == truth
         assert (bands[0][3] > 0) == (max_copies > 1)
@@ -132,7 +132,7 @@ def test_sweep_in_chunks(monkeypatch):
     lo = rng.uniform(0, 3, (400, 3))
     hi = lo + 1.0
     whole = sweep_and_prune(lo, hi)
-    monkeypatch.setattr(broadphase, "CHUNK_PAIRS", 97)
+    monkeypatch.setattr(broad_numpy, "CHUNK_PAIRS", 97)
     assert np.array_equal(sweep_and_prune(lo, hi), whole)
 
 

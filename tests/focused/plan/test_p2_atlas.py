@@ -13,7 +13,7 @@ import time
 import numpy as np
 import pytest
 
-from pycinder.focused.plan import plan_numpy as tiles, plan_numpy_windows
+from pycinder.focused.plan import plan_numpy, plan_numpy_windows
 from pycinder.errors import GpuMemoryError
 from pycinder.gpu.layout import FLAG_SKIP_IF_HIT
 from pycinder.focused.plan.p2_atlas import AtlasPlan, AtlasPlanner, atlas_windows
@@ -32,22 +32,22 @@ def reference(kept, w, h, dense, budget, probe, faces) -> AtlasPlan:
     z = np.zeros(0, np.int64)
     if len(idx) == 0:
         return AtlasPlan(z, z, z, np.zeros(0, bool), z, z, np.zeros((0, 4), np.int64), z, z,
-                         [], tiles.ATLAS_WIDTH, len(kept))
+                         [], plan_numpy.ATLAS_WIDTH, len(kept))
     ww = np.asarray(w, np.float64)[idx].astype(np.int64)
     hh = np.asarray(h, np.float64)[idx].astype(np.int64)
     d = np.asarray(dense, bool)[idx] if faces else None
     plan_pixels = float((ww * hh).sum())
-    phases = [p for p in tiles._phases_of(ww, hh, d, None, probe, plan_pixels) if len(p.w)]
+    phases = [p for p in plan_numpy._phases_of(ww, hh, d, None, probe, plan_pixels) if len(p.w)]
     if len(phases) == 1:
-        width = tiles.fitted_width(phases[0].w, phases[0].h)
+        width = plan_numpy.fitted_width(phases[0].w, phases[0].h)
     else:
-        width = tiles.fitted_width(np.concatenate([p.w for p in phases]),
+        width = plan_numpy.fitted_width(np.concatenate([p.w for p in phases]),
                                    np.concatenate([p.h for p in phases]))
     parts = {k: [] for k in ("pair", "u0", "v0", "moved", "shift", "flags", "window", "round",
                              "phase")}
     rows: list[int] = []
     for number, p in enumerate(phases):
-        lay = tiles._layout(p.w, p.h, budget, width)
+        lay = plan_numpy._layout(p.w, p.h, budget, width)
         t = lay.tile
         src = t if p.src is None else p.src[t]
         moved = np.full(len(t), p.moved) if isinstance(p.moved, bool) else p.moved[t]
@@ -152,7 +152,7 @@ def test_probes_around_the_plan_size(planner, pixels):
     if pixels == "above":
         w[1], h[1] = 1200, 200
     total = int((w * h).sum())
-    assert (total < tiles.PROBE_PLAN) == (pixels == "below")
+    assert (total < plan_numpy.PROBE_PLAN) == (pixels == "below")
     got, _ = check(planner, kept, w, h, dense)
     assert sorted(set(got.phase.tolist())) == [0, 1]
     oversize = (got.pair == 1) & (got.phase == 0)
@@ -177,7 +177,7 @@ def test_band_cuts(planner):
     w = rng.integers(200, 513, k)
     h = rng.integers(65, 129, k)
     got, _ = check(planner, np.ones(k, bool), w, h, probe=False)
-    assert (got.shift > 0).sum() > 20 and got.atlas_width == tiles.ATLAS_WIDTH
+    assert (got.shift > 0).sum() > 20 and got.atlas_width == plan_numpy.ATLAS_WIDTH
     # Cuts in several classes and both phases.
     check(planner, *random_windows(rng, 1500, small=0.3, large=0.3))
 
@@ -195,13 +195,13 @@ def test_budgets_small_and_large(planner, budget):
 
 def test_every_height_class(planner):
     rng = np.random.default_rng(5)
-    for lo, hi in zip((1,) + tuple(c + 1 for c in tiles.HEIGHT_CLASSES[:-1]),
-                      tiles.HEIGHT_CLASSES):
+    for lo, hi in zip((1,) + tuple(c + 1 for c in plan_numpy.HEIGHT_CLASSES[:-1]),
+                      plan_numpy.HEIGHT_CLASSES):
         k = 60
         h = rng.integers(lo, hi + 1, k)
         w = rng.integers(1, 300, k)
         got, _ = check(planner, np.ones(k, bool), w, h, probe=False)
-        rows = np.array(tiles.HEIGHT_CLASSES)[np.searchsorted(tiles.HEIGHT_CLASSES, h)]
+        rows = np.array(plan_numpy.HEIGHT_CLASSES)[np.searchsorted(plan_numpy.HEIGHT_CLASSES, h)]
         assert set(got.window[:, 3].tolist()) <= set(range(lo, hi + 1))
         assert len(set(rows.tolist())) == 1
     check(planner, np.ones(3000, bool), rng.integers(1, 400, 3000), rng.integers(1, 129, 3000),
@@ -217,9 +217,9 @@ def test_fitted_widths(planner, target):
         w = np.array([widest // 2, widest - widest // 2, 7, 3])
         h = np.array([20, 20, 100, 5])
         got, _ = check(planner, np.ones(4, bool), w, h, probe=False)
-        assert got.atlas_width == max(target, tiles.MIN_ATLAS_WIDTH)
+        assert got.atlas_width == max(target, plan_numpy.MIN_ATLAS_WIDTH)
     got, _ = check(planner, [True], [1], [1])
-    assert got.atlas_width == tiles.MIN_ATLAS_WIDTH
+    assert got.atlas_width == plan_numpy.MIN_ATLAS_WIDTH
 
 
 def test_a_large_plan(planner):
@@ -291,7 +291,7 @@ def test_plan_tiles_itself(planner, monkeypatch, probe, faces, budget):
     k = 900
     kept, w, h, dense = random_windows(rng, k, large=0.2)
     pairs = np.stack([2 * np.arange(k), 2 * np.arange(k) + 1], axis=1)
-    face_counts = np.where(np.repeat(dense, 2), tiles.PROBE_FACES, 0)
+    face_counts = np.where(np.repeat(dense, 2), plan_numpy.PROBE_FACES, 0)
 
     def fake_chunk(chunk, tol, bounds, first):
         i = first + np.flatnonzero(kept[first:first + len(chunk)])
@@ -306,7 +306,7 @@ def test_plan_tiles_itself(planner, monkeypatch, probe, faces, budget):
     monkeypatch.setattr(plan_numpy_windows, "_plan_chunk", fake_chunk)
     n = 2 * k
     box = np.tile([0.0, 0.0, 0.0], (n, 1)), np.tile([1.0, 1.0, 1.0], (n, 1))
-    plan = tiles.plan_tiles(pairs, np.ones(k), *box, *box, np.tile(np.eye(4), (n, 1, 1)),
+    plan = plan_numpy.plan_tiles(pairs, np.ones(k), *box, *box, np.tile(np.eye(4), (n, 1, 1)),
                             budget_pixels=budget, probe=probe,
                             faces=face_counts if faces else None, chunk=256)
     got = planner.run(atlas_windows(kept, w, h, dense), budget_pixels=budget, probe=probe,

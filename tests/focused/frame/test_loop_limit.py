@@ -123,7 +123,7 @@ def test_crossing_test_past_its_budget_runs_the_tile_again_with_thinner_boxes(mo
 def test_a_tile_past_the_crossing_budget_goes_straight_to_thinner_boxes(monkeypatch):
     """Longer lists cannot help a tile that pass F6 left unfinished: every retry cuts its box,
     and the next frames get no retry rounds of longer lists on the GPU."""
-    import pycinder.focused.frame.rerun as again
+    from pycinder.focused.frame import rerun_policy
 
     plate = grid_plate(1.0, 40)
     meshes = [_wavy(plate, 0.0), _wavy(plate, 0.021)]
@@ -134,8 +134,8 @@ def test_a_tile_past_the_crossing_budget_goes_straight_to_thinner_boxes(monkeypa
         cuts.append(cut)
         return real(*args, cut=cut, **kwargs)
 
-    real = again.split_depth
-    monkeypatch.setattr(again, "split_depth", split_depth)
+    real = rerun_policy.split_depth
+    monkeypatch.setattr(rerun_policy, "split_depth", split_depth)
     detector = pycinder.Detector(tolerance=0.01)
     for _ in range(2):
         result = detector.find_collisions(meshes)

@@ -92,7 +92,8 @@ def tolerances(rng: np.random.Generator, scene: dict, pairs: np.ndarray,
     return rng.uniform(lo, hi, len(pairs)) * np.minimum(size[pairs[:, 0]], size[pairs[:, 1]])
 
 
-def frame_boxes(pairs: np.ndarray, bounds: plan_numpy_windows.BodyBounds) -> tuple[np.ndarray, np.ndarray]:
+def frame_boxes(pairs: np.ndarray, bounds: plan_numpy_windows.BodyBounds
+                ) -> tuple[np.ndarray, np.ndarray]:
     """NumPy's overlap box of every pair in each frame (world, a's, b's): lo, hi (3, K, 3), as
     ``_plan_chunk`` finds them (for the tests' margins: which decisions are close)."""
     a, b = pairs[:, 0], pairs[:, 1]
@@ -114,8 +115,9 @@ def frame_boxes(pairs: np.ndarray, bounds: plan_numpy_windows.BodyBounds) -> tup
 def window_areas(extent: np.ndarray, tol: np.ndarray) -> np.ndarray:
     """``_plan_chunk``'s estimated window area of boxes of extents (..., 3)."""
     e = np.sort(extent, axis=-1)
-    win_x = (e[..., 2] * plan_numpy_windows._SIN + e[..., 1] * plan_numpy_windows._COS) / tol + 2 * plan_numpy_windows.MARGIN_PX + 1
-    win_y = e[..., 0] / tol + 2 * plan_numpy_windows.MARGIN_PX + 1
+    w = plan_numpy_windows
+    win_x = (e[..., 2] * w._SIN + e[..., 1] * w._COS) / tol + 2 * w.MARGIN_PX + 1
+    win_y = e[..., 0] / tol + 2 * w.MARGIN_PX + 1
     return win_x * win_y
 
 

@@ -1,37 +1,14 @@
 """What one query costs the host in GPU round trips: one submission and one map for records
 "none" and "found" (the passes, their timestamps and the readback travel together)."""
 
-import sys
-
 import numpy as np
 import pytest
 import trimesh
 
 import pycinder
-from pycinder.gpu.buffers import Readback
 from pycinder.gpu.layout import COUNTERS
 
-
-class _Count:
-    def __init__(self, monkeypatch):
-        self.submits = self.maps = 0
-        queue_type = type(pycinder.Detector().gpu.device.queue)
-        submit = queue_type.submit
-        start = Readback.start  # every map of pycinder's is asked for here
-
-        def counted_submit(queue, *args, **kwargs):
-            # wgpu-py itself submits an empty command buffer before a buffer's first map for
-            # reading (a driver workaround); count pycinder's own submissions.
-            if "pycinder" in sys._getframe(1).f_code.co_filename:
-                self.submits += 1
-            return submit(queue, *args, **kwargs)
-
-        def counted_map(readback, *args, **kwargs):
-            self.maps += 1
-            return start(readback, *args, **kwargs)
-
-        monkeypatch.setattr(queue_type, "submit", counted_submit)
-        monkeypatch.setattr(Readback, "start", counted_map)
+from conftest import CommandCount
 
 
 @pytest.mark.parametrize("records", ["none", "found"])
@@ -42,7 +19,7 @@ def test_one_submission_and_one_map_per_query(monkeypatch, records, profile):
     poses = np.stack([np.eye(4)] * 40)
     poses[:, 0, 3] = 0.8 * np.arange(40)
     det.find_collisions([ball] * 40, poses)               # warm-up: buffers grow here
-    count = _Count(monkeypatch)
+    count = CommandCount(monkeypatch)
     for k in range(3):
         poses[:, 1, 3] = 0.01 * k
         vertices = np.array(ball.vertices) * (1 + 0.01 * k)  # deforming: F0 runs too
@@ -129,7 +106,7 @@ def test_undecided_tiles_are_retried_inside_the_submission(monkeypatch, records,
             assert surface_distance(base, other) > 3.9 * t
         truth = ground_truth(meshes, None, tolerance=t)
         det.find_collisions(meshes)                        # warm-up: buffers grow here
-        count = _Count(monkeypatch)
+        count = CommandCount(monkeypatch)
         result = det.find_collisions(meshes)
         assert result.pairs.tolist() == ([] if apart else [[0, 1]])
         assert result.pairs.tolist() == truth.overlap.tolist()
@@ -165,7 +142,7 @@ def test_a_collision_only_the_retry_round_finds_is_found_inside_the_frame(monkey
     assert first.pairs.tolist() == [[0, 1]] and first.stats.retries == 1
     planned = 1 if planner == "numpy" else 2
     for _ in range(2):  # buffers grow to the retry round in the first
-        count = _Count(monkeypatch)
+        count = CommandCount(monkeypatch)
         result = det.find_collisions(meshes)
         monkeypatch.undo()
     assert result.pairs.tolist() == [[0, 1]] and result.stats.retries == 1
@@ -257,14 +234,14 @@ def test_retry_rounds_hold_tiles_of_several_rounds_as_many_as_the_last_query_nee
     needed = det.strategy.retry_rows_needed
     assert needed > budget // RETRY_LISTS // width  # more than one retry round
     det.strategy.retry_rows_needed = 1  # as after a query that needed one retry round
-    count = _Count(monkeypatch)
+    count = CommandCount(monkeypatch)
     one = det.find_collisions(meshes, poses)
     assert one.pairs.tolist() == truth and one.stats.possibly_lost == 0
     assert one.stats.retries > 1 and count.submits > planned  # the rest on the host
     assert det.strategy.retry_rows_needed >= needed // 2
     monkeypatch.undo()
     det.find_collisions(meshes, poses)  # buffers grow to the retry rounds here
-    count = _Count(monkeypatch)
+    count = CommandCount(monkeypatch)
     result = det.find_collisions(meshes, poses)
     assert (count.submits, count.maps) == (planned, planned)  # all inside the frame
     monkeypatch.undo()
@@ -318,7 +295,7 @@ def test_retry_rounds_are_sized_within_the_budget_and_by_the_last_need():
     budget, at most the plan's largest round, a multiple of the tallest class (else a power of
     two), at least its tallest tile's class; none without a recent retry or with every tile's
     records. again.retry_rounds: enough for the last need, from 1 to MAX_RETRY_ROUNDS."""
-    from pycinder.focused.frame.rerun import MAX_RETRY_ROUNDS, retry_on_gpu, retry_rounds
+    from pycinder.focused.frame.rerun_policy import MAX_RETRY_ROUNDS, retry_on_gpu, retry_rounds
     from pycinder.focused.plan.plan_numpy import TilePlan
     from pycinder.request import record_mode
 
@@ -349,7 +326,7 @@ def test_cull_items_past_what_the_rounds_hold_grow_them_and_the_frame_runs_again
     too large past the device's buffers; through a frame whose items were sized too small, the
     answer is still exact geometry's."""
     from pycinder.focused.frame import frames
-    from pycinder.focused.frame.rerun import RoundTooLarge, grown_caps
+    from pycinder.focused.frame.rerun_policy import RoundTooLarge, grown_caps
     from pycinder.focused.frame.atlas_buffers import Caps
     from pycinder.gpu.layout import C_MAX_EDGE_ITEMS, C_MAX_FACE_ITEMS, COUNTERS
     from pycinder.testing import ground_truth

@@ -343,8 +343,7 @@ def test_queries_find_their_candidates_on_the_gpu_when_asked(monkeypatch):
     import pycinder.request
     from pycinder.testing import ground_truth, random_scene
 
-    from conftest import assert_matches_truth
-    from test_frame import _Count
+    from conftest import CommandCount, assert_matches_truth
 
     meshes, transforms = random_scene(40, 12)
     truth = ground_truth(meshes, transforms)
@@ -363,7 +362,7 @@ def test_queries_find_their_candidates_on_the_gpu_when_asked(monkeypatch):
     monkeypatch.setattr(pycinder.request, "GPU_BROAD_PHASE_BODIES", 40)
     det = pycinder.Detector(records="none")
     det.find_collisions(meshes, transforms)
-    count = _Count(monkeypatch)
+    count = CommandCount(monkeypatch)
     assert det.find_collisions(meshes, transforms).pairs.tolist() == answers["numpy"][0]
     assert det.strategy._broad is not None and (count.submits, count.maps) == (2, 2)
     with pytest.raises(ValueError, match="broad_phase must be one of"):
@@ -415,16 +414,16 @@ def test_shaders_declare_no_struct_or_shared_constant_the_host_declares():
     import re
     from importlib import resources
 
-    from pycinder.focused.broad import b4_sort as sort, broad_common as common
+    from pycinder.focused.broad import b4_sort, broad_common
 
-    names = {"Body", "Params", "SortStep", "Grid", "Counts"} | set(common.CONSTS)
+    names = {"Body", "Params", "SortStep", "Grid", "Counts"} | set(broad_common.CONSTS)
     for f in resources.files("pycinder.shaders").iterdir():
         if f.name.startswith("broad_"):
             text = f.read_text()
             assert not re.search(r"^\s*struct\s", text, re.M), f.name
             declared = set(re.findall(r"^\s*const\s+(\w+)", text, re.M))
             assert not declared & names, (f.name, declared & names)
-    assert sort.SORT_STEP.name == "SortStep" and common.BODY.size == 96
+    assert b4_sort.SORT_STEP.name == "SortStep" and broad_common.BODY.size == 96
 
 
 def test_the_host_writes_the_body_struct_by_field_name():
