@@ -435,3 +435,83 @@ def test_a_check_with_nothing_to_query_starts_no_device():
     assert robot._detector is None
     with pytest.raises(ValueError, match="batch must be a positive whole number"):
         robot.check(q, self_collision=False, batch=0)  # the option is checked all the same
+
+
+def test_pairs_that_collide_in_nearly_every_configuration_are_warned_of_once(robots):
+    """The Panda with nothing allowed (loaded without its SRDF): a check of at least
+    ALWAYS_SAMPLES configurations warns, once, of the pairs that collide in at least
+    ALWAYS_FRACTION of them, naming them and the way out (an SRDF, compute_allowed_collisions);
+    python-fcl's exact answers on the same configurations have those pairs colliding nearly
+    always too. Fewer configurations, or the pairs allowed, say nothing."""
+    from pycinder.robot import AlwaysCollidingWarning
+    from pycinder.robot.acm import ALWAYS_FRACTION, ALWAYS_SAMPLES
+
+    panda = robots["panda"]
+    bare = Robot(panda.name, panda.root, panda.links, panda.joints, panda.bodies,
+                 panda.joint_names, panda.limits, AllowedCollisionMatrix())
+    q = bare.random_configurations(ALWAYS_SAMPLES, seed=5)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        bare.check(q[:ALWAYS_SAMPLES - 1])  # too few to tell
+        _, ours = bare.check(q, return_pairs=True)
+        bare.check(q)  # said once
+    said = [w for w in caught if issubclass(w.category, AlwaysCollidingWarning)]
+    assert len(said) == 1, [str(w.message) for w in said]
+    message = str(said[0].message)
+    assert "compute_allowed_collisions" in message and "srdf" in message
+    counts: dict[tuple[str, str], int] = {}
+    for found in ours:
+        for pair in found:
+            counts[pair] = counts.get(pair, 0) + 1
+    always = sorted(p for p, n in counts.items() if n >= ALWAYS_FRACTION * len(q))
+    assert always and all(f"{a}-{b}" in message for a, b in always)
+    assert all(p in PANDA_ADJACENT for p in always)  # the chain's neighbours touch at rest
+    theirs = R.FclRobot(bare).check(q)
+    for pair in always:
+        assert sum(pair in t for t in theirs) >= 0.9 * len(q), pair
+
+    bare.allowed = adjacent_only(bare)  # what an SRDF allows: nothing is always in collision
+    bare._warned_always.clear()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        bare.check(q)
+    assert not [w for w in caught if issubclass(w.category, AlwaysCollidingWarning)]
+
+
+def test_batch_options_apply_to_a_robot_manifest_or_are_refused(robots, tmp_path, capsys):
+    """``pycinder batch ROBOT.json``: every option applies or is refused, none is ignored.
+    --batch-size, --attempts and --unordered are refused, naming the option; --tolerance gives
+    the checks their tolerance (a bad one is the run's error; a good one gives Robot.check's
+    rows at it); --strict makes the Panda's open meshes errors; and --robot-batch is refused
+    for a scene manifest."""
+    import json
+
+    from pycinder.cli import main
+
+    panda = robots["panda"]
+    q = panda.random_configurations(6, seed=4)
+    manifest, table = write_panda_manifest(tmp_path, panda, q)
+    out = tmp_path / "out.jsonl"
+    for option in (["--batch-size", "4"], ["--attempts", "3"], ["--unordered"]):
+        assert main(["batch", str(manifest), "--out", str(out), *option]) == 2
+        err = capsys.readouterr().err
+        assert option[0] in err and "robot manifest" in err, err
+        assert not out.exists()
+    assert main(["batch", str(manifest), "--out", str(out), "--tolerance", "-1"]) == 2
+    assert "tolerance" in capsys.readouterr().err and not out.exists()
+    assert main(["batch", str(manifest), "--out", str(out), "--tolerance", "0.02"]) == 0
+    rows = [json.loads(line) for line in out.read_text().splitlines()]
+    coarse = Robot(panda.name, panda.root, panda.links, panda.joints, panda.bodies,
+                   panda.joint_names, panda.limits, adjacent_only(panda), tolerance=0.02)
+    collides, pairs = coarse.check(q, environment=Environment([("table", table, TABLE_PLACE)]),
+                                   return_pairs=True)
+    assert [r["collides"] for r in rows] == collides.tolist()
+    assert [[tuple(p) for p in r["names"]] for r in rows] == pairs
+    strict = tmp_path / "strict.jsonl"
+    assert main(["batch", str(manifest), "--out", str(strict), "--strict"]) == 2
+    assert "panda_link" in capsys.readouterr().err
+    scenes = tmp_path / "scenes.jsonl"
+    scenes.write_text(json.dumps({"id": 0, "bodies": [{"mesh": "table.stl"}]}) + "\n")
+    assert main(["batch", str(scenes), "--out", str(tmp_path / "s.jsonl"),
+                 "--robot-batch", "4"]) == 2
+    assert "--robot-batch" in capsys.readouterr().err

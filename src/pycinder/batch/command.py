@@ -47,6 +47,21 @@ exit status:
 """The ``batch`` command's help after its options: the rows of OUT and the exit status."""
 
 
+BATCH_SIZE = 64
+"""Scenes per GPU query of a scene manifest when ``--batch-size`` is not given."""
+ATTEMPTS = 2
+"""Tries per scene of a scene manifest when ``--attempts`` is not given."""
+
+SCENE_OPTIONS = {
+    "batch_size": "--batch-size (scenes per query: a robot manifest's configurations per query "
+                  "are --robot-batch)",
+    "attempts": "--attempts (a robot manifest's run stops at a failed query; on Ray a dead "
+                "worker's chunk is run again by Ray itself)",
+    "unordered": "--unordered (a robot manifest's rows are written in configuration order)",
+}
+"""Options of a scene manifest's run that a robot manifest refuses, and why."""
+
+
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add the ``batch`` command to the ``pycinder`` command's subparsers."""
     p = subparsers.add_parser(
@@ -72,22 +87,41 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--gpus-per-worker", type=float, default=None, metavar="G",
                    help="GPUs per worker (default: 1 where the cluster has GPUs, else 0)")
     p.add_argument("--tolerance", type=float, default=None, metavar="T",
-                   help="world units, for scenes that give none (default: 1%% of the smaller "
-                        "body of each pair)")
-    p.add_argument("--batch-size", type=int, default=64, metavar="B",
-                   help="scenes per GPU query (default 64; 1: a query per scene)")
-    p.add_argument("--attempts", type=int, default=2,
+                   help="world units, for scenes (or a robot manifest) that give none (default: "
+                        "1%% of the smaller body of each pair)")
+    p.add_argument("--batch-size", type=int, default=None, metavar="B",
+                   help=f"scenes per GPU query (default {BATCH_SIZE}; 1: a query per scene); a "
+                        "robot manifest's is --robot-batch")
+    p.add_argument("--attempts", type=int, default=None,
                    help="tries per scene whose worker died or whose query failed, before its "
-                        "error is written (default 2); bad input is written at once")
+                        f"error is written (default {ATTEMPTS}); bad input is written at once")
     p.add_argument("--unordered", action="store_true",
                    help="write results as they complete rather than in manifest order")
     p.add_argument("--strict", action="store_true",
-                   help="open, inside-out and zero-area meshes fail their scenes")
+                   help="open, inside-out and zero-area meshes fail their scenes (a robot "
+                        "manifest's: fail the run)")
     p.add_argument("--retry-errors", action="store_true",
                    help="run again the scenes whose errors OUT already holds (without it, a "
                         "resumed run keeps them, says so, and exits 1)")
     p.set_defaults(func=cmd_batch, strict=False, json=False)
     return p
+
+
+def robot_options(args: argparse.Namespace) -> dict[str, Any]:
+    """What the command's options ask of a robot manifest's run: every option applies, or is
+    refused with a ``ValueError`` naming it (never silently ignored).
+
+    Returns
+    -------
+    dict
+        ``tolerance`` (for a manifest that gives none) and ``strict``, for
+        :func:`~pycinder.batch.robot_run.run_robot`.
+    """
+    given = [why for name, why in SCENE_OPTIONS.items()
+             if getattr(args, name) not in (None, False)]
+    if given:
+        raise ValueError("a robot manifest does not take " + "; ".join(given))
+    return {"tolerance": args.tolerance, "strict": args.strict}
 
 
 def _progress(total: int) -> Any:
@@ -125,7 +159,12 @@ def cmd_batch(args: argparse.Namespace) -> int:
     if is_robot_manifest(manifest):  # one JSON object naming a URDF and its configurations
         return run_robot(manifest, args.out, batch=args.robot_batch,
                          retry_errors=args.retry_errors, workers=args.workers,
-                         address=args.address, gpus_per_worker=args.gpus_per_worker)
+                         address=args.address, gpus_per_worker=args.gpus_per_worker,
+                         **robot_options(args))
+    if args.robot_batch is not None:
+        raise ValueError("--robot-batch is a robot manifest's configurations per query; "
+                         f"{manifest.name} is a scene manifest (its scenes per query: "
+                         "--batch-size)")
     sink = open_sink(args.out, retry_errors=args.retry_errors)
     try:
         total = skipped = earlier = 0
@@ -152,8 +191,10 @@ def cmd_batch(args: argparse.Namespace) -> int:
                 if bar is not None else None
             with run(todo, workers=args.workers, address=args.address,
                      gpus_per_worker=args.gpus_per_worker, tolerance=args.tolerance,
-                     ordered=not args.unordered, batch_size=args.batch_size,
-                     attempts=args.attempts, strict=args.strict,
+                     ordered=not args.unordered,
+                     batch_size=BATCH_SIZE if args.batch_size is None else args.batch_size,
+                     attempts=ATTEMPTS if args.attempts is None else args.attempts,
+                     strict=args.strict,
                      base=str(manifest.resolve().parent)) as results:
                 for result in results:
                     sink.write(result)

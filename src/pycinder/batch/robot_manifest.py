@@ -5,13 +5,15 @@ A robot manifest is one JSON object (a file ending in ``.json``, not JSON lines)
 
     {"robot": "panda.urdf", "srdf": "panda.srdf", "configurations": "samples.npy",
      "environment": [{"mesh": "table.stl", "transform": [[1, 0, 0, 0.4], ...], "name": "table"}],
-     "tolerance": 0.001, "package_dirs": ["meshes"], "self_collision": true}
+     "tolerance": 0.001, "package_dirs": ["meshes"], "self_collision": true, "strict": false}
 
 ``robot`` (a URDF) and ``configurations`` are required: an NPY file of (C, J) joint values, or a
 Parquet file with a column per actuated joint (named as the URDF names them) or J numeric
 columns in order. ``srdf`` (its ``<disable_collisions>`` pairs are honoured as given),
-``environment``, ``tolerance``, ``package_dirs`` and ``self_collision`` are optional; paths are
-relative to the manifest's folder. A row::
+``environment``, ``tolerance``, ``package_dirs``, ``self_collision`` and ``strict`` (open,
+inside-out and zero-area meshes are errors) are optional; paths are relative to the manifest's
+folder. ``pycinder batch --tolerance`` gives a manifest without a ``tolerance`` one, and
+``--strict`` makes any manifest strict. A row::
 
     {"id": 17, "status": "ok", "collides": true, "names": [["panda_link2", "table"]]}
 """
@@ -27,7 +29,7 @@ import numpy as np
 from ..util.optional import require
 
 KEYS = {"robot", "srdf", "configurations", "environment", "tolerance", "package_dirs",
-        "self_collision"}
+        "self_collision", "strict"}
 
 
 def is_robot_manifest(path: str | Path) -> bool:
@@ -85,8 +87,9 @@ def read_robot_manifest(path: str | Path) -> dict[str, Any]:
             raise ValueError(f"{path}: environment body {k} needs a mesh path")
         body["mesh"] = base / body["mesh"]
     out["environment"] = env
-    if not isinstance(out.get("self_collision", True), bool):
-        raise ValueError(f"{path}: self_collision must be true or false")
+    for key in ("self_collision", "strict"):
+        if not isinstance(out.get(key, key == "self_collision"), bool):
+            raise ValueError(f"{path}: {key} must be true or false")
     return out
 
 
@@ -118,9 +121,14 @@ def load_robot(spec: dict[str, Any], where: str | Path) -> tuple[Any, Any]:
     (:func:`read_robot_manifest`), loaded from its files; ``where`` names it in errors."""
     from ..robot import Environment, Robot
 
+    detector = None
+    if spec.get("strict"):
+        from ..detector import Detector
+
+        detector = Detector(records="none", broad_phase="numpy", strict=True)
     robot = Robot.from_urdf(spec["robot"], srdf=spec.get("srdf"),
                             package_dirs=spec.get("package_dirs"),
-                            tolerance=spec.get("tolerance"))
+                            tolerance=spec.get("tolerance"), detector=detector)
     if not spec["environment"]:
         return robot, None
     import trimesh

@@ -35,13 +35,16 @@ every chunk, and a Ray worker is given one chunk at a time."""
 
 def run_robot(manifest: str | Path, out: str | Path, *, batch: int | None = None,
               retry_errors: bool = False, quiet: bool = False, workers: int | None = None,
-              address: str | None = None, gpus_per_worker: float | None = None) -> int:
+              address: str | None = None, gpus_per_worker: float | None = None,
+              tolerance: float | None = None, strict: bool = False) -> int:
     """Check every configuration of a robot manifest not yet in ``out``; rows into ``out``.
 
     In this process, on one detector; on Ray workers (:mod:`.robot_ray`) when ``workers`` is
     more than one or ``address`` names a cluster: each worker (``gpus_per_worker`` GPUs each,
     by default one where the cluster has GPUs) loads the robot once and checks chunks of
     :data:`CHUNK` configurations (or ``batch``, when larger), and the rows are written in order.
+    ``tolerance``: the checks' where the manifest gives none; ``strict``: open, inside-out and
+    zero-area meshes are errors (as the manifest's ``strict``).
 
     Returns
     -------
@@ -54,6 +57,9 @@ def run_robot(manifest: str | Path, out: str | Path, *, batch: int | None = None
     from .sink import open_sink
 
     spec = read_robot_manifest(manifest)
+    if spec.get("tolerance") is None and tolerance is not None:
+        spec["tolerance"] = tolerance
+    spec["strict"] = bool(spec.get("strict")) or strict
     robot, env = load_robot(spec, manifest)
     q = load_configurations(spec["configurations"], robot.joint_names)
     on_ray = (workers is not None and workers > 1) or address is not None

@@ -39,9 +39,9 @@ the largest padding apart never is.
 from .acm import REASONS, AllowedCollisionMatrix, matrix_from_samples
 from .model import JOINT_TYPES, Body, Environment, RobotModel
 from .robot import (DEFAULT_BODIES_PER_QUERY, FIRST_BATCH, GPU_BODIES_PER_QUERY, QUERY_SECONDS,
-                    Robot)
+                    AlwaysCollidingWarning, Robot)
 
 __all__ = ["DEFAULT_BODIES_PER_QUERY", "FIRST_BATCH", "GPU_BODIES_PER_QUERY", "JOINT_TYPES",
            "QUERY_SECONDS", "REASONS",
-           "AllowedCollisionMatrix", "Body", "Environment", "Robot", "RobotModel",
-           "matrix_from_samples"]
+           "AllowedCollisionMatrix", "AlwaysCollidingWarning", "Body", "Environment", "Robot",
+           "RobotModel", "matrix_from_samples"]

@@ -131,11 +131,18 @@ def _text_of(source: str | Path) -> tuple[str, str]:
     return path.read_text(), path.name
 
 
+ALWAYS_SAMPLES = 100
+"""Random configurations MoveIt Setup Assistant's "Always" rule samples (and the fewest a check
+must hold before :meth:`pycinder.robot.Robot.check` warns of pairs in collision in nearly all)."""
+ALWAYS_FRACTION = 0.95
+"""Share of those configurations a pair must collide in to be "Always" in collision."""
+
+
 def matrix_from_samples(adjacent: Iterable[tuple[str, str]],
                         default: Iterable[tuple[str, str]],
                         sampled: Sequence[Iterable[tuple[str, str]]], links: Sequence[str], *,
-                        samples: int, always_samples: int = 100,
-                        always_fraction: float = 0.95) -> AllowedCollisionMatrix:
+                        samples: int, always_samples: int = ALWAYS_SAMPLES,
+                        always_fraction: float = ALWAYS_FRACTION) -> AllowedCollisionMatrix:
     """MoveIt Setup Assistant's rules (see :meth:`Robot.compute_allowed_collisions`) applied to
     colliding pairs found by any checker.
 

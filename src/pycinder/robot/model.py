@@ -177,6 +177,7 @@ class RobotModel:
     _padded: dict = field(default_factory=dict, repr=False)
     _plans: dict = field(default_factory=dict, repr=False)
     _kinematics: Any = field(default=None, repr=False)
+    _warned_always: set = field(default_factory=set, repr=False)
 
     def __post_init__(self) -> None:
         self._link_index = {n: k for k, n in enumerate(self.links)}

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -15,7 +16,7 @@ import wgpu
 
 from ..focused.broad.broad_numpy import PairList
 from ..tolerance import DEFAULT_RELATIVE_TOLERANCE, body_sizes
-from .acm import AllowedCollisionMatrix, matrix_from_samples
+from .acm import ALWAYS_FRACTION, ALWAYS_SAMPLES, AllowedCollisionMatrix, matrix_from_samples
 from .model import Body, Environment, RobotModel
 
 if TYPE_CHECKING:
@@ -58,6 +59,13 @@ benchmarks set it above a batch's size to time the host's path."""
 PLANS_KEPT = 8
 """Check plans kept (one per environment, self-collision choice and matrix), each with its
 bodies prepared once it has run; the oldest is dropped first."""
+
+
+class AlwaysCollidingWarning(UserWarning):
+    """Some of a robot's own pairs collided in nearly every configuration of a check (at least
+    :data:`~pycinder.robot.acm.ALWAYS_FRACTION` of :data:`~pycinder.robot.acm.ALWAYS_SAMPLES` or
+    more): pairs that always touch, which an SRDF or
+    :meth:`Robot.compute_allowed_collisions` allows. Said once per pair and robot."""
 
 
 @dataclass
@@ -317,10 +325,41 @@ class Robot(RobotModel):
         pads = self._paddings(padding, bodies)
         collides = np.zeros(len(qs), dtype=bool)
         pairs: list[list[tuple[str, str]]] = [[] for _ in range(len(qs))]
+        # How many configurations each pair of bodies collides in, where there are enough of
+        # them to tell a pair that always touches (see _warn_always).
+        counts = np.zeros((len(bodies),) * 2, np.int64) if len(qs) >= ALWAYS_SAMPLES else None
         for start, stop in self._batches(len(qs), batch, plan):
             self._check_batch(qs[start:stop], start, plan, bodies, collides,
-                              pairs if return_pairs else None, pads)
+                              pairs if return_pairs else None, pads, counts)
+        if counts is not None:
+            self._warn_always(counts, len(qs), bodies)
         return (collides, pairs) if return_pairs else collides
+
+    def _warn_always(self, counts: np.ndarray, checked: int, bodies: list[Body]) -> None:
+        """Warn, once per pair, of the robot's own pairs (links, attached objects) in collision
+        in at least :data:`~pycinder.robot.acm.ALWAYS_FRACTION` of ``checked`` configurations:
+        pairs that always touch, which MoveIt's allowed-collision matrix leaves out, and which
+        otherwise make (nearly) every configuration collide. ``counts`` (B, B): configurations
+        each pair of ``bodies`` collided in."""
+        robot = len(self.bodies) + len(self._attached)
+        own = counts[:robot, :robot] + counts[:robot, :robot].T
+        a, b = np.nonzero(np.triu(own, 1) >= ALWAYS_FRACTION * checked)
+        names = sorted({tuple(sorted((_owner(bodies[i]), _owner(bodies[j]))))
+                        for i, j in zip(a.tolist(), b.tolist())} - self._warned_always)
+        if not names:
+            return
+        self._warned_always.update(names)
+        from ..errors import warn_at_caller
+
+        listed = ", ".join(f"{x}-{y}" for x, y in names)
+        warn_at_caller(AlwaysCollidingWarning(
+            f"{self.name}: {len(names)} pair{'s' if len(names) > 1 else ''} collided in at least "
+            f"{ALWAYS_FRACTION:.0%} of the {checked} configurations checked: {listed}. Pairs "
+            "that always touch (adjacent links, a hand's fingers) are left out of MoveIt's "
+            "checks by its allowed-collision matrix: load the robot's SRDF "
+            "(Robot.from_urdf(..., srdf=...)), or make one with robot.allowed = "
+            "robot.compute_allowed_collisions() (robot.write_srdf keeps it), or allow a pair "
+            "with robot.allowed.allow(a, b)."))
 
     def _gpu_front(self, plan: _Plan, bodies: list[Body], clearance: float | None
                    ) -> GpuPairCull | None:
@@ -475,7 +514,7 @@ class Robot(RobotModel):
             while len(cache) >= 2:  # a check's host batches' and GPU batches' (see _query)
                 cache.pop(next(iter(cache)))
             cache[clearance] = Detector(records="none", broad_phase="numpy",
-                                        clearance=clearance)
+                                        clearance=clearance, strict=self.detector.request.strict)
         return cache[clearance]
 
     def _batch_size(self, batch: int | None, plan: _Plan) -> int:
@@ -499,7 +538,7 @@ class Robot(RobotModel):
 
     def _check_batch(self, qs: np.ndarray, start: int, plan: _Plan, bodies: list[Body],
                      collides: np.ndarray, pairs: list[list[tuple[str, str]]] | None,
-                     pads: np.ndarray | None = None) -> None:
+                     pads: np.ndarray | None = None, counts: np.ndarray | None = None) -> None:
         from ..errors import GpuError, GpuMemoryError
 
         if not len(plan.pairs) or not len(qs):
@@ -509,7 +548,7 @@ class Robot(RobotModel):
         if len(runs) > 1:  # K1 takes some configurations, the host the others: each alone
             for first, end in runs:
                 self._check_batch(qs[first:end], start + first, plan, bodies, collides, pairs,
-                                  pads)
+                                  pads, counts)
             return
         try:
             survivors = boxes = fixed_boxes = slack = None
@@ -537,10 +576,13 @@ class Robot(RobotModel):
             if len(qs) == 1:
                 raise
             half = len(qs) // 2
-            self._check_batch(qs[:half], start, plan, bodies, collides, pairs, pads)
-            self._check_batch(qs[half:], start + half, plan, bodies, collides, pairs, pads)
+            self._check_batch(qs[:half], start, plan, bodies, collides, pairs, pads, counts)
+            self._check_batch(qs[half:], start + half, plan, bodies, collides, pairs, pads,
+                              counts)
             return
         collides[start + config] = True
+        if counts is not None:
+            np.add.at(counts, (a, b), 1)
         if pairs is not None:
             owners = [_owner(body) for body in bodies]
             found: dict[int, set[tuple[str, str]]] = {}
@@ -692,7 +734,8 @@ class Robot(RobotModel):
         return sorted(out)
 
     def compute_allowed_collisions(self, samples: int = 10_000, *, seed: int = 0,
-                                   always_fraction: float = 0.95, always_samples: int = 100,
+                                   always_fraction: float = ALWAYS_FRACTION,
+                                   always_samples: int = ALWAYS_SAMPLES,
                                    batch: int | None = None) -> AllowedCollisionMatrix:
         """An allowed-collision matrix made by MoveIt Setup Assistant's rules, in its order
         (a pair takes the first reason that applies):
@@ -716,15 +759,17 @@ class Robot(RobotModel):
             raise ValueError(f"samples must be a positive whole number, got {samples!r}")
         if not 0 < always_fraction <= 1:
             raise ValueError(f"always_fraction must be in (0, 1], got {always_fraction!r}")
-        saved, attached = self.allowed, self._attached
+        saved, attached, warned = self.allowed, self._attached, set(self._warned_always)
         try:
             self.allowed, self._attached = AllowedCollisionMatrix(), {}
             self._plans.clear()
             _, default = self.check(self.default_configuration()[None], return_pairs=True)
             qs = self.random_configurations(max(samples, always_samples), seed)
-            _, found = self.check(qs, return_pairs=True, batch=batch)
+            with warnings.catch_warnings():  # its "Always" pairs are what it is looking for
+                warnings.simplefilter("ignore", AlwaysCollidingWarning)
+                _, found = self.check(qs, return_pairs=True, batch=batch)
         finally:
-            self.allowed, self._attached = saved, attached
+            self.allowed, self._attached, self._warned_always = saved, attached, warned
             self._plans.clear()
         return matrix_from_samples(self.adjacent_links(), default[0], found,
                                    sorted({b.link for b in self.bodies}), samples=samples,
