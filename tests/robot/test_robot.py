@@ -515,3 +515,49 @@ def test_batch_options_apply_to_a_robot_manifest_or_are_refused(robots, tmp_path
     assert main(["batch", str(scenes), "--out", str(tmp_path / "s.jsonl"),
                  "--robot-batch", "4"]) == 2
     assert "--robot-batch" in capsys.readouterr().err
+
+
+def test_padding_on_self_collision_against_exact_distances(robots):
+    """``pad_self_collision``: the robot's own checked pairs are padded too, by the sum of both
+    bodies' paddings: per configuration, every pair of links whose exact surfaces (python-fcl)
+    are closer than that sum is reported, and none farther than it plus an eighth of the largest
+    sum; environment pairs are kept as without it; check_path takes the same padding."""
+    from pycinder.testing import surface_distance
+
+    panda = robots["panda"]
+    panda.allowed = adjacent_only(panda)
+    env = R.environment("panda")
+    padding = {"panda_hand": 0.03, "panda_leftfinger": 0.01, "panda_rightfinger": 0.01,
+               "panda_link7": 0.02, "panda_link6": 0.02, "panda_link5": 0.02,
+               "panda_link4": 0.02, "panda_link3": 0.02, "panda_link2": 0.02}
+    largest = 0.05  # hand and a link: the largest sum of two paddings of a checked pair
+    q = panda.random_configurations(16, seed=8)
+    _, ours = panda.check(q, environment=env, return_pairs=True, padding=padding,
+                          pad_self_collision=True)
+    _, moveit = panda.check(q, environment=env, return_pairs=True, padding=padding)
+    poses = R.FclRobot(panda, env).poses(q)
+    env_names = set(env.names)
+    padded_only = 0
+    for c in range(len(q)):
+        world = R.world_meshes(panda, env, poses[c])
+        mine, theirs = set(ours[c]), set(moveit[c])
+        for a, b in panda.checked_pairs(env):
+            pair = tuple(sorted((a, b)))
+            if a in env_names or b in env_names:
+                continue
+            pad = padding.get(a, 0.0) + padding.get(b, 0.0)
+            d = surface_distance(world[a], world[b])
+            if d < pad or (pad == 0.0 and pair in theirs):
+                assert pair in mine, f"configuration {c}: {a}-{b} {d:.4f} apart, padding {pad}"
+            if d > pad + largest / 8:
+                assert pair not in mine, f"configuration {c}: {a}-{b} {d:.4f} apart reported"
+            padded_only += pair in mine and pair not in theirs
+        assert {p for p in mine if p[0] in env_names or p[1] in env_names} == \
+            {p for p in theirs if p[0] in env_names or p[1] in env_names}
+    assert padded_only, "no pair of links was reported for its padding alone"
+    path = np.stack([q[0], q[1]])
+    first = panda.check_path(path, 0.2, environment=env, padding=padding,
+                             pad_self_collision=True)
+    steps = panda.interpolate(path, 0.2)
+    hits = panda.check(steps, environment=env, padding=padding, pad_self_collision=True)
+    assert first == (int(np.flatnonzero(hits)[0]) if hits.any() else None)

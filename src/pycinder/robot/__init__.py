@@ -36,10 +36,10 @@ own: a pair closer than its padding is always reported, one more than its paddin
 the largest padding apart never is.
 """
 
-from .acm import REASONS, AllowedCollisionMatrix, matrix_from_samples
+from .acm import REASONS, AllowedCollisionMatrix, AlwaysCollidingWarning, matrix_from_samples
 from .model import JOINT_TYPES, Body, Environment, RobotModel
 from .robot import (DEFAULT_BODIES_PER_QUERY, FIRST_BATCH, GPU_BODIES_PER_QUERY, QUERY_SECONDS,
-                    AlwaysCollidingWarning, Robot)
+                    Robot)
 
 __all__ = ["DEFAULT_BODIES_PER_QUERY", "FIRST_BATCH", "GPU_BODIES_PER_QUERY", "JOINT_TYPES",
            "QUERY_SECONDS", "REASONS",

@@ -10,6 +10,8 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 REASONS = ("Adjacent", "Default", "Always", "Never", "User")
 """Reasons of MoveIt's ``<disable_collisions>`` elements, as its Setup Assistant writes them."""
 
@@ -136,6 +138,53 @@ ALWAYS_SAMPLES = 100
 must hold before :meth:`pycinder.robot.Robot.check` warns of pairs in collision in nearly all)."""
 ALWAYS_FRACTION = 0.95
 """Share of those configurations a pair must collide in to be "Always" in collision."""
+
+
+class AlwaysCollidingWarning(UserWarning):
+    """Some of a robot's own pairs collided in nearly every configuration of a check (at least
+    :data:`ALWAYS_FRACTION` of :data:`ALWAYS_SAMPLES` or more): pairs that always touch, which an
+    SRDF or :meth:`pycinder.robot.Robot.compute_allowed_collisions` allows. Said once per pair
+    and robot."""
+
+    @classmethod
+    def of(cls, robot: str, pairs: Sequence[tuple[str, str]], checked: int
+           ) -> AlwaysCollidingWarning:
+        """The warning for ``pairs`` of the robot named ``robot`` over ``checked``
+        configurations."""
+        listed = ", ".join(f"{a}-{b}" for a, b in pairs)
+        return cls(
+            f"{robot}: {len(pairs)} pair{'s' if len(pairs) > 1 else ''} collided in at least "
+            f"{ALWAYS_FRACTION:.0%} of the {checked} configurations checked: {listed}. Pairs "
+            "that always touch (adjacent links, a hand's fingers) are left out of MoveIt's "
+            "checks by its allowed-collision matrix: load the robot's SRDF "
+            "(Robot.from_urdf(..., srdf=...)), or make one with robot.allowed = "
+            "robot.compute_allowed_collisions() (robot.write_srdf keeps it), or allow a pair "
+            "with robot.allowed.allow(a, b).")
+
+
+def always_colliding(counts: np.ndarray, checked: int, owners: Sequence[str]
+                     ) -> list[tuple[str, str]]:
+    """The pairs of names in collision in at least :data:`ALWAYS_FRACTION` of ``checked``
+    configurations.
+
+    Parameters
+    ----------
+    counts : (B, B) int
+        Configurations each pair of bodies collided in (either triangle).
+    checked : int
+        Configurations checked.
+    owners : (B,) sequence of str
+        The name each body's collisions are reported under (its link, or attached object).
+
+    Returns
+    -------
+    list of (str, str)
+        Each pair sorted, once, the list sorted.
+    """
+    both = np.asarray(counts) + np.asarray(counts).T
+    a, b = np.nonzero(np.triu(both, 1) >= ALWAYS_FRACTION * checked)
+    return sorted({tuple(sorted((owners[i], owners[j]))) for i, j in zip(a.tolist(), b.tolist())
+                   if owners[i] != owners[j]})
 
 
 def matrix_from_samples(adjacent: Iterable[tuple[str, str]],

@@ -16,7 +16,8 @@ import wgpu
 
 from ..focused.broad.broad_numpy import PairList
 from ..tolerance import DEFAULT_RELATIVE_TOLERANCE, body_sizes
-from .acm import ALWAYS_FRACTION, ALWAYS_SAMPLES, AllowedCollisionMatrix, matrix_from_samples
+from .acm import (ALWAYS_FRACTION, ALWAYS_SAMPLES, AllowedCollisionMatrix, AlwaysCollidingWarning,
+                  always_colliding, matrix_from_samples)
 from .model import Body, Environment, RobotModel
 
 if TYPE_CHECKING:
@@ -59,13 +60,6 @@ benchmarks set it above a batch's size to time the host's path."""
 PLANS_KEPT = 8
 """Check plans kept (one per environment, self-collision choice and matrix), each with its
 bodies prepared once it has run; the oldest is dropped first."""
-
-
-class AlwaysCollidingWarning(UserWarning):
-    """Some of a robot's own pairs collided in nearly every configuration of a check (at least
-    :data:`~pycinder.robot.acm.ALWAYS_FRACTION` of :data:`~pycinder.robot.acm.ALWAYS_SAMPLES` or
-    more): pairs that always touch, which an SRDF or
-    :meth:`Robot.compute_allowed_collisions` allows. Said once per pair and robot."""
 
 
 @dataclass
@@ -280,7 +274,7 @@ class Robot(RobotModel):
 
     def check(self, qs: Any, *, environment: Environment | None = None,
               self_collision: bool = True, return_pairs: bool = False,
-              batch: int | None = None, padding: Any = None
+              batch: int | None = None, padding: Any = None, pad_self_collision: bool = False
               ) -> np.ndarray | tuple[np.ndarray, list[list[tuple[str, str]]]]:
         """Which configurations collide: with themselves (pairs of links on different links,
         less :attr:`allowed`), with attached objects, and with the environment.
@@ -307,7 +301,10 @@ class Robot(RobotModel):
             object name (names left out: 0). It applies against the environment: a link and an
             environment body collide when their surfaces are closer than the link's padding;
             self-collision is checked unpadded, as MoveIt checks it (see the module's
-            docstring).
+            docstring), unless ``pad_self_collision``.
+        pad_self_collision : bool
+            Pad the robot's own pairs too: two links (or attached objects) collide when their
+            surfaces are closer than the sum of their paddings.
 
         Returns
         -------
@@ -315,8 +312,10 @@ class Robot(RobotModel):
         pairs : list of list of (str, str)
             Only with ``return_pairs``.
         """
-        if not isinstance(self_collision, bool) or not isinstance(return_pairs, bool):
-            raise ValueError("self_collision and return_pairs must be True or False")
+        if not all(isinstance(x, bool) for x in (self_collision, return_pairs,
+                                                 pad_self_collision)):
+            raise ValueError("self_collision, return_pairs and pad_self_collision must be True "
+                             "or False")
         if environment is not None and not isinstance(environment, Environment):
             raise TypeError(f"environment must be a pycinder.robot.Environment, got "
                             f"{type(environment).__name__}")
@@ -330,36 +329,25 @@ class Robot(RobotModel):
         counts = np.zeros((len(bodies),) * 2, np.int64) if len(qs) >= ALWAYS_SAMPLES else None
         for start, stop in self._batches(len(qs), batch, plan):
             self._check_batch(qs[start:stop], start, plan, bodies, collides,
-                              pairs if return_pairs else None, pads, counts)
+                              pairs if return_pairs else None, pads, counts,
+                              pad_self=pad_self_collision)
         if counts is not None:
             self._warn_always(counts, len(qs), bodies)
         return (collides, pairs) if return_pairs else collides
 
     def _warn_always(self, counts: np.ndarray, checked: int, bodies: list[Body]) -> None:
         """Warn, once per pair, of the robot's own pairs (links, attached objects) in collision
-        in at least :data:`~pycinder.robot.acm.ALWAYS_FRACTION` of ``checked`` configurations:
-        pairs that always touch, which MoveIt's allowed-collision matrix leaves out, and which
-        otherwise make (nearly) every configuration collide. ``counts`` (B, B): configurations
-        each pair of ``bodies`` collided in."""
+        in nearly all of ``checked`` configurations (:func:`~.acm.always_colliding`);
+        ``counts`` (B, B): configurations each pair of ``bodies`` collided in."""
         robot = len(self.bodies) + len(self._attached)
-        own = counts[:robot, :robot] + counts[:robot, :robot].T
-        a, b = np.nonzero(np.triu(own, 1) >= ALWAYS_FRACTION * checked)
-        names = sorted({tuple(sorted((_owner(bodies[i]), _owner(bodies[j]))))
-                        for i, j in zip(a.tolist(), b.tolist())} - self._warned_always)
-        if not names:
-            return
-        self._warned_always.update(names)
-        from ..errors import warn_at_caller
+        owners = [_owner(b) for b in bodies[:robot]]
+        names = sorted(set(always_colliding(counts[:robot, :robot], checked, owners))
+                       - self._warned_always)
+        if names:
+            from ..errors import warn_at_caller
 
-        listed = ", ".join(f"{x}-{y}" for x, y in names)
-        warn_at_caller(AlwaysCollidingWarning(
-            f"{self.name}: {len(names)} pair{'s' if len(names) > 1 else ''} collided in at least "
-            f"{ALWAYS_FRACTION:.0%} of the {checked} configurations checked: {listed}. Pairs "
-            "that always touch (adjacent links, a hand's fingers) are left out of MoveIt's "
-            "checks by its allowed-collision matrix: load the robot's SRDF "
-            "(Robot.from_urdf(..., srdf=...)), or make one with robot.allowed = "
-            "robot.compute_allowed_collisions() (robot.write_srdf keeps it), or allow a pair "
-            "with robot.allowed.allow(a, b)."))
+            self._warned_always.update(names)
+            warn_at_caller(AlwaysCollidingWarning.of(self.name, names, checked))
 
     def _gpu_front(self, plan: _Plan, bodies: list[Body], clearance: float | None
                    ) -> GpuPairCull | None:
@@ -538,17 +526,20 @@ class Robot(RobotModel):
 
     def _check_batch(self, qs: np.ndarray, start: int, plan: _Plan, bodies: list[Body],
                      collides: np.ndarray, pairs: list[list[tuple[str, str]]] | None,
-                     pads: np.ndarray | None = None, counts: np.ndarray | None = None) -> None:
+                     pads: np.ndarray | None = None, counts: np.ndarray | None = None, *,
+                     pad_self: bool = False) -> None:
         from ..errors import GpuError, GpuMemoryError
 
         if not len(plan.pairs) or not len(qs):
             return
-        clearance = None if pads is None else max(float(pads.max()), 1e-12)
+        clearance = None if pads is None else max(
+            float(pads.max()) if not pad_self else float(pads[plan.used][plan.pairs].sum(1).max()),
+            1e-12)
         runs = self._reach_runs(qs, plan, bodies, clearance)
         if len(runs) > 1:  # K1 takes some configurations, the host the others: each alone
             for first, end in runs:
                 self._check_batch(qs[first:end], start + first, plan, bodies, collides, pairs,
-                                  pads, counts)
+                                  pads, counts, pad_self=pad_self)
             return
         try:
             survivors = boxes = fixed_boxes = slack = None
@@ -571,14 +562,14 @@ class Robot(RobotModel):
             fixed = np.array([b.origin for b in bodies[len(rows[0]):]]).reshape(-1, 4, 4)
             poses = _Poses(rows, fixed, boxes, fixed_boxes)
             config, a, b = self._query(poses, start, plan, bodies, pads, clearance, survivors,
-                                       slack)
+                                       slack, pad_self=pad_self)
         except GpuMemoryError:
             if len(qs) == 1:
                 raise
             half = len(qs) // 2
-            self._check_batch(qs[:half], start, plan, bodies, collides, pairs, pads, counts)
-            self._check_batch(qs[half:], start + half, plan, bodies, collides, pairs, pads,
-                              counts)
+            for first, end in ((0, half), (half, len(qs))):
+                self._check_batch(qs[first:end], start + first, plan, bodies, collides, pairs,
+                                  pads, counts, pad_self=pad_self)
             return
         collides[start + config] = True
         if counts is not None:
@@ -593,8 +584,8 @@ class Robot(RobotModel):
 
     def _query(self, poses: _Poses, start: int, plan: _Plan, bodies: list[Body],
                pads: np.ndarray | None, clearance: float | None = None,
-               survivors: np.ndarray | None = None, slack: np.ndarray | None = None
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               survivors: np.ndarray | None = None, slack: np.ndarray | None = None, *,
+               pad_self: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One query of a batch of configurations (``poses``: each body's pose in each):
         copies of the check's bodies, prepared once, in one scene whose only candidates are each
         configuration's checked pairs (a :class:`~pycinder.focused.broad.broad_numpy.PairList`,
@@ -606,7 +597,8 @@ class Robot(RobotModel):
         (``slack`` (B,), per body of the check). Returns the pairs found: each one's
         configuration (index into the batch) and bodies ``a``, ``b`` (indices into
         ``bodies``), (P,) each; with padding, each pair kept by its own padding (environment
-        pairs by the robot body's, the robot's own pairs by none: MoveIt's)."""
+        pairs by the robot body's, the robot's own pairs by none, MoveIt's, or with
+        ``pad_self`` by the sum of both bodies')."""
         used = plan.used
         if plan.prepared is None:
             plan.prepared = self.detector.prepare([bodies[i].mesh for i in used],
@@ -645,7 +637,8 @@ class Robot(RobotModel):
         if pads is None:
             return config, a, b
         robot = len(self.bodies) + len(self._attached)
-        limit = np.where((a >= robot) | (b >= robot), pads[a] + pads[b], 0.0)
+        limit = pads[a] + pads[b] if pad_self else \
+            np.where((a >= robot) | (b >= robot), pads[a] + pads[b], 0.0)
         if slack is not None:
             limit = np.where(limit > 0, limit + slack[a] + slack[b], 0.0)
         keep = result.distances < limit + result.distance_errors
@@ -680,7 +673,8 @@ class Robot(RobotModel):
 
     def check_path(self, qs: Any, resolution: float = 0.01, *,
                    environment: Environment | None = None, self_collision: bool = True,
-                   batch: int | None = None) -> int | None:
+                   batch: int | None = None, padding: Any = None,
+                   pad_self_collision: bool = False) -> int | None:
         """The first colliding configuration of a path, densely interpolated.
 
         Parameters
@@ -689,7 +683,7 @@ class Robot(RobotModel):
             Waypoints.
         resolution : float
             Most a joint moves between checked configurations (see :meth:`interpolate`).
-        environment, self_collision, batch
+        environment, self_collision, batch, padding, pad_self_collision
             As :meth:`check`; batches are checked in order and the check stops at the first
             batch with a collision.
 
@@ -703,7 +697,8 @@ class Robot(RobotModel):
         plan, _ = self._plan(environment, self_collision)
         for start, stop in self._batches(len(path), batch, plan):
             hit = self.check(path[start:stop], environment=environment,
-                             self_collision=self_collision, batch=stop - start)
+                             self_collision=self_collision, batch=stop - start,
+                             padding=padding, pad_self_collision=pad_self_collision)
             if hit.any():
                 return start + int(np.flatnonzero(hit)[0])
         return None
