@@ -124,8 +124,9 @@ def load_robot(spec: dict[str, Any], where: str | Path) -> tuple[Any, Any]:
     detector = None
     if spec.get("strict"):
         from ..detector import Detector
+        from ..robot.robot import CHECK_OPTIONS
 
-        detector = Detector(records="none", broad_phase="numpy", strict=True)
+        detector = Detector(**CHECK_OPTIONS, strict=True)
     robot = Robot.from_urdf(spec["robot"], srdf=spec.get("srdf"),
                             package_dirs=spec.get("package_dirs"),
                             tolerance=spec.get("tolerance"), detector=detector)

@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from ..util.text import plural
+
 REASONS = ("Adjacent", "Default", "Always", "Never", "User")
 """Reasons of MoveIt's ``<disable_collisions>`` elements, as its Setup Assistant writes them."""
 
@@ -153,8 +155,8 @@ class AlwaysCollidingWarning(UserWarning):
         configurations."""
         listed = ", ".join(f"{a}-{b}" for a, b in pairs)
         return cls(
-            f"{robot}: {len(pairs)} pair{'s' if len(pairs) > 1 else ''} collided in at least "
-            f"{ALWAYS_FRACTION:.0%} of the {checked} configurations checked: {listed}. Pairs "
+            f"{robot}: {plural(len(pairs), 'pair')} collided in at least {ALWAYS_FRACTION:.0%} "
+            f"of the {checked:,} configurations checked: {listed}. Pairs "
             "that always touch (adjacent links, a hand's fingers) are left out of MoveIt's "
             "checks by its allowed-collision matrix: load the robot's SRDF "
             "(Robot.from_urdf(..., srdf=...)), or make one with robot.allowed = "

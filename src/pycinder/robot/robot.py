@@ -57,6 +57,10 @@ more configurations a second from 32 for the Panda and from 16 for the Unitree A
 (``benchmarks.batch.run_front_sweep`` in the checkout, ``benchmarks/results/robots.md``). The
 benchmarks set it above a batch's size to time the host's path."""
 
+CHECK_OPTIONS = {"records": "none", "broad_phase": "numpy"}
+"""The options of a robot's detectors (a batch's candidates are its pair list, culled by world
+boxes: no sweep runs, and no records are read)."""
+
 PLANS_KEPT = 8
 """Check plans kept (one per environment, self-collision choice and matrix), each with its
 bodies prepared once it has run; the oldest is dropped first."""
@@ -259,7 +263,7 @@ class Robot(RobotModel):
         if self._detector is None:
             from ..detector import Detector
 
-            self._detector = Detector(records="none", broad_phase="numpy")
+            self._detector = Detector(**CHECK_OPTIONS)
         return self._detector
 
     def in_collision(self, q: Any, *, environment: Environment | None = None,
@@ -501,8 +505,8 @@ class Robot(RobotModel):
         if clearance not in cache:
             while len(cache) >= 2:  # a check's host batches' and GPU batches' (see _query)
                 cache.pop(next(iter(cache)))
-            cache[clearance] = Detector(records="none", broad_phase="numpy",
-                                        clearance=clearance, strict=self.detector.request.strict)
+            cache[clearance] = Detector(**CHECK_OPTIONS, clearance=clearance,
+                                        strict=self.detector.request.strict)
         return cache[clearance]
 
     def _batch_size(self, batch: int | None, plan: _Plan) -> int:
